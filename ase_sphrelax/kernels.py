@@ -1,0 +1,233 @@
+"""SPH smoothing kernels with compact support radius ``h``.
+
+Convention (Fan et al., ALARIC Eq. 5): ``h`` is the *support* (cut-off) radius,
+
+    W(r, h) = sigma_d / h**d * f(q),   q = r / h,   f(q) = 0 for q >= 1,
+
+where the profile ``f`` is a piecewise polynomial on [0, 1] and ``sigma_d`` makes
+``W`` integrate to one in ``d`` dimensions. Every kernel here is stored as exact
+piecewise-polynomial coefficients, so values, derivatives, normalisation and
+Fan's one-dimensional boundary profile ``W1`` and its tail integral
+(Fan Eq. 3.5) all follow from one representation without quadrature.
+
+Kernels
+-------
+``wendland_c2``
+    Fan et al. Sec. 2: f = (1 - q)^4 (1 + 4q); sigma_2 = 7/pi, sigma_3 = 21/(2 pi).
+``wendland_c4``
+    ALARIC Eq. 6: f = (1 - q)^6 (35 q^2 / 3 + 6 q + 1) in 2D/3D and
+    (1 - q)^5 (8 q^2 + 5 q + 1) in 1D; C = {3/2, 9/pi, 495/(32 pi)}.
+``cubic_spline``
+    Monaghan's M4 B-spline written with support h: f = 1 - 6q^2 + 6q^3 for
+    q < 1/2, 2 (1 - q)^3 for 1/2 <= q < 1.
+
+The numba hot loops evaluate the profile through :func:`profile_value_and_slope`
+with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope"]
+
+_SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
+
+
+def _poly(*factors):
+    """Product of polynomials given as ascending coefficient lists."""
+    out = np.array([1.0])
+    for factor in factors:
+        out = P.polymul(out, np.asarray(factor, dtype=float))
+    return out
+
+
+def _power(base, n):
+    return _poly(*([base] * n))
+
+
+def _profiles(name, dim):
+    """(breaks, list of ascending coefficient arrays) of the profile f(q)."""
+    one_minus_q = [1.0, -1.0]
+    if name == "wendland_c2":
+        return [0.0, 1.0], [_poly(_power(one_minus_q, 4), [1.0, 4.0])]
+    if name == "wendland_c4":
+        if dim == 1:
+            return [0.0, 1.0], [_poly(_power(one_minus_q, 5), [1.0, 5.0, 8.0])]
+        return [0.0, 1.0], [_poly(_power(one_minus_q, 6), [1.0, 6.0, 35.0 / 3.0])]
+    if name == "cubic_spline":
+        inner = np.array([1.0, 0.0, -6.0, 6.0])
+        outer = 2.0 * _power(one_minus_q, 3)
+        return [0.0, 0.5, 1.0], [inner, outer]
+    raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {name!r}")
+
+
+KERNEL_NAMES = ("wendland_c2", "wendland_c4", "cubic_spline")
+
+
+@numba.njit(cache=True, inline="always")
+def profile_value_and_slope(q, breaks, coef):
+    """Profile f(q) and df/dq of a piecewise polynomial (zero for q >= 1).
+
+    ``coef[s, k]`` multiplies ``q**k`` on segment ``breaks[s] <= q < breaks[s+1]``;
+    ``coef`` is padded with zeros to a common degree.
+    """
+    if q >= 1.0:
+        return 0.0, 0.0
+    s = 0
+    while q >= breaks[s + 1]:
+        s += 1
+    deg = coef.shape[1] - 1
+    value = coef[s, deg]
+    slope = 0.0
+    for k in range(deg - 1, -1, -1):
+        slope = slope * q + value
+        value = value * q + coef[s, k]
+    return value, slope
+
+
+class Kernel:
+    """A compactly supported SPH kernel in ``dim`` dimensions.
+
+    Parameters
+    ----------
+    name : {"wendland_c2", "wendland_c4", "cubic_spline"}
+    dim : {1, 2, 3}
+
+    Attributes
+    ----------
+    sigma : float
+        Normalisation for unit support: ``W(r, h) = sigma / h**dim * f(r / h)``.
+    sigma_1d : float
+        Normalisation of the same profile on [-h, h]: Fan's ``A`` in
+        ``W1 = A W`` (Eq. 3.5), times ``h**dim / h``.
+    breaks, coef : ndarray
+        Piecewise-polynomial profile for :func:`profile_value_and_slope`.
+    """
+
+    def __init__(self, name: str = "wendland_c2", dim: int = 2):
+        dim = _check_dim(dim)
+        breaks, pieces = _profiles(name, dim)
+        self.name = name
+        self.dim = dim
+        self.breaks = np.asarray(breaks + [np.inf], dtype=float)
+        deg = max(len(p) for p in pieces) - 1
+        self.coef = np.zeros((len(pieces), deg + 1))
+        for s, p in enumerate(pieces):
+            self.coef[s, : len(p)] = p
+        self._pieces = pieces
+        # exact moments of the profile: int_0^1 f(q) q^(d-1) dq
+        self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))
+        self.sigma_1d = 1.0 / (2.0 * self._moment(0))
+        # antiderivative of f on each segment, for the W1 tail integral
+        self._tail = self._tail_table()
+
+    def __repr__(self):
+        return f"Kernel({self.name!r}, dim={self.dim})"
+
+    def _moment(self, power):
+        total = 0.0
+        for s, p in enumerate(self._pieces):
+            integrand = P.polyint(P.polymul(p, [0.0] * power + [1.0]))
+            a, b = self.breaks[s], self.breaks[s + 1]
+            total += P.polyval(b, integrand) - P.polyval(a, integrand)
+        return total
+
+    def _tail_table(self):
+        """Antiderivatives F_s and the integral of f from breaks[s+1] to 1."""
+        antider = [P.polyint(p) for p in self._pieces]
+        nseg = len(self._pieces)
+        beyond = np.zeros(nseg)
+        for s in range(nseg - 2, -1, -1):
+            b0, b1 = self.breaks[s + 1], self.breaks[s + 2]
+            beyond[s] = beyond[s + 1] + P.polyval(b1, antider[s + 1]) - P.polyval(b0, antider[s + 1])
+        return antider, beyond
+
+    # -- dimensionless profile -------------------------------------------------
+    def profile(self, q):
+        """f(q) for an array of q >= 0."""
+        q = np.asarray(q, dtype=float)
+        out = np.zeros_like(q)
+        for s, p in enumerate(self._pieces):
+            mask = (q >= self.breaks[s]) & (q < min(self.breaks[s + 1], 1.0))
+            out[mask] = P.polyval(q[mask], p)
+        return out
+
+    def profile_slope(self, q):
+        """df/dq for an array of q >= 0."""
+        q = np.asarray(q, dtype=float)
+        out = np.zeros_like(q)
+        for s, p in enumerate(self._pieces):
+            mask = (q >= self.breaks[s]) & (q < min(self.breaks[s + 1], 1.0))
+            out[mask] = P.polyval(q[mask], P.polyder(p))
+        return out
+
+    # -- dimensional kernel ------------------------------------------------------
+    def w(self, r, h):
+        """W(r, h) = sigma / h^d f(r/h)."""
+        h = np.asarray(h, dtype=float)
+        return self.sigma / h**self.dim * self.profile(np.asarray(r) / h)
+
+    def dw(self, r, h):
+        """dW/dr (r, h) = sigma / h^(d+1) f'(r/h)."""
+        h = np.asarray(h, dtype=float)
+        return self.sigma / h ** (self.dim + 1) * self.profile_slope(np.asarray(r) / h)
+
+    def w0(self, h):
+        """W(0, h), the self contribution."""
+        return self.sigma / np.asarray(h, dtype=float) ** self.dim * self.coef[0, 0]
+
+    # -- Fan's one-dimensional boundary profile (Eq. 3.5) ------------------------
+    def w1(self, r, h):
+        """W1(r, h) = A W(|r|, h) with A chosen so that W1 integrates to 1 on [-h, h]."""
+        h = np.asarray(h, dtype=float)
+        return self.sigma_1d / h * self.profile(np.abs(np.asarray(r)) / h)
+
+    def w1_tail_integral(self, s, h):
+        """I(s) = int_s^h W1(max(r, 0), h) dr (Fan Eq. 3.5, 3.8).
+
+        I(s) = 1/2 + (-s) W1(0) for s < 0, decreasing to 0 at s = h; dI/ds = -W1(max(s, 0)).
+        """
+        s = np.asarray(s, dtype=float)
+        h = np.asarray(h, dtype=float)
+        q = np.clip(s / h, 0.0, 1.0)
+        antider, beyond = self._tail
+        out = np.zeros(np.broadcast(q, h).shape)
+        q = np.broadcast_to(q, out.shape)
+        for seg, F in enumerate(antider):
+            lo, hi = self.breaks[seg], min(self.breaks[seg + 1], 1.0)
+            mask = (q >= lo) & (q < hi)
+            out[mask] = P.polyval(hi, F) - P.polyval(q[mask], F) + beyond[seg]
+        out = self.sigma_1d * out
+        negative = np.broadcast_to(s, out.shape) < 0
+        out = np.where(negative, 0.5 - np.broadcast_to(s / h, out.shape) * self.sigma_1d * self.coef[0, 0], out)
+        return out
+
+
+def _check_dim(dim):
+    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
+        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
+    return int(dim)
+
+
+_CACHE: dict = {}
+
+
+def get_kernel(name="wendland_c2", dim=2) -> Kernel:
+    """Return the (cached) :class:`Kernel` ``name`` in ``dim`` dimensions.
+
+    ``name`` may also be a :class:`Kernel`, which is returned after checking its dimension.
+    """
+    if isinstance(name, Kernel):
+        if name.dim != dim:
+            raise ValueError(f"kernel {name!r} is {name.dim}D but dim={dim}")
+        return name
+    if name not in KERNEL_NAMES:
+        raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {name!r}")
+    key = (name, _check_dim(dim))
+    if key not in _CACHE:
+        _CACHE[key] = Kernel(name, dim)
+    return _CACHE[key]
