@@ -1,0 +1,98 @@
+"""Shared plumbing for the SPH relaxation calculators.
+
+:class:`SPHCalculator` validates parameters (ASE's ``Calculator.set`` would
+store unknown keywords silently), validates Atoms before any work, projects
+positions onto the first ``dim`` axes and keeps one Verlet neighbour list per
+calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
+"""
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+from ase.calculators.calculator import Calculator, all_changes
+
+from ..kernels import KERNEL_NAMES, _check_dim
+from ..neighbors import NeighborList
+
+__all__ = ["SPHCalculator", "check_positive", "periodic_measure"]
+
+
+def check_positive(name, value, allow_none=False):
+    """Return ``float(value)`` or raise ValueError naming ``name``."""
+    if value is None and allow_none:
+        return None
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
+        accepted = "a positive finite number" + (" or None" if allow_none else "")
+        raise ValueError(f"{name} must be {accepted}, got {value!r}")
+    return float(value)
+
+
+def periodic_measure(cell, pbc, dim):
+    """Length (1D), area (2D) or volume (3D) of the cell if periodic along all ``dim`` axes, else None."""
+    pbc = np.asarray(pbc, dtype=bool)
+    if not np.all(pbc[:dim]):
+        return None
+    vectors = np.asarray(cell, dtype=float)[:dim, :]
+    return float(np.sqrt(abs(np.linalg.det(vectors @ vectors.T))))
+
+
+class SPHCalculator(Calculator):
+    """Base class: parameter checking, Atoms checking and the neighbour list.
+
+    Subclasses define ``default_parameters``, ``_validate_parameters()`` and
+    ``calculate()``, and call :meth:`prepare` at the start of ``calculate``.
+    """
+
+    nolabel = True
+    default_parameters: dict = {}
+
+    def __init__(self, **kwargs):
+        self._check_keys(kwargs)
+        self.nlist = None
+        Calculator.__init__(self, **kwargs)
+        self._validate_parameters()
+
+    def _check_keys(self, kwargs):
+        unknown = set(kwargs) - set(self.default_parameters)
+        if unknown:
+            raise TypeError(f"{type(self).__name__} got unknown parameter(s) {sorted(unknown)}; "
+                            f"accepted: {sorted(self.default_parameters)}")
+
+    def set(self, **kwargs):
+        self._check_keys(kwargs)
+        changed = Calculator.set(self, **kwargs)
+        if changed:
+            self._validate_parameters()
+            self.nlist = None
+        return changed
+
+    def _validate_parameters(self):
+        p = self.parameters
+        p.dim = _check_dim(p.dim)
+        if "kernel" in p and p.kernel not in KERNEL_NAMES:
+            raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {p.kernel!r}")
+
+    # -- per-call preparation ---------------------------------------------------
+    def prepare(self, atoms, cutoff, skin):
+        """Validate ``atoms``; return in-plane positions r_pc and the effective pbc.
+
+        Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+        """
+        dim = self.parameters.dim
+        if atoms is None or len(atoms) == 0:
+            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        r_pc = np.array(atoms.positions, dtype=float)
+        if not np.all(np.isfinite(r_pc)):
+            bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
+            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        r_pc[:, dim:] = 0.0
+        pbc = np.array(atoms.pbc, dtype=bool)
+        pbc[dim:] = False
+        if self.nlist is None:
+            self.nlist = NeighborList(cutoff, skin=skin)
+        self.nlist.update(r_pc, atoms.cell.array, pbc)
+        return r_pc, pbc
+
+    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+        Calculator.calculate(self, atoms, properties, system_changes)

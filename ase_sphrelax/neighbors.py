@@ -1,0 +1,429 @@
+"""O(N) cell-list neighbour search with periodic images and a Verlet skin.
+
+The search works on an *extended* set of points: the particles themselves
+(wrapped into the cell along periodic axes) followed by ghost copies, the
+periodic images that lie within ``cutoff + skin`` of the cell. Ghosts make any
+ASE cell work the same way: orthogonal or skewed, and cells smaller than the
+cut-off (several images of one particle). The extended points are sorted by bin
+so that the hot loops read memory in order.
+
+Each physical pair (i, j, image) is stored exactly once, as a half list in CSR
+form over the sorted extended points: ``pair_j[pair_start[a]:pair_start[a+1]]``
+are the partners ``b`` of point ``a``. A pair with a ghost is kept only in its
+canonical orientation (original ``i`` < source ``j``, or for a particle and its
+own image, the lexicographically positive image), so energies and forces are
+never double counted. Calculators evaluate on :meth:`NeighborList.extend`
+positions and fold ghost forces back with :meth:`NeighborList.fold`.
+
+The list is built with ``cutoff + skin`` and reused until some particle moved
+more than ``skin / 2`` (or the cell, pbc, particle number or cut-offs change).
+Per-particle cut-offs are supported: a pair is listed if
+``r < max(cutoff_i, cutoff_j) + skin``.
+"""
+from __future__ import annotations
+
+import itertools
+
+import numba
+import numpy as np
+
+__all__ = ["NeighborList", "brute_force_pairs", "complete_cell"]
+
+
+def complete_cell(cell, pbc):
+    """Return a rank-3 version of ``cell`` and its inverse.
+
+    Zero vectors on non-periodic axes (a 2D sheet with ``c = 0``, or a free
+    cluster with no cell) are replaced by unit vectors orthogonal to the others.
+    A zero or degenerate vector on a periodic axis raises ``ValueError``.
+    """
+    cell = np.array(cell, dtype=float).reshape(3, 3)
+    pbc = np.asarray(pbc, dtype=bool)
+    lengths = np.linalg.norm(cell, axis=1)
+    for axis in range(3):
+        if lengths[axis] == 0.0:
+            if pbc[axis]:
+                raise ValueError(f"cell vector {axis} is zero but pbc[{axis}] is True")
+            cell[axis] = np.eye(3)[axis]
+    if abs(np.linalg.det(cell)) < 1e-12 * max(1.0, np.prod(np.linalg.norm(cell, axis=1))):
+        # replace non-periodic vectors by an orthonormal completion
+        for axis in np.where(~pbc)[0]:
+            others = [cell[k] for k in range(3) if k != axis]
+            normal = np.cross(*others)
+            if np.linalg.norm(normal) == 0.0:
+                normal = np.eye(3)[axis]
+            cell[axis] = normal / np.linalg.norm(normal)
+        if abs(np.linalg.det(cell)) < 1e-12:
+            raise ValueError("cell is degenerate along its periodic axes")
+    return cell, np.linalg.inv(cell)
+
+
+def _check_positions(positions):
+    r_pc = np.asarray(positions, dtype=float)
+    if r_pc.ndim != 2 or r_pc.shape[1] != 3:
+        raise ValueError(f"positions must have shape (N, 3), got {r_pc.shape}")
+    if r_pc.shape[0] == 0:
+        raise ValueError("positions: need at least one particle, got none")
+    if not np.all(np.isfinite(r_pc)):
+        bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
+        raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+    return r_pc
+
+
+@numba.njit(cache=True)
+def _bin_sort(x_ec, origin_c, binsize, nbin_c):
+    """Counting sort of points into bins; returns (order_s, bin_start, bin_s)."""
+    n = x_ec.shape[0]
+    nbins = nbin_c[0] * nbin_c[1] * nbin_c[2]
+    inv_bs = 1.0 / binsize
+    bin_e = np.empty(n, dtype=np.int64)
+    for e in range(n):
+        b = 0
+        for c in range(3):
+            k = min(max(int((x_ec[e, c] - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
+            b = b * nbin_c[c] + k
+        bin_e[e] = b
+    count = np.zeros(nbins + 1, dtype=np.int64)
+    for e in range(n):
+        count[bin_e[e] + 1] += 1
+    for b in range(nbins):
+        count[b + 1] += count[b]
+    bin_start = count.copy()
+    fill = count[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    bin_s = np.empty(n, dtype=np.int64)
+    for e in range(n):
+        b = bin_e[e]
+        order[fill[b]] = e
+        bin_s[fill[b]] = b
+        fill[b] += 1
+    return order, bin_start, bin_s
+
+
+@numba.njit(cache=True)
+def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
+    """Particles wrapped into the cell along periodic axes, followed by ghosts:
+    periodic images within ``pad`` (fractional units) of the unit cell.
+
+    Returns (src_e, img_ec, x_ec): source particle, integer image vector
+    (including the wrap) and Cartesian position of every extended point.
+    """
+    n = r_pc.shape[0]
+    frac_pc = np.empty((n, 3))
+    wrap_pc = np.zeros((n, 3))
+    for p in range(n):
+        for c in range(3):
+            f = r_pc[p, 0] * inv_cc[0, c] + r_pc[p, 1] * inv_cc[1, c] + r_pc[p, 2] * inv_cc[2, c]
+            if pbc_c[c]:
+                wrap_pc[p, c] = -np.floor(f)
+                f += wrap_pc[p, c]
+            frac_pc[p, c] = f
+    lx, ly, lz = layers_c[0], layers_c[1], layers_c[2]
+    n_ext = n
+    src_e = np.empty(0, dtype=np.int64)
+    img_ec = np.empty((0, 3))
+    for sweep in range(2):
+        count = n
+        for p in range(n):
+            if sweep == 1:
+                src_e[p] = p
+                for c in range(3):
+                    img_ec[p, c] = wrap_pc[p, c]
+            for sx in range(-lx, lx + 1):
+                fx = frac_pc[p, 0] + sx
+                if pbc_c[0] and (fx < -pad_c[0] or fx >= 1.0 + pad_c[0]):
+                    continue
+                for sy in range(-ly, ly + 1):
+                    fy = frac_pc[p, 1] + sy
+                    if pbc_c[1] and (fy < -pad_c[1] or fy >= 1.0 + pad_c[1]):
+                        continue
+                    for sz in range(-lz, lz + 1):
+                        if sx == 0 and sy == 0 and sz == 0:
+                            continue
+                        fz = frac_pc[p, 2] + sz
+                        if pbc_c[2] and (fz < -pad_c[2] or fz >= 1.0 + pad_c[2]):
+                            continue
+                        if sweep == 1:
+                            src_e[count] = p
+                            img_ec[count, 0] = wrap_pc[p, 0] + sx
+                            img_ec[count, 1] = wrap_pc[p, 1] + sy
+                            img_ec[count, 2] = wrap_pc[p, 2] + sz
+                        count += 1
+        if sweep == 0:
+            n_ext = count
+            src_e = np.empty(n_ext, dtype=np.int64)
+            img_ec = np.empty((n_ext, 3))
+    x_ec = np.empty((n_ext, 3))
+    for e in range(n_ext):
+        p = src_e[e]
+        for c in range(3):
+            x_ec[e, c] = (r_pc[p, c] + img_ec[e, 0] * cell_cc[0, c] + img_ec[e, 1] * cell_cc[1, c]
+                          + img_ec[e, 2] * cell_cc[2, c])
+    return src_e, img_ec, x_ec
+
+
+@numba.njit(cache=True)
+def _gather(r_pc, src_s, shift_sc):
+    """x_s = r[src_s] + shift_s."""
+    x_sc = np.empty(shift_sc.shape)
+    for s in range(src_s.shape[0]):
+        p = src_s[s]
+        for c in range(3):
+            x_sc[s, c] = r_pc[p, c] + shift_sc[s, c]
+    return x_sc
+
+
+def _half_stencil(m):
+    """Forward half of the (2m+1)^3 bin stencil (own bin excluded) as an (K, 3) array."""
+    span = range(-m, m + 1)
+    return np.array([o for o in itertools.product(span, span, span) if o > (0, 0, 0)], dtype=np.int64)
+
+
+@numba.njit(cache=True, parallel=True)
+def _scan_pairs(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
+                pair_start, pair_j, fill):
+    """Half-stencil bin scan. With fill=False counts the pairs of each point
+    into pair_start[a+1]; with fill=True writes the partners into pair_j.
+
+    A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two
+    is a ghost, and (for original-ghost pairs) it is the canonical orientation.
+    ``stencil_kc`` holds the bin offsets (x, y, z) of the forward half stencil;
+    the own bin is scanned for b > a.
+    """
+    n = x_sc.shape[0]
+    nbx, nby, nbz = nbin_c[0], nbin_c[1], nbin_c[2]
+    n_offsets = stencil_kc.shape[0]
+    for a in numba.prange(n):
+        xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
+        ca = cut_s[a]
+        ga = is_ghost_s[a]
+        kz = bin_s[a] % nbz
+        ky = (bin_s[a] // nbz) % nby
+        kx = bin_s[a] // (nbz * nby)
+        count = 0
+        pos = pair_start[a] if fill else 0
+        for k in range(-1, n_offsets):
+            if k < 0:
+                lo = a + 1
+                hi = bin_start[bin_s[a] + 1]
+            else:
+                bx = kx + stencil_kc[k, 0]
+                by = ky + stencil_kc[k, 1]
+                bz = kz + stencil_kc[k, 2]
+                if bx < 0 or bx >= nbx or by < 0 or by >= nby or bz < 0 or bz >= nbz:
+                    continue
+                b_bin = (bx * nby + by) * nbz + bz
+                lo = bin_start[b_bin]
+                hi = bin_start[b_bin + 1]
+            for b in range(lo, hi):
+                d0 = x_sc[b, 0] - xa0
+                d1 = x_sc[b, 1] - xa1
+                d2 = x_sc[b, 2] - xa2
+                rc = max(ca, cut_s[b]) + skin
+                if d0 * d0 + d1 * d1 + d2 * d2 >= rc * rc:
+                    continue
+                gb = is_ghost_s[b]
+                if ga or gb:
+                    if ga and gb:
+                        continue
+                    # i: the original, j: the ghost's source
+                    sign = -1.0 if ga else 1.0
+                    i = src_s[b] if ga else src_s[a]
+                    j = src_s[a] if ga else src_s[b]
+                    if i > j:
+                        continue
+                    if i == j:
+                        # a particle and its own image: keep the positive shift
+                        negative = False
+                        for c in range(3):
+                            shift = sign * (img_sc[b, c] - img_sc[a, c])
+                            if shift > 0:
+                                break
+                            if shift < 0:
+                                negative = True
+                                break
+                        if negative:
+                            continue
+                if fill:
+                    pair_j[pos + count] = b
+                count += 1
+        if not fill:
+            pair_start[a + 1] = count
+
+
+@numba.njit(cache=True)
+def _fold(f_sc, order_s, src_e, n):
+    """Sum values on sorted extended points back onto their source particles."""
+    out = np.zeros((n, f_sc.shape[1]))
+    for s in range(f_sc.shape[0]):
+        p = src_e[order_s[s]]
+        for c in range(f_sc.shape[1]):
+            out[p, c] += f_sc[s, c]
+    return out
+
+
+@numba.njit(cache=True)
+def _max_displacement2(r_pc, r0_pc):
+    best = 0.0
+    for p in range(r_pc.shape[0]):
+        d2 = 0.0
+        for c in range(3):
+            d = r_pc[p, c] - r0_pc[p, c]
+            d2 += d * d
+        if d2 > best:
+            best = d2
+    return best
+
+
+class NeighborList:
+    """Verlet half list built from a cell list; O(N) in time and memory.
+
+    Parameters
+    ----------
+    cutoff : float or array_like of shape (N,)
+        Interaction radius, or one per particle (a pair interacts within the
+        larger of the two).
+    skin : float
+        Extra radius; the list is reused until a particle moved more than
+        ``skin / 2`` since the last build.
+
+    Attributes
+    ----------
+    n_particles, n_extended : int
+        Number of particles and of extended points (particles + ghosts).
+    pair_start : ndarray of int64, shape (n_extended + 1,)
+    pair_j : ndarray of int32
+        Half list over *sorted extended* points (see module docstring).
+    builds : int
+        How many times the list was (re)built.
+    """
+
+    def __init__(self, cutoff, skin=0.0):
+        cutoff_arr = np.asarray(cutoff, dtype=float)
+        if cutoff_arr.ndim > 1 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
+            raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
+        if not np.isfinite(skin) or skin < 0:
+            raise ValueError(f"skin must be a finite number >= 0, got {skin!r}")
+        self.cutoff = cutoff_arr
+        self.skin = float(skin)
+        self.builds = 0
+        self._pair_buffer = np.empty(0, dtype=np.int32)
+        self._key = None
+        self._r0_pc = None
+
+    # -- public -----------------------------------------------------------------
+    def update(self, positions, cell, pbc) -> bool:
+        """Rebuild the list if needed; return True if it was rebuilt."""
+        r_pc = _check_positions(positions)
+        pbc = np.array(pbc, dtype=bool).reshape(3) if np.ndim(pbc) else np.array([bool(pbc)] * 3)
+        cell = np.array(cell, dtype=float).reshape(3, 3)
+        if self.cutoff.ndim == 1 and self.cutoff.shape[0] != r_pc.shape[0]:
+            raise ValueError(f"cutoff has {self.cutoff.shape[0]} entries but there are {r_pc.shape[0]} particles")
+        key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes(), self.cutoff.tobytes())
+        if key == self._key:
+            if self.skin == 0.0 and np.array_equal(r_pc, self._r0_pc):
+                return False
+            if self.skin > 0.0 and _max_displacement2(r_pc, self._r0_pc) <= (0.5 * self.skin) ** 2:
+                return False
+        self._build(r_pc, cell, pbc)
+        self._key = key
+        self._r0_pc = r_pc.copy()
+        self.builds += 1
+        return True
+
+    def extend(self, positions):
+        """Positions of the sorted extended points for the current ``positions``."""
+        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc)
+
+    def fold(self, values_s):
+        """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
+        values_s = np.asarray(values_s, dtype=float)
+        flat = values_s.ndim == 1
+        out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self._src_e, self.n_particles)
+        return out[:, 0] if flat else out
+
+    def get_pairs(self, positions):
+        """Every listed pair once: (i_p, j_p, d_pc) with d = x_j + image - x_i.
+
+        Pairs within ``cutoff + skin`` are returned; filter by distance as needed.
+        """
+        x_sc = self.extend(positions)
+        a_p = np.repeat(np.arange(self.n_extended), np.diff(self.pair_start))
+        b_p = self.pair_j
+        return self.src_s[a_p], self.src_s[b_p], x_sc[b_p] - x_sc[a_p]
+
+    # -- build ------------------------------------------------------------------
+    def _build(self, r_pc, cell, pbc):
+        n = r_pc.shape[0]
+        full_cell, inv_cell = complete_cell(cell, pbc)
+        cut_p = np.broadcast_to(self.cutoff, (n,)).astype(float)
+        reach = float(cut_p.max()) + self.skin
+
+        # perpendicular widths of the cell; image layers needed per periodic axis
+        width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
+        pad_c = np.where(pbc, reach / width_c, 0.0)
+        layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
+        src_e, img_ec, x_ec = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        n_ext = src_e.shape[0]
+
+        # bins of edge >= reach over the bounding box; cap the bin count at ~4 per point
+        lo_c = x_ec.min(axis=0)
+        extent_c = x_ec.max(axis=0) - lo_c
+        # bins of edge reach / m scanned with a (2m+1)^3 stencil: m = 2 checks ~35%
+        # fewer candidates than m = 1; fall back to m = 1 and larger bins if sparse
+        m = 2
+        binsize = reach / m
+        nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
+        while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
+            m = 1
+            binsize *= 1.5
+            nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
+        binsize = max(binsize, reach / m)
+        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, binsize, nbin_c)
+
+        self.n_particles = n
+        self.n_extended = n_ext
+        self.order_s = order_s
+        self._src_e = src_e
+        self.src_s = src_e[order_s]
+        self.img_sc = img_ec[order_s]
+        x_sc = x_ec[order_s]
+        self.shift_sc = x_sc - r_pc[self.src_s]
+        self.is_ghost_s = order_s >= n
+        cut_s = cut_p[self.src_s]
+        pair_start = np.zeros(n_ext + 1, dtype=np.int64)
+        args = (x_sc, cut_s, self.src_s, self.img_sc, self.is_ghost_s, self.skin, bin_s, nbin_c, bin_start,
+                _half_stencil(m))
+        _scan_pairs(*args, pair_start, self._pair_buffer[:0], False)
+        np.cumsum(pair_start, out=pair_start)
+        if self._pair_buffer.shape[0] < pair_start[-1]:
+            # reuse the buffer between builds: fresh pages are expensive to touch
+            self._pair_buffer = np.empty(int(1.2 * pair_start[-1]) + 16, dtype=np.int32)
+        pair_j = self._pair_buffer[: pair_start[-1]]
+        _scan_pairs(*args, pair_start, pair_j, True)
+        self.pair_start = pair_start
+        self.pair_j = pair_j
+
+
+def brute_force_pairs(positions, cell, pbc, cutoff):
+    """Reference O(N^2 * images) search for tests: set of (i, j, image) with r < cutoff.
+
+    Each unordered physical pair appears once, oriented so that i < j, or for
+    i == j with a lexicographically positive image.
+    """
+    r_pc = _check_positions(positions)
+    full_cell, inv_cell = complete_cell(cell, pbc)
+    pbc = np.asarray(pbc, dtype=bool)
+    width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
+    span = np.ptp(r_pc @ inv_cell, axis=0)
+    layers = [int(np.ceil(cutoff / width_c[c] + span[c])) + 1 if pbc[c] else 0 for c in range(3)]
+    pairs = {}
+    n = len(r_pc)
+    for shift in itertools.product(*[range(-l, l + 1) for l in layers]):
+        t_c = np.array(shift) @ full_cell
+        d_ppc = r_pc[None, :, :] + t_c - r_pc[:, None, :]
+        r_pp = np.linalg.norm(d_ppc, axis=2)
+        for i, j in zip(*np.nonzero(r_pp < cutoff)):
+            if i < j or (i == j and tuple(shift) > (0, 0, 0)):
+                pairs[(int(i), int(j), tuple(shift))] = r_pp[i, j]
+    return pairs
