@@ -13,6 +13,7 @@ from .box import infer_dim, lammps_box
 from .calculator import FanLammpsCalculator, fan_calculator
 from .data_file import write_data
 from .dump import read_dump, read_dump_frames
+from .relaxation import run, write_relaxation_input
 from .potential import fan_pair_table, fan_self_energy, lepton_expression, pair_commands
 
 __all__ = [
@@ -30,4 +31,6 @@ __all__ = [
     "fan_self_energy",
     "lepton_expression",
     "pair_commands",
+    "run",
+    "write_relaxation_input",
 ]

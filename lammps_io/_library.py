@@ -92,3 +92,27 @@ def mpiexec_path() -> str:
         f"no mpiexec in {sys.prefix}/bin: multi-process LAMMPS runs need the mpich wheel "
         f"(`{INSTALL_HINT}`)"
     )
+
+
+# MPICH ABI handles (mpi.h of MPICH, libmpi.so.12): MPI_DOUBLE and MPI_SUM
+_MPI_DOUBLE = 0x4C00080B
+_MPI_SUM = 0x58000003
+
+
+def allreduce_sum(lmp, value: float) -> float:
+    """Sum ``value`` over the MPI ranks of ``lmp`` (no mpi4py needed).
+
+    Calls ``MPI_Allreduce`` of the already loaded MPICH library on LAMMPS'
+    communicator; returns ``value`` unchanged on a single rank.
+    """
+    if lmp.extract_setting("world_size") == 1:
+        return float(value)
+    libmpi = ctypes.CDLL(None)
+    comm = lmp.lib.lammps_get_mpi_comm(lmp.lmp)
+    send = ctypes.c_double(value)
+    recv = ctypes.c_double(0.0)
+    err = libmpi.MPI_Allreduce(ctypes.byref(send), ctypes.byref(recv), ctypes.c_int(1), ctypes.c_int(_MPI_DOUBLE),
+                               ctypes.c_int(_MPI_SUM), ctypes.c_int(comm))
+    if err != 0:
+        raise RuntimeError(f"MPI_Allreduce failed with error code {err}")
+    return recv.value

