@@ -150,6 +150,6 @@ def kernel_sums(nlist, r_pc, h, kernel):
     x_sc = nlist.extend(r_pc)
     w_s, g_sc = _kernel_sums(x_sc, nlist.pair_start, nlist.pair_j, float(h), kernel.breaks, kernel.coef)
     norm = kernel.sigma / h**kernel.dim
-    w_p = norm * (nlist.fold(w_s) + kernel.coef[0, 0])
+    w_p = norm * (nlist.fold(w_s) + kernel.f0)
     grad_pc = norm / h * nlist.fold(g_sc)
     return KernelSums(w_p, grad_pc)

@@ -21,8 +21,11 @@ Kernels
     Monaghan's M4 B-spline written with support h: f = 1 - 6q^2 + 6q^3 for
     q < 1/2, 2 (1 - q)^3 for 1/2 <= q < 1.
 
-The numba hot loops evaluate the profile through :func:`profile_value_and_slope`
-with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
+Each segment ``[b_s, b_{s+1})`` is stored in powers of ``u = b_{s+1} - q``,
+the distance to the segment's right end: near the cut-off the profile is a
+small power of ``u`` and is evaluated without the cancellation that powers of
+``q`` would suffer. The numba hot loops evaluate the profile through
+:func:`profile_value_and_slope` with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
 """
 from __future__ import annotations
 
@@ -72,21 +75,28 @@ KERNEL_NAMES = ("wendland_c2", "wendland_c4", "cubic_spline")
 def profile_value_and_slope(q, breaks, coef):
     """Profile f(q) and df/dq of a piecewise polynomial (zero for q >= 1).
 
-    ``coef[s, k]`` multiplies ``q**k`` on segment ``breaks[s] <= q < breaks[s+1]``;
-    ``coef`` is padded with zeros to a common degree.
+    ``coef[s, k]`` multiplies ``u**k``, ``u = breaks[s+1] - q``, on segment
+    ``breaks[s] <= q < breaks[s+1]``; ``coef`` is padded with zeros to a common degree.
     """
     if q >= 1.0:
         return 0.0, 0.0
     s = 0
     while q >= breaks[s + 1]:
         s += 1
+    u = breaks[s + 1] - q
     deg = coef.shape[1] - 1
     value = coef[s, deg]
     slope = 0.0
     for k in range(deg - 1, -1, -1):
-        slope = slope * q + value
-        value = value * q + coef[s, k]
-    return value, slope
+        slope = slope * u + value
+        value = value * u + coef[s, k]
+    return value, -slope
+
+
+def _to_u(piece_q, right):
+    """Coefficients in u = right - q of a polynomial given in powers of q."""
+    composed = P.Polynomial(piece_q)(P.Polynomial([right, -1.0]))
+    return composed.coef
 
 
 class Kernel:
@@ -114,16 +124,16 @@ class Kernel:
         self.name = name
         self.dim = dim
         self.breaks = np.asarray(breaks + [np.inf], dtype=float)
-        deg = max(len(p) for p in pieces) - 1
-        self.coef = np.zeros((len(pieces), deg + 1))
-        for s, p in enumerate(pieces):
-            self.coef[s, : len(p)] = p
         self._pieces = pieces
+        self._pieces_u = [_to_u(p, self.breaks[s + 1]) for s, p in enumerate(pieces)]
+        deg = max(len(p) for p in self._pieces_u) - 1
+        self.coef = np.zeros((len(pieces), deg + 1))
+        for s, p in enumerate(self._pieces_u):
+            self.coef[s, : len(p)] = p
         # exact moments of the profile: int_0^1 f(q) q^(d-1) dq
         self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))
         self.sigma_1d = 1.0 / (2.0 * self._moment(0))
-        # antiderivative of f on each segment, for the W1 tail integral
-        self._tail = self._tail_table()
+        self.f0 = float(P.polyval(self.breaks[1], self._pieces_u[0]))  # f(0)
 
     def __repr__(self):
         return f"Kernel({self.name!r}, dim={self.dim})"
@@ -136,33 +146,28 @@ class Kernel:
             total += P.polyval(b, integrand) - P.polyval(a, integrand)
         return total
 
-    def _tail_table(self):
-        """Antiderivatives F_s and the integral of f from breaks[s+1] to 1."""
-        antider = [P.polyint(p) for p in self._pieces]
-        nseg = len(self._pieces)
-        beyond = np.zeros(nseg)
-        for s in range(nseg - 2, -1, -1):
-            b0, b1 = self.breaks[s + 1], self.breaks[s + 2]
-            beyond[s] = beyond[s + 1] + P.polyval(b1, antider[s + 1]) - P.polyval(b0, antider[s + 1])
-        return antider, beyond
+    def _segments(self, q):
+        """Yield (mask, u, segment) over the segments holding the entries of q."""
+        for seg, _ in enumerate(self._pieces_u):
+            right = min(self.breaks[seg + 1], 1.0)
+            mask = (q >= self.breaks[seg]) & (q < right)
+            yield mask, right - q[mask], seg
 
     # -- dimensionless profile -------------------------------------------------
     def profile(self, q):
         """f(q) for an array of q >= 0."""
         q = np.asarray(q, dtype=float)
         out = np.zeros_like(q)
-        for s, p in enumerate(self._pieces):
-            mask = (q >= self.breaks[s]) & (q < min(self.breaks[s + 1], 1.0))
-            out[mask] = P.polyval(q[mask], p)
+        for mask, u, seg in self._segments(q):
+            out[mask] = P.polyval(u, self._pieces_u[seg])
         return out
 
     def profile_slope(self, q):
         """df/dq for an array of q >= 0."""
         q = np.asarray(q, dtype=float)
         out = np.zeros_like(q)
-        for s, p in enumerate(self._pieces):
-            mask = (q >= self.breaks[s]) & (q < min(self.breaks[s + 1], 1.0))
-            out[mask] = P.polyval(q[mask], P.polyder(p))
+        for mask, u, seg in self._segments(q):
+            out[mask] = -P.polyval(u, P.polyder(self._pieces_u[seg]))
         return out
 
     # -- dimensional kernel ------------------------------------------------------
@@ -178,7 +183,7 @@ class Kernel:
 
     def w0(self, h):
         """W(0, h), the self contribution."""
-        return self.sigma / np.asarray(h, dtype=float) ** self.dim * self.coef[0, 0]
+        return self.sigma / np.asarray(h, dtype=float) ** self.dim * self.f0
 
     # -- Fan's one-dimensional boundary profile (Eq. 3.5) ------------------------
     def w1(self, r, h):
@@ -193,18 +198,22 @@ class Kernel:
         """
         s = np.asarray(s, dtype=float)
         h = np.asarray(h, dtype=float)
-        q = np.clip(s / h, 0.0, 1.0)
-        antider, beyond = self._tail
-        out = np.zeros(np.broadcast(q, h).shape)
-        q = np.broadcast_to(q, out.shape)
-        for seg, F in enumerate(antider):
-            lo, hi = self.breaks[seg], min(self.breaks[seg + 1], 1.0)
-            mask = (q >= lo) & (q < hi)
-            out[mask] = P.polyval(hi, F) - P.polyval(q[mask], F) + beyond[seg]
+        s, h = np.broadcast_arrays(s, h)
+        q = s / h
+        out = np.zeros(q.shape)
+        # int_q^1 f = int over the rest of q's segment (a polynomial in u) + whole later segments
+        later = 0.0
+        for seg in range(len(self._pieces_u) - 1, -1, -1):
+            right = min(self.breaks[seg + 1], 1.0)
+            antider = P.polyint(self._pieces_u[seg])
+            mask = (q >= self.breaks[seg]) & (q < right)
+            out[mask] = P.polyval(right - q[mask], antider) + later
+            later += P.polyval(right - self.breaks[seg], antider)
         out = self.sigma_1d * out
-        negative = np.broadcast_to(s, out.shape) < 0
-        out = np.where(negative, 0.5 - np.broadcast_to(s / h, out.shape) * self.sigma_1d * self.coef[0, 0], out)
-        return out
+        # below zero W1(max(r, 0)) = W1(0): I(s) = 1/2 - s W1(0)
+        negative = q < 0
+        out[negative] = 0.5 - q[negative] * self.sigma_1d * self.f0
+        return out[()] if out.ndim == 0 else out
 
 
 def _check_dim(dim):

@@ -1,0 +1,29 @@
+"""Shared fixtures: random periodic systems and the shared geometry folder."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ase import Atoms
+
+GEOMETRIES = Path(__file__).resolve().parents[2] / "shared" / "geometries"
+
+
+@pytest.fixture
+def geometries():
+    if not GEOMETRIES.is_dir():
+        pytest.skip("../shared/geometries is not beside the checkout")
+    return GEOMETRIES
+
+
+def random_periodic(n, dim, rng, density=1.0, skew=0.0):
+    """n particles uniformly at random in a periodic (optionally skewed) cell of n/density volume."""
+    length = (n / density) ** (1.0 / dim)
+    cell = np.eye(3) * length
+    if dim == 2:
+        cell[2, 2] = 1.0
+    cell[1, 0] = skew * length
+    frac = rng.uniform(size=(n, 3))
+    if dim == 2:
+        frac[:, 2] = 0.0
+    pbc = (True, True, dim == 3)
+    return Atoms(numbers=np.zeros(n, int), positions=frac @ cell, cell=cell, pbc=pbc)

@@ -1,0 +1,161 @@
+"""FanCalculator: Eq. 3.8 energy with exact Eq. 3.17 / 4.4 forces and exact stress."""
+import math
+
+import numpy as np
+import pytest
+from ase import Atoms
+from ase.calculators.fd import calculate_numerical_forces, calculate_numerical_stress
+
+from ase_sphrelax import FanCalculator
+from ase_sphrelax.build import periodic_box
+from ase_sphrelax.domains import Box, Circle, Polygon, Sphere
+from ase_sphrelax.kernels import get_kernel
+
+from conftest import random_periodic
+
+
+def brute_force_energy(atoms, h, v0, volume, dim, domain=None):
+    """Eq. 3.8 by an O(N^2) minimum-image double sum (cells larger than 2h)."""
+    kernel = get_kernel("wendland_c2", dim)
+    r_pc = atoms.positions[:, :dim]
+    d_ppc = r_pc[None] - r_pc[:, None]
+    pbc = np.asarray(atoms.pbc[:dim])
+    if pbc.any():
+        lengths = np.diag(atoms.cell.array)[:dim]
+        d_ppc = d_ppc - np.where(pbc, lengths * np.round(d_ppc / np.where(pbc, lengths, 1.0)), 0.0)
+    energy = v0 * v0 * kernel.w(np.linalg.norm(d_ppc, axis=2), h).sum() - volume
+    if domain is not None:
+        energy += 2 * v0 * kernel.w1_tail_integral(-domain.phi(atoms.positions), h).sum()
+    return energy
+
+
+def bounded_atoms(domain, n, rng, spread=1.3):
+    lo, hi = domain.bounds
+    centre, half = (lo + hi) / 2, (hi - lo) / 2 * spread
+    r_pc = np.zeros((n, 3))
+    r_pc[:, : domain.dim] = rng.uniform(centre - half, centre + half, (n, domain.dim))
+    return Atoms(numbers=np.zeros(n, int), positions=r_pc, pbc=False)
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+@pytest.mark.parametrize("dx", [0.9, None])
+def test_periodic_forces_and_stress_are_exact_derivatives(dim, dx):
+    rng = np.random.default_rng(dim)
+    atoms = random_periodic({1: 12, 2: 30, 3: 40}[dim], max(dim, 2), rng, skew=0.15 if dim > 1 else 0.0)
+    if dim == 1:
+        atoms.positions[:, 1] = 0.0
+        atoms.pbc = (True, False, False)
+    atoms.calc = FanCalculator(h=2.6, dx=dx, dim=dim)
+    forces = atoms.get_forces()
+    np.testing.assert_allclose(forces, calculate_numerical_forces(atoms, eps=1e-6), atol=1e-7)
+    assert np.abs(forces).max() > 1e-2  # not a trivially zero comparison
+    if dim > 1:
+        stress = atoms.get_stress()
+        np.testing.assert_allclose(stress, calculate_numerical_stress(atoms, eps=1e-6), atol=1e-7)
+    assert atoms.get_potential_energy() == pytest.approx(atoms.calc.results["free_energy"])
+    assert atoms.calc.results["energies"].sum() == pytest.approx(atoms.get_potential_energy())
+
+
+@pytest.mark.parametrize("domain", [
+    Circle((0.5, 0.5), 0.2),
+    Box((0.0, 0.0), (0.3, 0.2)),
+    Polygon([[(0, 0), (0.3, 0), (0.3, 0.3), (0.15, 0.1), (0, 0.3)]]),  # non-convex, sharp corner
+    Sphere((0.0, 0.0, 0.0), 0.15),
+    Box((0.0, 0.0, 0.0), (0.2, 0.2, 0.1)),
+], ids=["circle", "box2d", "polygon", "sphere", "box3d"])
+def test_bounded_forces_are_exact_derivatives_inside_and_outside(domain):
+    """Eq. 4.4 is -grad of Eq. 3.8, also for particles outside the domain (phi > 0)."""
+    rng = np.random.default_rng(11)
+    dx = 0.03 if domain.dim == 2 else 0.04
+    atoms = bounded_atoms(domain, 40, rng)
+    calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain, dim=domain.dim)
+    atoms.calc = calc
+    phi_p = domain.phi(atoms.positions)
+    assert (phi_p > 0).sum() >= 3 and (phi_p < 0).sum() >= 3
+    forces = atoms.get_forces()
+    numeric = calculate_numerical_forces(atoms, eps=1e-7)
+    scale = np.abs(forces).max()
+    np.testing.assert_allclose(forces, numeric, atol=1e-6 * scale)
+    assert atoms.get_potential_energy() == pytest.approx(
+        brute_force_energy(atoms, 2.6 * dx, dx**domain.dim, domain.volume, domain.dim, domain), rel=1e-12)
+
+
+def test_energy_matches_brute_force_double_sum():
+    rng = np.random.default_rng(5)
+    atoms = random_periodic(150, 2, rng)
+    atoms.calc = FanCalculator(h=2.3, dx=1.0)
+    assert atoms.get_potential_energy() == pytest.approx(
+        brute_force_energy(atoms, 2.3, 1.0, atoms.cell.volume, 2), rel=1e-12)
+
+
+@pytest.mark.parametrize("h, v_c", [(1.5, 0.878028), (2.6, 0.991235)])
+def test_hexagonal_lattice_energy_gives_table_2_characteristic_volume(h, v_c):
+    """Eq. 5.2: at unit particle volume E/N = 1/v_c - 1 (Table 2, hexagonal column)."""
+    atoms = periodic_box((6, 8), dx=1.0, lattice="hexagonal")
+    atoms.calc = FanCalculator(h=h, dx=1.0)
+    per_particle = atoms.get_potential_energy() / len(atoms)
+    assert 1.0 / (per_particle + 1.0) == pytest.approx(v_c, abs=1e-6)
+    np.testing.assert_allclose(atoms.get_forces(), 0.0, atol=1e-12)  # a lattice is an equilibrium
+
+
+def test_coincident_particles_give_finite_forces():
+    atoms = Atoms("X3", positions=[(1, 1, 0), (1, 1, 0), (1.5, 1, 0)], cell=[4, 4, 1], pbc=(True, True, False))
+    atoms.calc = FanCalculator(h=2.0, dx=1.0)
+    forces = atoms.get_forces()
+    assert np.all(np.isfinite(forces)) and np.isfinite(atoms.get_potential_energy())
+
+
+def test_two_dimensional_energy_ignores_z_and_gives_no_z_force():
+    rng = np.random.default_rng(2)
+    atoms = random_periodic(20, 2, rng)
+    atoms.calc = FanCalculator(h=2.6, dx=1.0)
+    e0 = atoms.get_potential_energy()
+    assert np.all(atoms.get_forces()[:, 2] == 0.0)
+    atoms.positions[3, 2] = 0.4
+    assert atoms.get_potential_energy() == pytest.approx(e0, rel=1e-14)
+
+
+def test_stress_is_refused_for_bounded_domains():
+    from ase.calculators.calculator import PropertyNotImplementedError
+
+    atoms = bounded_atoms(Circle((0, 0), 1.0), 5, np.random.default_rng(0))
+    atoms.calc = FanCalculator(h=0.3, dx=0.1, domain=Circle((0, 0), 1.0))
+    with pytest.raises(PropertyNotImplementedError, match="periodic"):
+        atoms.get_stress()
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(h=0.0), "h must be"),
+    (dict(h=-1.0), "h must be"),
+    (dict(h=float("nan")), "h must be"),
+    (dict(h=1.0, dx=0.0), "dx must be"),
+    (dict(h=1.0, dx=-2.0), "dx must be"),
+    (dict(h=1.0, dim=4), "dim must be"),
+    (dict(h=1.0, dim=0), "dim must be"),
+    (dict(h=1.0, kernel="gauss"), "kernel must be"),
+    (dict(h=1.0, dim=3, domain=Circle((0, 0), 1.0)), "domain is 2D"),
+])
+def test_bad_parameters_are_rejected_by_name(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        FanCalculator(**kwargs)
+
+
+def test_unknown_parameter_is_rejected():
+    with pytest.raises(TypeError, match="unknown parameter.*'cutoff'"):
+        FanCalculator(h=1.0, cutoff=2.0)
+    calc = FanCalculator(h=1.0)
+    with pytest.raises(TypeError, match="unknown parameter"):
+        calc.set(smoothing=3)
+
+
+def test_bad_atoms_are_rejected_before_work():
+    calc = FanCalculator(h=1.0, dx=1.0)
+    empty = Atoms(cell=[3, 3, 1], pbc=(True, True, False))
+    with pytest.raises(ValueError, match="at least one particle"):
+        calc.get_potential_energy(empty)
+    nan = Atoms("X2", positions=[(0, 0, 0), (np.nan, 0, 0)], cell=[3, 3, 1], pbc=(True, True, False))
+    with pytest.raises(ValueError, match="finite"):
+        calc.get_potential_energy(nan)
+    free = Atoms("X2", positions=[(0, 0, 0), (0.5, 0, 0)])
+    with pytest.raises(ValueError, match="dx=None"):
+        FanCalculator(h=1.0).get_potential_energy(free)

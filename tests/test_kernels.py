@@ -1,0 +1,82 @@
+"""Kernels: normalisation (quadrature), derivatives (finite differences), published constants."""
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from ase_sphrelax.kernels import KERNEL_NAMES, get_kernel
+
+SURFACE = {1: lambda r: 2.0, 2: lambda r: 2 * math.pi * r, 3: lambda r: 4 * math.pi * r * r}
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_kernel_integrates_to_one(name, dim):
+    kernel = get_kernel(name, dim)
+    h = 0.37
+    total, _ = quad(lambda r: kernel.w(r, h) * SURFACE[dim](r), 0, h, points=[h / 2], epsabs=1e-13)
+    assert total == pytest.approx(1.0, abs=1e-10)
+
+
+def test_published_normalisations():
+    """Fan Sec. 2 (7/pi, 21/2pi), ALARIC footnote to Eq. 6 (3/2, 9/pi, 495/32pi), M4 spline (40/7pi, 8/pi)."""
+    assert get_kernel("wendland_c2", 2).sigma == pytest.approx(7 / math.pi, rel=1e-13)
+    assert get_kernel("wendland_c2", 3).sigma == pytest.approx(21 / (2 * math.pi), rel=1e-13)
+    assert get_kernel("wendland_c4", 1).sigma == pytest.approx(3 / 2, rel=1e-13)
+    assert get_kernel("wendland_c4", 2).sigma == pytest.approx(9 / math.pi, rel=1e-13)
+    assert get_kernel("wendland_c4", 3).sigma == pytest.approx(495 / (32 * math.pi), rel=1e-13)
+    assert get_kernel("cubic_spline", 2).sigma == pytest.approx(40 / (7 * math.pi), rel=1e-13)
+    assert get_kernel("cubic_spline", 3).sigma == pytest.approx(8 / math.pi, rel=1e-13)
+
+
+def test_wendland_c2_formula_as_fan_writes_it():
+    kernel = get_kernel("wendland_c2", 2)
+    h = 2.6
+    r = np.linspace(0, 3.0, 31)
+    q = r / h
+    expected = np.where(q < 1, 7 / (math.pi * h**2) * (1 - q) ** 4 * (1 + 4 * q), 0.0)
+    np.testing.assert_allclose(kernel.w(r, h), expected, rtol=1e-12, atol=1e-18)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_derivative_matches_finite_differences(name, dim):
+    kernel = get_kernel(name, dim)
+    h, eps = 1.3, 1e-6
+    r = np.linspace(0.01, 1.29, 57)
+    numeric = (kernel.w(r + eps, h) - kernel.w(r - eps, h)) / (2 * eps)
+    np.testing.assert_allclose(kernel.dw(r, h), numeric, rtol=1e-6, atol=1e-8)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+def test_w1_is_normalised_on_minus_h_to_h(name):
+    kernel = get_kernel(name, 2)
+    h = 0.8
+    total, _ = quad(lambda r: kernel.w1(r, h), -h, h, points=[0, -h / 2, h / 2])
+    assert total == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+def test_w1_tail_integral_by_quadrature_and_derivative(name):
+    """I(s) = int_s^h W1(max(r,0)) dr (Fan Eq. 3.5); dI/ds = -W1(max(s,0))."""
+    kernel = get_kernel(name, 3)
+    h = 1.7
+    s = np.array([-2.0, -0.3, 0.0, 0.2, 0.85, 1.5, 1.7, 2.5])
+    def reference_integral(x):
+        kinks = [k for k in (0.0, h / 2) if x < k < h]  # kernel breakpoints inside (x, h)
+        return quad(lambda r: kernel.w1(max(r, 0.0), h), x, h, points=kinks or None, epsabs=1e-14)[0]
+
+    reference = [reference_integral(x) if x < h else 0.0 for x in s]
+    np.testing.assert_allclose(kernel.w1_tail_integral(s, h), reference, rtol=1e-12, atol=1e-14)
+    eps = 1e-6
+    s_in = np.array([-0.5, 0.3, 1.0, 1.6])
+    numeric = (kernel.w1_tail_integral(s_in + eps, h) - kernel.w1_tail_integral(s_in - eps, h)) / (2 * eps)
+    np.testing.assert_allclose(numeric, -kernel.w1(np.maximum(s_in, 0), h), rtol=1e-6)
+
+
+def test_bad_kernel_arguments():
+    with pytest.raises(ValueError, match="dim"):
+        get_kernel("wendland_c2", 4)
+    with pytest.raises(ValueError, match="kernel"):
+        get_kernel("gaussian", 2)
