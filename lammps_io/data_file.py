@@ -187,10 +187,10 @@ def write_data(
         e_p = _per_particle(esph, n, "esph")
         cv_p = _per_particle(cv, n, "cv", positive=True)
         rows = [f"{i + 1} {t_p[i]} {rho_p[i]:.17g} {e_p[i]:.17g} {cv_p[i]:.17g} {xyz[i]}" for i in range(n)]
-    else:  # sphere: LAMMPS mass = density * (4/3 pi r^3), or pi r^2 in 2D
+    else:  # sphere: LAMMPS mass = density * 4/3 pi r^3, also in 2D (checked by reading back)
         d_p = v_p ** (1.0 / box.dim) if diameter is None else _per_particle(diameter, n, "diameter", positive=True)
         radius = 0.5 * d_p
-        shape_volume = math.pi * radius**2 if box.lammps_dimension == 2 else 4.0 / 3.0 * math.pi * radius**3
+        shape_volume = 4.0 / 3.0 * math.pi * radius**3
         dens_p = m_p / shape_volume
         rows = [f"{i + 1} {t_p[i]} {d_p[i]:.17g} {dens_p[i]:.17g} {xyz[i]}" for i in range(n)]
     lines += [f"Atoms # {atom_style}", ""] + rows + [""]

@@ -78,20 +78,35 @@ def fan_self_energy(n, h, dx, dim, volume, kernel="wendland_c2", v0=None, vt=Non
     return float(n * v0 * vt * k.w0(h) - volume)
 
 
+def _profile_horner(kernel_obj, var="u"):
+    """Horner string of the single-segment profile in ``u = breaks[1] - q``
+    (the convention of :func:`ase_sphrelax.kernels.profile_value_and_slope`)."""
+    coef = kernel_obj.coef[0]
+    horner = f"{coef[-1]:.17g}"
+    for a in coef[-2::-1]:
+        horner = f"{a:.17g}+{var}*({horner})"
+    return horner
+
+
 def lepton_expression(h, dx, dim, kernel="wendland_c2", v0=None, vt=None):
-    """Lepton expression of phi(r) (Horner form of the profile polynomial).
+    """Lepton expression of phi(r) = C f(r/h) (Horner form in u = 1 - r/h, no cancellation near r = h).
 
     Only single-segment profiles (Wendland kernels) can be written this way;
-    use the table style for piecewise kernels.
+    use the table style for piecewise kernels.  The polynomial is checked
+    against ``Kernel.profile`` so a change of the kernel representation cannot
+    go unnoticed.
     """
     k = get_kernel(kernel, dim)
     if k.coef.shape[0] != 1:
         raise ValueError(f"pair_style lepton needs a single-polynomial kernel, {kernel!r} is piecewise: use style='table'")
+    right = float(k.breaks[1])
+    q = np.linspace(0.0, 0.999, 37)
+    u = right - q
+    mine = np.polynomial.polynomial.polyval(u, k.coef[0])
+    if not np.allclose(mine, k.profile(q), rtol=1e-12, atol=1e-14):
+        raise RuntimeError("kernel coefficients are not in powers of u = breaks[1] - q; update lammps_io.potential")
     c = fan_pair_prefactor(h, dx, dim, kernel, v0, vt)
-    horner = f"{k.coef[0, -1]:.17g}"
-    for a in k.coef[0, -2::-1]:
-        horner = f"{a:.17g}+q*({horner})"
-    return f"C*({horner});q=r/H;C={c:.17g};H={h:.17g}"
+    return f"C*({_profile_horner(k)});u={right:.17g}-r/H;C={c:.17g};H={h:.17g}"
 
 
 def fan_pair_table(h, dx, dim, n=2000, path="fan_pair.table", keyword="FAN", kernel="wendland_c2",
