@@ -14,6 +14,7 @@ from .calculator import FanLammpsCalculator, fan_calculator
 from .data_file import write_data
 from .dump import read_dump, read_dump_frames
 from .relaxation import run, write_relaxation_input
+from .sph_at_rest import sph_at_rest
 from .potential import fan_pair_table, fan_self_energy, lepton_expression, pair_commands
 
 __all__ = [
@@ -33,4 +34,5 @@ __all__ = [
     "pair_commands",
     "run",
     "write_relaxation_input",
+    "sph_at_rest",
 ]

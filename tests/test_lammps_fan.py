@@ -135,6 +135,7 @@ def test_relaxation_matches_ase_fire(lattice, ratio):
     assert np.abs(d).max() <= 1e-3 * dx
 
 
+@pytest.mark.slow
 def test_two_mpi_processes_match_one():
     """mpiexec -n 2 (mpich wheel) with the fix external boundary callback gives the 1-process result."""
     domain = Circle((0.0, 0.0), 4.0)
