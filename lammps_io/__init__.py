@@ -9,6 +9,7 @@ Fan's interior total error (Eq. 3.8) is the pair potential
 ``N v0 vt W(0) - V`` which LAMMPS does not include; see :mod:`lammps_io.potential`.
 """
 from ._library import INSTALL_HINT, import_lammps, lammps_available
+from .cli import cli_export, cli_relax, write_vtk
 from .box import infer_dim, lammps_box
 from .calculator import FanLammpsCalculator, fan_calculator
 from .data_file import write_data
@@ -35,4 +36,7 @@ __all__ = [
     "run",
     "write_relaxation_input",
     "sph_at_rest",
+    "cli_export",
+    "cli_relax",
+    "write_vtk",
 ]

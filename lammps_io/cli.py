@@ -1,0 +1,181 @@
+"""Command-line helpers for ``sphrelax export`` and ``sphrelax relax --engine lammps``.
+
+The ``sphrelax`` entry point (ase_sphrelax/cli.py) owns the argument parser; it
+calls :func:`add_export_arguments` / :func:`add_engine_arguments` to register
+the options and :func:`cli_export` / :func:`cli_relax` to do the work.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .box import infer_dim
+from .data_file import ATOM_STYLES, UNIT_STYLES, write_data
+
+__all__ = ["EXPORT_FORMATS", "ENGINES", "add_export_arguments", "add_engine_arguments", "cli_export", "cli_relax",
+           "write_vtk", "export_format_from_path"]
+
+EXPORT_FORMATS = ("lammps", "extxyz", "vtk")
+ENGINES = ("ase", "lammps")
+_SUFFIX_FORMAT = {".data": "lammps", ".lmp": "lammps", ".lammps": "lammps", ".xyz": "extxyz", ".extxyz": "extxyz",
+                  ".vtk": "vtk"}
+
+
+def export_format_from_path(path):
+    """Format implied by the file suffix (.data/.lmp -> lammps, .xyz/.extxyz -> extxyz, .vtk -> vtk)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in _SUFFIX_FORMAT:
+        raise ValueError(f"cannot infer the export format from {str(path)!r}: use --format {'|'.join(EXPORT_FORMATS)} "
+                         f"or one of the suffixes {sorted(_SUFFIX_FORMAT)}")
+    return _SUFFIX_FORMAT[suffix]
+
+
+def add_export_arguments(parser):
+    """Options of ``sphrelax export INPUT OUTPUT``."""
+    parser.add_argument("input", help="particle file readable by ase.io.read (e.g. extxyz from sphrelax relax)")
+    parser.add_argument("output", help="output file")
+    parser.add_argument("--format", choices=EXPORT_FORMATS, default=None,
+                        help="output format (default: from the output suffix)")
+    parser.add_argument("--atom-style", choices=ATOM_STYLES, default="sph", help="LAMMPS atom style (default sph)")
+    parser.add_argument("--units", choices=tuple(u for u in UNIT_STYLES if u != "electron"), default="lj",
+                        help="LAMMPS unit system named in the data file (default lj; coordinates are not converted)")
+    parser.add_argument("--dx", type=float, default=None,
+                        help="particle spacing (default atoms.info['dx'], else cell measure / N)")
+    parser.add_argument("--rho0", type=float, default=1.0, help="SPH density; mass = rho0 dx^dim (default 1)")
+    parser.add_argument("--margin", type=float, default=None,
+                        help="box margin around open (non-periodic) sets (default: dx)")
+    return parser
+
+
+def add_engine_arguments(parser):
+    """Options of ``sphrelax relax`` choosing the engine."""
+    parser.add_argument("--engine", choices=ENGINES, default="ase",
+                        help="ase: FanCalculator + optimiser in Python; lammps: FIRE minimisation in LAMMPS")
+    parser.add_argument("--nprocs", type=int, default=1, help="MPI processes for --engine lammps (default 1)")
+    parser.add_argument("--nthreads", type=int, default=1, help="OpenMP threads per LAMMPS process (default 1)")
+    parser.add_argument("--lammps-style", choices=("table", "lepton"), default="table",
+                        help="pair style for --engine lammps: spline table (fast) or exact lepton expression")
+    return parser
+
+
+def _read(atoms_or_path):
+    if isinstance(atoms_or_path, (str, Path)):
+        from ase.io import read  # noqa: PLC0415
+
+        path = Path(atoms_or_path)
+        if not path.exists():
+            raise FileNotFoundError(f"input file {str(path)!r} does not exist")
+        return read(path)
+    return atoms_or_path
+
+
+def _spacing(atoms, dim, dx):
+    if dx is not None:
+        if not (np.isscalar(dx) and dx > 0):
+            raise ValueError(f"dx must be a positive float, got {dx!r}")
+        return float(dx)
+    if "dx" in atoms.info:
+        return float(atoms.info["dx"])
+    if all(atoms.pbc[:dim]):
+        return (abs(float(np.linalg.det(atoms.cell[:dim, :dim]))) / len(atoms)) ** (1.0 / dim)
+    raise ValueError("dx is needed for an open particle set without atoms.info['dx']")
+
+
+def write_vtk(atoms, path, dim=None):
+    """Legacy ASCII VTK polydata: points, one vertex per particle, point arrays
+    (velocities, forces, per-particle arrays of ``atoms.arrays`` with 1 or 3 components)."""
+    dim = infer_dim(atoms) if dim is None else dim
+    n = len(atoms)
+    lines = ["# vtk DataFile Version 3.0", f"ase_sphrelax particles (dim {dim})", "ASCII", "DATASET POLYDATA",
+             f"POINTS {n} double"]
+    lines += [f"{x:.17g} {y:.17g} {z:.17g}" for x, y, z in atoms.positions]
+    lines += [f"VERTICES {n} {2 * n}"] + [f"1 {i}" for i in range(n)]
+    fields = []
+    for name, arr in atoms.arrays.items():
+        if name in ("positions", "numbers"):
+            continue
+        arr = np.asarray(arr)
+        if arr.dtype.kind in "fiu" and (arr.ndim == 1 or (arr.ndim == 2 and arr.shape[1] == 3)):
+            fields.append((name, arr))
+    if atoms.calc is not None and "forces" in atoms.calc.results:
+        fields.append(("forces", atoms.calc.results["forces"]))
+    if fields:
+        lines.append(f"POINT_DATA {n}")
+    for name, arr in fields:
+        safe = name.replace(" ", "_")
+        if arr.ndim == 1:
+            lines += [f"SCALARS {safe} double 1", "LOOKUP_TABLE default"] + [f"{v:.17g}" for v in arr]
+        else:
+            lines += [f"VECTORS {safe} double"] + [f"{a:.17g} {b:.17g} {c:.17g}" for a, b, c in arr]
+    Path(path).write_text("\n".join(lines) + "\n")
+    return Path(path)
+
+
+def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx=None, rho0=1.0, margin=None,
+               dim=None):
+    """``sphrelax export``: write particles as a LAMMPS data file, extxyz or VTK.
+
+    Parameters
+    ----------
+    atoms_or_path : ase.Atoms or path readable by ase.io.read
+    output : str or Path
+    fmt : {"lammps", "extxyz", "vtk", None}
+        None: from the output suffix.
+    atom_style, units :
+        LAMMPS data file options (:func:`lammps_io.write_data`).
+    dx : float or None
+        Spacing for the particle volume dx^dim (mass = rho0 dx^dim, rho = rho0).
+    rho0 : float
+    margin : float or None
+        Box margin for open sets (default dx).
+
+    Returns
+    -------
+    Path
+    """
+    if fmt is None:
+        fmt = export_format_from_path(output)
+    if fmt not in EXPORT_FORMATS:
+        raise ValueError(f"fmt must be one of {EXPORT_FORMATS}, got {fmt!r}")
+    if not (np.isscalar(rho0) and rho0 > 0):
+        raise ValueError(f"rho0 must be a positive float, got {rho0!r}")
+    atoms = _read(atoms_or_path)
+    output = Path(output)
+    if fmt == "extxyz":
+        from ase.io import write  # noqa: PLC0415
+
+        write(output, atoms, format="extxyz")
+        return output
+    dim = infer_dim(atoms) if dim is None else dim
+    if fmt == "vtk":
+        return write_vtk(atoms, output, dim)
+    spacing = _spacing(atoms, dim, dx)
+    periodic = all(atoms.pbc[:dim])
+    if margin is None and not periodic:
+        margin = spacing
+    volume = spacing**dim
+    write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=rho0 * volume, volume=volume,
+               rho=rho0 if atom_style == "sph" else None, margin=margin)
+    return output
+
+
+def cli_relax(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, nthreads=1, style="table", output=None,
+              workdir=None):
+    """``sphrelax relax --engine lammps``: Fan relaxation in LAMMPS (:func:`lammps_io.run`).
+
+    Writes ``output`` (extxyz) if given and returns the relaxed Atoms; a
+    one-line summary is in ``atoms.info['lammps']``.
+    """
+    from .relaxation import run  # noqa: PLC0415
+
+    relaxed = run(atoms, h, dx=dx, domain=domain, steps=steps, nprocs=nprocs, nthreads=nthreads, style=style,
+                  workdir=workdir)
+    if output is not None:
+        from ase.io import write  # noqa: PLC0415
+
+        info = relaxed.info.pop("lammps")
+        relaxed.info.update({f"lammps_{k}": v for k, v in info.items()})
+        write(output, relaxed, format="extxyz")
+        relaxed.info["lammps"] = info
+    return relaxed

