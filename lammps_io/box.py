@@ -93,7 +93,9 @@ class LammpsBox:
 
     def to_ase(self, v_pc):
         """Rotate vectors from the LAMMPS frame back to the ASE frame."""
-        return np.asarray(v_pc) @ self.rot_cc.T
+        if np.array_equal(self.rot_cc, np.eye(3)):
+            return np.array(v_pc, dtype=float)
+        return np.asarray(v_pc) @ np.ascontiguousarray(self.rot_cc.T)
 
     def tensor_to_ase(self, t_cc):
         """Rotate a 3x3 tensor from the LAMMPS frame back to the ASE frame."""

@@ -22,6 +22,12 @@ from .potential import PAIR_STYLES, fan_self_energy, pair_commands
 __all__ = ["FanLammpsCalculator", "fan_calculator"]
 
 
+def _gather(lmp, name, n):
+    """Per-atom 3-vector ordered by atom id, as an (n, 3) array (no Python float lists)."""
+    data = lmp.gather_atoms(name, 1, 3)
+    return np.frombuffer(data, dtype=np.float64, count=3 * n).reshape(n, 3).copy()
+
+
 class FanLammpsCalculator(Calculator):
     """Fan's total error E (Eq. 3.8), forces (Eq. 3.17/4.4) and stress from LAMMPS.
 
@@ -177,7 +183,7 @@ class FanLammpsCalculator(Calculator):
         else:
             # one nve/noforce step of length 1 with v = displacement: LAMMPS keeps its
             # neighbour list unless an atom moved more than skin/2 since the last build
-            x_old = np.array(lmp.gather_atoms("x", 1, 3)[: 3 * n]).reshape(n, 3)
+            x_old = _gather(lmp, "x", n)
             d_pc = box.r_pc - x_old
             if periodic:
                 cell_lmp = np.array([[*(box.hi_c - box.lo_c)[:1], 0, 0],
@@ -191,7 +197,7 @@ class FanLammpsCalculator(Calculator):
             lmp.command("run 1 pre no post no")
         thermo = lmp.last_thermo()
         e_pair = float(thermo["PotEng"])
-        f_pc = np.array(lmp.gather_atoms("f", 1, 3)[: 3 * n]).reshape(n, 3)
+        f_pc = _gather(lmp, "f", n)
         f_pc = box.to_ase(f_pc)
         energy = e_pair + fan_self_energy(n, self.h, v0 ** (1.0 / self.dim), self.dim, volume, self.kernel, v0, v0)
         if self.domain is not None:
