@@ -1,0 +1,5 @@
+"""Drivers: the papers' own update rules as ASE optimisers, and scale-aware ASE optimisers."""
+from .fan_relaxation import FanRelaxation
+from .optimizers import OPTIMIZERS, make_optimizer
+
+__all__ = ["FanRelaxation", "make_optimizer", "OPTIMIZERS"]
