@@ -1,12 +1,16 @@
 """Closed triangle meshes (STL etc. read with trimesh) as 3D level sets.
 
-``phi`` is the signed distance to the triangles (closest point by Ericson's
-region test, Real-Time Collision Detection Sec. 5.1.5), its sign from the
-generalised winding number (sum of solid angles, Van Oosterom & Strackee
-1983), and ``n = grad phi = sign * (r - q) / |r - q|``, the exact gradient of
-the ``phi`` returned.  The cost is O(P * triangles); for large meshes pass
-``grid_spacing`` to tabulate ``phi`` on a background mesh (Fan Sec. 2) and
-interpolate it with the C1 tricubic of
+``phi`` is the signed distance to the triangles.  The closest point ``q`` is
+found by Ericson's region test (Real-Time Collision Detection Sec. 5.1.5)
+among the candidates of a uniform bucket grid (the candidate list of a cell
+provably contains the nearest triangle of every point in it; points outside
+the grid test all triangles).  The sign comes from the angle-weighted
+pseudo-normal of the closest feature (face, edge or vertex; Baerentzen &
+Aanaes, IEEE TVCG 11, 243 (2005)), and ``n = grad phi = sign (r - q)/|r - q|``
+is the exact gradient of the ``phi`` returned (one-sided on the medial axis).
+
+Pass ``grid_spacing`` to tabulate ``phi`` on a background mesh (Fan Sec. 2)
+and interpolate it with the C1 tricubic of
 :class:`~ase_sphrelax.domains.table.CubicTable`.
 """
 from __future__ import annotations
@@ -21,84 +25,169 @@ from .base import Domain
 
 
 @numba.njit(cache=True)
-def _closest_on_triangle(p, a, b, c, q):
-    """Closest point q on triangle abc to p (Ericson 5.1.5); returns dist^2."""
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    d1 = ab @ ap
-    d2 = ac @ ap
+def _closest_on_triangle(px, py, pz, t):
+    """Closest point on triangle t = (ax, ay, az, bx, ..., cz) to p (Ericson 5.1.5).
+
+    Returns (dist^2, qx, qy, qz, feature) with feature 0/1/2 = vertex a/b/c,
+    3/4/5 = edge ab/ac/bc, 6 = face interior.
+    """
+    ax, ay, az = t[0], t[1], t[2]
+    abx, aby, abz = t[3] - ax, t[4] - ay, t[5] - az
+    acx, acy, acz = t[6] - ax, t[7] - ay, t[8] - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    u = 0.0
+    v = 0.0
+    feature = 6
     if d1 <= 0.0 and d2 <= 0.0:
-        q[:] = a
+        feature = 0
     else:
-        bp = p - b
-        d3 = ab @ bp
-        d4 = ac @ bp
+        bpx, bpy, bpz = px - t[3], py - t[4], pz - t[5]
+        d3 = abx * bpx + aby * bpy + abz * bpz
+        d4 = acx * bpx + acy * bpy + acz * bpz
         vc = d1 * d4 - d3 * d2
         if d3 >= 0.0 and d4 <= d3:
-            q[:] = b
+            u = 1.0
+            feature = 1
         elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            q[:] = a + d1 / (d1 - d3) * ab
+            u = d1 / (d1 - d3)
+            feature = 3
         else:
-            cp = p - c
-            d5 = ab @ cp
-            d6 = ac @ cp
+            cpx, cpy, cpz = px - t[6], py - t[7], pz - t[8]
+            d5 = abx * cpx + aby * cpy + abz * cpz
+            d6 = acx * cpx + acy * cpy + acz * cpz
             vb = d5 * d2 - d1 * d6
             va = d3 * d6 - d5 * d4
             if d6 >= 0.0 and d5 <= d6:
-                q[:] = c
+                v = 1.0
+                feature = 2
             elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                q[:] = a + d2 / (d2 - d6) * ac
+                v = d2 / (d2 - d6)
+                feature = 4
             elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
                 w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                q[:] = b + w * (c - b)
+                u = 1.0 - w
+                v = w
+                feature = 5
             else:
                 denom = 1.0 / (va + vb + vc)
-                q[:] = a + ab * (vb * denom) + ac * (vc * denom)
-    e = p - q
-    return e @ e
+                u = vb * denom
+                v = vc * denom
+    qx = ax + u * abx + v * acx
+    qy = ay + u * aby + v * acy
+    qz = az + u * abz + v * acz
+    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, qx, qy, qz, feature
 
 
 @numba.njit(cache=True)
-def _mesh_phi_grad(r_pd, tri, fnormal, phi_p, g_pd):
+def _bucket_count(tri, glo, gh, gn, out_start, out_list, fill):
+    """Candidate triangles per bucket cell (count pass, then fill pass).
+
+    Nearest triangle s* of any point in a cell (centre c, diagonal 2 rho)
+    satisfies dist(c, s*) <= min_s dist(c, s) + 2 rho.
+    """
     n_tri = tri.shape[0]
-    q = np.empty(3)
-    qbest = np.empty(3)
+    diag = gh * math.sqrt(3.0)
+    d2 = np.empty(n_tri)
+    for ix in range(gn[0]):
+        for iy in range(gn[1]):
+            for iz in range(gn[2]):
+                cx = glo[0] + (ix + 0.5) * gh
+                cy = glo[1] + (iy + 0.5) * gh
+                cz = glo[2] + (iz + 0.5) * gh
+                best = np.inf
+                for s in range(n_tri):
+                    d = _closest_on_triangle(cx, cy, cz, tri[s])[0]
+                    d2[s] = d
+                    if d < best:
+                        best = d
+                lim = math.sqrt(best) + diag
+                lim2 = lim * lim * (1.0 + 1e-12) + 1e-300
+                cell = (ix * gn[1] + iy) * gn[2] + iz
+                k = 0
+                for s in range(n_tri):
+                    if d2[s] <= lim2:
+                        if fill:
+                            out_list[out_start[cell] + k] = s
+                        k += 1
+                if not fill:
+                    out_start[cell + 1] = k
+
+
+@numba.njit(cache=True)
+def _mesh_phi_grad(r_pd, tri, pn, glo, gh, gn, start, cand, phi_p, g_pd):
+    n_tri = tri.shape[0]
     for p in range(r_pd.shape[0]):
-        x = r_pd[p].copy()
+        px = r_pd[p, 0]
+        py = r_pd[p, 1]
+        pz = r_pd[p, 2]
+        ix = int(math.floor((px - glo[0]) / gh))
+        iy = int(math.floor((py - glo[1]) / gh))
+        iz = int(math.floor((pz - glo[2]) / gh))
+        inside_grid = 0 <= ix < gn[0] and 0 <= iy < gn[1] and 0 <= iz < gn[2]
+        if inside_grid:
+            cell = (ix * gn[1] + iy) * gn[2] + iz
+            k0 = start[cell]
+            k1 = start[cell + 1]
+        else:
+            k0 = 0
+            k1 = n_tri
         best = np.inf
-        bt = 0
-        wind = 0.0
-        for t in range(n_tri):
-            a = tri[t, 0]
-            b = tri[t, 1]
-            c = tri[t, 2]
-            d2 = _closest_on_triangle(x, a, b, c, q)
-            if d2 < best:
-                best = d2
-                bt = t
-                qbest[:] = q
-            # solid angle of the triangle seen from x
-            ra = a - x
-            rb = b - x
-            rc = c - x
-            la = math.sqrt(ra @ ra)
-            lb = math.sqrt(rb @ rb)
-            lc = math.sqrt(rc @ rc)
-            num = ra[0] * (rb[1] * rc[2] - rb[2] * rc[1]) \
-                - ra[1] * (rb[0] * rc[2] - rb[2] * rc[0]) \
-                + ra[2] * (rb[0] * rc[1] - rb[1] * rc[0])
-            den = la * lb * lc + (ra @ rb) * lc + (ra @ rc) * lb + (rb @ rc) * la
-            wind += 2.0 * math.atan2(num, den)
+        bs = 0
+        bf = 6
+        qx = qy = qz = 0.0
+        for k in range(k0, k1):
+            s = cand[k] if inside_grid else k
+            d, x, y, z, f = _closest_on_triangle(px, py, pz, tri[s])
+            if d < best:
+                best = d
+                bs = s
+                bf = f
+                qx, qy, qz = x, y, z
+        ex = px - qx
+        ey = py - qy
+        ez = pz - qz
         dist = math.sqrt(best)
-        if dist == 0.0:
-            phi_p[p] = 0.0
-            g_pd[p, :] = fnormal[bt]
+        side = ex * pn[bs, bf, 0] + ey * pn[bs, bf, 1] + ez * pn[bs, bf, 2]
+        if dist == 0.0 or side == 0.0:
+            phi_p[p] = dist
+            g_pd[p, 0] = pn[bs, 6, 0]
+            g_pd[p, 1] = pn[bs, 6, 1]
+            g_pd[p, 2] = pn[bs, 6, 2]
             continue
-        sgn = -1.0 if abs(wind) > 2.0 * math.pi else 1.0
+        sgn = 1.0 if side > 0.0 else -1.0
         phi_p[p] = sgn * dist
-        for d in range(3):
-            g_pd[p, d] = sgn * (x[d] - qbest[d]) / dist
+        g_pd[p, 0] = sgn * ex / dist
+        g_pd[p, 1] = sgn * ey / dist
+        g_pd[p, 2] = sgn * ez / dist
+
+
+def _pseudo_normals(mesh):
+    """Per face, the pseudo-normals of its 7 features (a, b, c, ab, ac, bc, face)."""
+    faces = np.asarray(mesh.faces)
+    fn = np.asarray(mesh.face_normals, dtype=float)
+    tri = np.asarray(mesh.triangles, dtype=float)
+    # angle-weighted vertex normals
+    vn = np.zeros((len(mesh.vertices), 3))
+    for k in range(3):
+        e1 = tri[:, (k + 1) % 3] - tri[:, k]
+        e2 = tri[:, (k + 2) % 3] - tri[:, k]
+        cosang = np.einsum("fd,fd->f", e1, e2) / (
+            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1))
+        ang = np.arccos(np.clip(cosang, -1.0, 1.0))
+        np.add.at(vn, faces[:, k], ang[:, None] * fn)
+    # edge normals: sum of the two adjacent face normals
+    pairs = [(0, 1), (0, 2), (1, 2)]
+    e_fk = np.stack([np.sort(faces[:, list(pr)], axis=1) for pr in pairs], axis=1)
+    uniq, inv = np.unique(e_fk.reshape(-1, 2), axis=0, return_inverse=True)
+    en = np.zeros((len(uniq), 3))
+    np.add.at(en, inv.ravel(), np.repeat(fn, 3, axis=0))
+    pn = np.empty((len(faces), 7, 3))
+    pn[:, 0:3] = vn[faces]
+    pn[:, 3:6] = en[inv.reshape(-1, 3)]
+    pn[:, 6] = fn
+    return np.ascontiguousarray(pn)
 
 
 class Mesh(Domain):
@@ -115,7 +204,8 @@ class Mesh(Domain):
     Raises
     ------
     ValueError
-        If the mesh is not watertight (open or non-manifold) or has no volume.
+        If the mesh is not watertight (open or non-manifold), its winding is
+        inconsistent, or it encloses no volume.
     """
 
     dim = 3
@@ -141,20 +231,41 @@ class Mesh(Domain):
         if not mesh.volume > 0:
             raise ValueError("mesh encloses no volume")
         self.trimesh = mesh
-        self._tri = np.ascontiguousarray(mesh.triangles, dtype=float)
-        self._fn = np.ascontiguousarray(mesh.face_normals, dtype=float)
+        self._tri = np.ascontiguousarray(np.asarray(mesh.triangles, dtype=float).reshape(-1, 9))
+        self._pn = _pseudo_normals(mesh)
         self._volume = float(mesh.volume)
+        self._build_buckets()
         self._table = None
         if grid_spacing is not None:
             from .table import CubicTable
 
             self._table = CubicTable(self._exact_phi, self.bounds, grid_spacing)
 
+    def _build_buckets(self):
+        lo, hi = self.bounds
+        ext = hi - lo
+        n_tri = len(self._tri)
+        # about 2 triangles per cell; build cost cells * triangles capped at 4e8
+        n_cells = int(min(max(2 * n_tri, 64), 64**3, 4e8 / n_tri))
+        gh = float((np.prod(ext + 1e-12 * ext.max()) / n_cells) ** (1.0 / 3.0))
+        gh = max(gh, 1e-3 * float(ext.max()))
+        self._glo = lo - gh
+        self._gh = gh
+        self._gn = np.ceil((ext + 2 * gh) / gh).astype(np.int64) + 1
+        n_cell = int(np.prod(self._gn))
+        start = np.zeros(n_cell + 1, np.int64)
+        _bucket_count(self._tri, self._glo, gh, self._gn, start, np.empty(0, np.int64), False)
+        start = np.cumsum(start)
+        cand = np.empty(start[-1], np.int64)
+        _bucket_count(self._tri, self._glo, gh, self._gn, start, cand, True)
+        self._start, self._cand = start, cand
+
     def _exact_phi_grad(self, r_pd):
         r_pd = np.ascontiguousarray(r_pd, dtype=float)
         phi_p = np.empty(len(r_pd))
         g_pd = np.empty_like(r_pd)
-        _mesh_phi_grad(r_pd, self._tri, self._fn, phi_p, g_pd)
+        _mesh_phi_grad(r_pd, self._tri, self._pn, self._glo, self._gh, self._gn,
+                       self._start, self._cand, phi_p, g_pd)
         return phi_p, g_pd
 
     def _exact_phi(self, r_pd):

@@ -117,18 +117,25 @@ def _interp3(r_pd, table, lo, h, phi_p, g_pd):
                     fx += dwx[a] * wy[b] * wz[c] * v
                     fy += wx[a] * dwy[b] * wz[c] * v
                     fz += wx[a] * wy[b] * dwz[c] * v
-        g = np.array([fx / h, fy / h, fz / h])
-        e_d = np.array([cx[0], cy[0], cz[0]])
-        e = np.sqrt(np.sum(e_d * e_d))
+        gx = fx / h
+        gy = fy / h
+        gz = fz / h
+        ex = cx[0]
+        ey = cy[0]
+        ez = cz[0]
+        e = np.sqrt(ex * ex + ey * ey + ez * ez)
         if e > 0.0:
             f += e
-            for d in range(3):
-                if e_d[d] != 0.0:
-                    g[d] = e_d[d] / e
+            if ex != 0.0:
+                gx = ex / e
+            if ey != 0.0:
+                gy = ey / e
+            if ez != 0.0:
+                gz = ez / e
         phi_p[p] = f
-        g_pd[p, 0] = g[0]
-        g_pd[p, 1] = g[1]
-        g_pd[p, 2] = g[2]
+        g_pd[p, 0] = gx
+        g_pd[p, 1] = gy
+        g_pd[p, 2] = gz
 
 
 class CubicTable:
