@@ -16,7 +16,7 @@ from ase import Atoms
 
 from .domains.base import Domain
 
-_LATTICES = {2: ("square", "hexagonal"), 3: ("cubic", "sc", "fcc", "bcc")}
+_LATTICES = {2: ("square", "hexagonal"), 3: ("square", "cubic", "sc", "fcc", "bcc")}
 
 
 def _check_dx(dx):
@@ -157,8 +157,8 @@ def periodic_box(n, dx=1.0, dim=2, lattice="square", jitter=0.0, seed=None):
         same volume per particle ``dx^d``.
     dim : {2, 3}
     lattice : str
-        ``"square"`` or ``"hexagonal"`` in 2D; ``"cubic"`` (alias ``"sc"``),
-        ``"fcc"`` or ``"bcc"`` in 3D.
+        ``"square"`` or ``"hexagonal"`` in 2D; ``"square"`` (simple cubic,
+        aliases ``"cubic"``, ``"sc"``), ``"fcc"`` or ``"bcc"`` in 3D.
     jitter : float
         Uniform random shift of each coordinate in ``[-jitter dx, jitter dx]``,
         ``0 <= jitter < 0.5``; positions are wrapped into the cell.
@@ -172,7 +172,7 @@ def periodic_box(n, dx=1.0, dim=2, lattice="square", jitter=0.0, seed=None):
     """
     if dim not in (2, 3) or isinstance(dim, bool):
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-    if lattice not in _LATTICES[dim]:
+    if not isinstance(lattice, str) or lattice not in _LATTICES[dim]:
         raise ValueError(f"lattice must be one of {_LATTICES[dim]} for dim={dim}, got {lattice!r}")
     dx = _check_dx(dx)
     jitter = _check_jitter(jitter)

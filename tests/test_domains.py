@@ -357,3 +357,13 @@ def test_mesh_rejects_open(stl_files):
     d, _ = stl_files
     with pytest.raises(ValueError, match="watertight"):
         Mesh(d / "open.stl")
+
+
+def test_non_finite_positions_give_nan(stl_files):
+    d, _ = stl_files
+    doms = [Polygon.from_edges(edges("TrapezoidalTank")), Circle((0, 0), 1).tabulated(0.1),
+            Mesh(d / "box.stl"), Sphere((0, 0, 0), 1.0).tabulated(0.2)]
+    for dom in doms:
+        phi, n = dom.phi_and_normal([[np.nan, 0.0, 0.0], [0.1, 0.1, 0.1]])
+        assert np.isnan(phi[0]) and np.all(np.isnan(n[0, : dom.dim]))
+        assert np.all(np.isfinite(phi[1:])) and np.all(np.isfinite(n[1:]))

@@ -122,6 +122,10 @@ def _mesh_phi_grad(r_pd, tri, pn, glo, gh, gn, start, cand, phi_p, g_pd):
         px = r_pd[p, 0]
         py = r_pd[p, 1]
         pz = r_pd[p, 2]
+        if not (math.isfinite(px) and math.isfinite(py) and math.isfinite(pz)):
+            phi_p[p] = np.nan
+            g_pd[p, :] = np.nan
+            continue
         ix = int(math.floor((px - glo[0]) / gh))
         iy = int(math.floor((py - glo[1]) / gh))
         iz = int(math.floor((pz - glo[2]) / gh))

@@ -96,6 +96,11 @@ def _polygon_phi_grad(r_pd, seg, nrm, vna, vnb, glo, gh, gn, start, cand, phi_p,
     for p in range(r_pd.shape[0]):
         px = r_pd[p, 0]
         py = r_pd[p, 1]
+        if not (math.isfinite(px) and math.isfinite(py)):
+            phi_p[p] = np.nan
+            g_pd[p, 0] = np.nan
+            g_pd[p, 1] = np.nan
+            continue
         ix = int(math.floor((px - glo[0]) / gh))
         iy = int(math.floor((py - glo[1]) / gh))
         best = np.inf
@@ -399,15 +404,12 @@ class Polygon(Domain):
         """The domain as a shapely (Multi)Polygon."""
         import shapely
 
-        outers = [v for v in self.loops if _signed_area(v) > 0]
-        holes = [shapely.Polygon(v) for v in self.loops if _signed_area(v) < 0]
-        geom = shapely.union_all([shapely.Polygon(v) for v in outers])
-        if holes:
-            # islands inside holes are outer loops again: even-odd composition
-            geom = shapely.Polygon()
-            for v in sorted(self.loops, key=lambda v: -abs(_signed_area(v))):
-                p = shapely.Polygon(v)
-                geom = geom.union(p) if _signed_area(v) > 0 else geom.difference(p)
+        # containers are larger than what they contain: add outer loops (ccw),
+        # cut holes (cw), from the largest loop down (islands in holes work)
+        geom = shapely.Polygon()
+        for v in sorted(self.loops, key=lambda v: -abs(_signed_area(v))):
+            p = shapely.Polygon(v)
+            geom = geom.union(p) if _signed_area(v) > 0 else geom.difference(p)
         return geom
 
     def __repr__(self):

@@ -12,6 +12,8 @@ is continuous and whose gradient is again exact.
 """
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -40,6 +42,9 @@ def _locate(x, lo, h, n, c_out):
     Valid interpolation range is nodes 1 .. n-2 (stencil needs i-1, i+2).
     """
     u = (x - lo) / h
+    if not math.isfinite(u):  # NaN/inf positions: any valid cell, NaN offset
+        c_out[0] = np.nan
+        return 1, 0.0
     uc = min(max(u, 1.0), n - 2.0)
     i = min(int(np.floor(uc)), n - 3)
     # distance beyond the valid range (exactly 0 inside it)
@@ -81,6 +86,8 @@ def _interp2(r_pd, table, lo, h, phi_p, g_pd):
                 gx = ex / e
             if ey != 0.0:
                 gy = ey / e
+        if e != e:
+            f = gx = gy = np.nan
         phi_p[p] = f
         g_pd[p, 0] = gx
         g_pd[p, 1] = gy
@@ -132,6 +139,8 @@ def _interp3(r_pd, table, lo, h, phi_p, g_pd):
                 gy = ey / e
             if ez != 0.0:
                 gz = ez / e
+        if e != e:
+            f = gx = gy = gz = np.nan
         phi_p[p] = f
         g_pd[p, 0] = gx
         g_pd[p, 1] = gy
