@@ -42,6 +42,8 @@ class Quality:
 
     Attributes (after :meth:`compute`)
     ----------------------------------
+    kernel_sum_p : ndarray
+        ``sum_j V_j W_ij`` per particle (including j = i).
     kernel_sum_error_p : ndarray
         ``|sum_j V_j W_ij - 1|`` per particle.
     gradient_error_p : ndarray
@@ -87,7 +89,8 @@ class Quality:
         self.v0 = v0
         self.dp = v0 ** (1.0 / self.dim)
         self.volume_p = 1.0 / sums.w_p
-        self.kernel_sum_error_p = np.abs(v0 * sums.w_p - 1.0)
+        self.kernel_sum_p = v0 * sums.w_p
+        self.kernel_sum_error_p = np.abs(self.kernel_sum_p - 1.0)
         self.gradient_error_p = self.h * v0 * np.linalg.norm(sums.grad_pc, axis=1)
         if self.domain is None:
             self.phi_p = None
@@ -108,6 +111,8 @@ class Quality:
             "n_interior": int(inside.sum()),
             "kernel_sum_error_mean": _mean(self.kernel_sum_error_p[inside]),
             "kernel_sum_error_max": _max(self.kernel_sum_error_p[inside]),
+            # spread of sum_j V_j W_ij: uniformity, independent of a global density offset
+            "kernel_sum_std": float(np.std(self.kernel_sum_p[inside])) if inside.any() else float("nan"),
             "gradient_error_mean": _mean(self.gradient_error_p[inside]),
             "gradient_error_max": _max(self.gradient_error_p[inside]),
         }

@@ -94,5 +94,24 @@ class SPHCalculator(Calculator):
         self.nlist.update(r_pc, atoms.cell.array, pbc)
         return r_pc, pbc
 
+    def check_state(self, atoms, tol=1e-15):
+        """Which of positions, numbers, cell, pbc changed (exact comparison).
+
+        ASE's generic ``compare_atoms`` runs ``np.isclose`` over every array on every
+        property request, which costs more than a relaxation step of a small system.
+        """
+        if self.atoms is None or len(atoms) != len(self.atoms):
+            return list(all_changes)
+        changes = []
+        if not np.array_equal(atoms.positions, self.atoms.positions):
+            changes.append("positions")
+        if not np.array_equal(atoms.numbers, self.atoms.numbers):
+            changes.append("numbers")
+        if not np.array_equal(atoms.cell.array, self.atoms.cell.array):
+            changes.append("cell")
+        if not np.array_equal(atoms.pbc, self.atoms.pbc):
+            changes.append("pbc")
+        return changes
+
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         Calculator.calculate(self, atoms, properties, system_changes)
