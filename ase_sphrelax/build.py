@@ -64,7 +64,7 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
     padding : float
         The (informational, non-periodic) cell is the bounding box of the
         domain enlarged by ``padding * dx`` on every side; its corner is
-        stored as ``atoms.get_celldisp()``.
+        stored as ``atoms.get_celldisp()`` (not kept by extxyz/traj files).
 
     Returns
     -------
@@ -77,11 +77,18 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
     -----
     Fan Sec. 5.2 (circle of radius 0.2 centred at (0.5, 0.5), 256 x 256
     mesh on [0, 1]^2) quotes 8186 particles; the cell centres strictly inside
-    that circle are 8224 (brute force).  Any lattice symmetric about the
-    circle's centre gives a multiple of 4, 8186 is not, and no shift of the
-    mesh gives fewer than 8224 (scan of 40 x 40 sub-cell offsets: 8224-8250),
-    so the paper's count comes from a different inside test (SPHinXsys'
-    interpolated level set), not from this construction.
+    that circle are 8224 (brute force, also with ``<=``).  8186 cannot come
+    from a cell-centre test on this mesh: the mesh and the circle share the
+    symmetries of the square, so the count is a multiple of 4 (here of 8),
+    and 8186 = 2 mod 4.  Shifting the mesh (40 x 40 sub-cell offsets) gives
+    8224-8250, never fewer, and inscribed regular N-gons (N = 20..360, as
+    SPHinXsys' ``addACircle`` builds circles) give multiples of 4 as well.
+    SPHinXsys, which Fan et al. used, decides "inside" by its interpolated,
+    re-initialised level set (``LevelSetShape::checkContain`` tests
+    ``probeSignedDistance(x) < 0``), whose small asymmetric errors remove
+    about 38 boundary cells; that procedure is not reproduced here.
+    The particle volume used by the calculator is ``V / N`` or ``dx^d``,
+    so the difference (0.46 % in N) only matters for reproducing the count.
     """
     if not isinstance(domain, Domain):
         raise TypeError(f"domain must be an ase_sphrelax Domain, got {type(domain).__name__}")
