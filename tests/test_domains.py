@@ -124,6 +124,10 @@ def test_bad_input_names_parameter():
         Box([0, 0], [1, 0])
     with pytest.raises(ValueError, match="r_pc"):
         Sphere((0, 0, 0), 1.0).phi(np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="grid_spacing"):
+        Polygon([[[0, 0], [1, 0], [0, 1]]], grid_spacing=-0.1)
+    with pytest.raises(ValueError, match="dx"):
+        Circle((0, 0), 1.0).tabulated(0.0)
 
 
 # ---------------------------------------------------------------- polygons

@@ -21,7 +21,7 @@ import os
 import numba
 import numpy as np
 
-from .base import Domain
+from .base import Domain, check_positive
 
 
 @numba.njit(cache=True)
@@ -243,6 +243,7 @@ class Mesh(Domain):
         if grid_spacing is not None:
             from .table import CubicTable
 
+            grid_spacing = check_positive(grid_spacing, "grid_spacing")
             self._table = CubicTable(self._exact_phi, self.bounds, grid_spacing)
 
     def _build_buckets(self):

@@ -348,6 +348,7 @@ class Polygon(Domain):
         if grid_spacing is not None:
             from .table import CubicTable
 
+            grid_spacing = check_positive(grid_spacing, "grid_spacing")
             self._table = CubicTable(self._exact_phi, self.bounds, grid_spacing)
 
     @classmethod
