@@ -5,8 +5,11 @@ Eq. 2.4 driver :class:`FanRelaxation`.
 """
 from .calculators import FanCalculator
 from .drivers import FanRelaxation
+from .build import fill, periodic_box
+from .domains import Box, Circle, Difference, Intersection, Mesh, Polygon, Sphere, Union
 from .kernels import Kernel, get_kernel
 from .neighbors import NeighborList
 
 __version__ = "0.1.0"
-__all__ = ["FanCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "__version__"]
+__all__ = ["FanCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "fill", "periodic_box",
+           "Box", "Circle", "Sphere", "Polygon", "Mesh", "Union", "Intersection", "Difference", "__version__"]

@@ -2,84 +2,163 @@
 
 All loops run over sorted extended points (see :mod:`ase_sphrelax.neighbors`)
 and touch each physical pair once. Per-point results are folded back onto the
-particles by the caller with ``NeighborList.fold``.
+particles with ``fold``. Pair potentials run either over a stored Verlet list or
+fused into the bin scan of :class:`~ase_sphrelax.neighbors.BinnedPoints` (one-shot
+evaluations, no list stored). Above ``PARALLEL_MIN`` points the loops use numba
+threads, each on a static chunk of points with its own output buffers.
 """
 from __future__ import annotations
 
 import numba
 import numpy as np
 
-from .kernels import profile_value_and_slope
+from .kernels import profile_by_kind
+from .neighbors import PARALLEL_MIN, BinnedPoints, is_canonical_pair
 
 __all__ = ["pair_potential_sums", "kernel_sums", "KernelSums"]
 
 
-@numba.njit(cache=True)
-def _pair_potential(x_sc, pair_start, pair_j, h, scale, breaks, coef, want_virial):
-    """Sum of phi(r) = scale * f(r/h) over pairs, with forces and virial.
+@numba.njit(cache=True, inline="always")
+def _pair_terms(r2, inv_h, scale, kind, breaks, coef):
+    """(half pair energy, g) of phi = scale f(r/h): the force on a is +g d, d = x_b - x_a."""
+    r = np.sqrt(r2)
+    value, slope = profile_by_kind(r * inv_h, kind, breaks, coef)
+    if r2 == 0.0:
+        return 0.5 * scale * value, 0.0  # coincident points: the profile is flat at q = 0
+    return 0.5 * scale * value, scale * slope * inv_h / r
 
-    Returns (energy_s, f_sc, virial_cc): the pair energy split evenly onto the
-    two points, the force -d/dx of the total, and sum_pairs phi'(r) d d^T / r.
-    """
+
+@numba.njit(cache=True, inline="always")
+def _scatter(b, half, g, d0, d1, d2, e_s, f_sc, vir, want_virial):
+    """Partner b's share of a pair, and the pair's virial sum_pairs phi'(r) d d^T / r."""
+    e_s[b] += half
+    f_sc[b, 0] -= g * d0
+    f_sc[b, 1] -= g * d1
+    f_sc[b, 2] -= g * d2
+    if want_virial:
+        vir[0] += g * d0 * d0
+        vir[1] += g * d1 * d1
+        vir[2] += g * d2 * d2
+        vir[3] += g * d1 * d2
+        vir[4] += g * d0 * d2
+        vir[5] += g * d0 * d1
+
+
+@numba.njit(cache=True, inline="always")
+def _owner_add(a, ea, fa0, fa1, fa2, e_s, f_sc):
+    e_s[a] += ea
+    f_sc[a, 0] += fa0
+    f_sc[a, 1] += fa1
+    f_sc[a, 2] += fa2
+
+
+def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, coef, want_virial, nthreads):
+    """phi = scale f(r/h) over a stored half list."""
     n = x_sc.shape[0]
-    e_s = np.zeros(n)
-    f_sc = np.zeros((n, 3))
-    virial = np.zeros((3, 3))
+    e_ts = np.zeros((nthreads, n))
+    f_tsc = np.zeros((nthreads, n, 3))
+    vir_tv = np.zeros((nthreads, 6))
     h2 = h * h
     inv_h = 1.0 / h
-    for a in range(n):
-        xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
-        fa0 = 0.0
-        fa1 = 0.0
-        fa2 = 0.0
-        ea = 0.0
-        for p in range(pair_start[a], pair_start[a + 1]):
-            b = pair_j[p]
-            d0 = x_sc[b, 0] - xa0
-            d1 = x_sc[b, 1] - xa1
-            d2 = x_sc[b, 2] - xa2
-            r2 = d0 * d0 + d1 * d1 + d2 * d2
-            if r2 >= h2:
-                continue
-            r = np.sqrt(r2)
-            value, slope = profile_value_and_slope(r * inv_h, breaks, coef)
-            half = 0.5 * scale * value
-            ea += half
-            e_s[b] += half
-            if r2 == 0.0:
-                continue  # coincident points: the profile is flat at q = 0, force 0
-            # dphi/dr / r; force on a is +dphi/dr * d / r (repulsive for slope < 0)
-            g = scale * slope * inv_h / r
-            fa0 += g * d0
-            fa1 += g * d1
-            fa2 += g * d2
-            f_sc[b, 0] -= g * d0
-            f_sc[b, 1] -= g * d1
-            f_sc[b, 2] -= g * d2
-            if want_virial:
-                virial[0, 0] += g * d0 * d0
-                virial[1, 1] += g * d1 * d1
-                virial[2, 2] += g * d2 * d2
-                virial[0, 1] += g * d0 * d1
-                virial[0, 2] += g * d0 * d2
-                virial[1, 2] += g * d1 * d2
-        e_s[a] += ea
-        f_sc[a, 0] += fa0
-        f_sc[a, 1] += fa1
-        f_sc[a, 2] += fa2
-    virial[1, 0] = virial[0, 1]
-    virial[2, 0] = virial[0, 2]
-    virial[2, 1] = virial[1, 2]
-    return e_s, f_sc, virial
+    chunk = (n + nthreads - 1) // nthreads
+    for t in numba.prange(nthreads):
+        e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
+        for a in range(t * chunk, min(n, (t + 1) * chunk)):
+            xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
+            ea = fa0 = fa1 = fa2 = 0.0
+            for p in range(pair_start[a], pair_start[a + 1]):
+                b = pair_j[p]
+                d0 = x_sc[b, 0] - xa0
+                d1 = x_sc[b, 1] - xa1
+                d2 = x_sc[b, 2] - xa2
+                r2 = d0 * d0 + d1 * d1 + d2 * d2
+                if r2 >= h2:
+                    continue
+                half, g = _pair_terms(r2, inv_h, scale, kind, breaks, coef)
+                ea += half
+                fa0 += g * d0
+                fa1 += g * d1
+                fa2 += g * d2
+                _scatter(b, half, g, d0, d1, d2, e_s, f_sc, vir, want_virial)
+            _owner_add(a, ea, fa0, fa1, fa2, e_s, f_sc)
+    return e_ts, f_tsc, vir_tv
 
 
-def pair_potential_sums(nlist, r_pc, h, scale, kernel, want_virial=False):
+def _scan_pair_potential_impl(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc,
+                              h, scale, kind, breaks, coef, want_virial, nthreads):
+    """The same sums fused into the half-stencil bin scan (no stored list)."""
+    n = x_sc.shape[0]
+    e_ts = np.zeros((nthreads, n))
+    f_tsc = np.zeros((nthreads, n, 3))
+    vir_tv = np.zeros((nthreads, 6))
+    h2 = h * h
+    inv_h = 1.0 / h
+    nbx, nby, nbz = nbin_c[0], nbin_c[1], nbin_c[2]
+    chunk = (n + nthreads - 1) // nthreads
+    for t in numba.prange(nthreads):
+        e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
+        for a in range(t * chunk, min(n, (t + 1) * chunk)):
+            xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
+            ea = fa0 = fa1 = fa2 = 0.0
+            kz = bin_s[a] % nbz
+            ky = (bin_s[a] // nbz) % nby
+            kx = bin_s[a] // (nbz * nby)
+            for k in range(-1, stencil_kc.shape[0]):
+                if k < 0:  # own bin, b > a
+                    lo = a + 1
+                    hi = bin_start[bin_s[a] + 1]
+                else:
+                    bx = kx + stencil_kc[k, 0]
+                    by = ky + stencil_kc[k, 1]
+                    bz = kz + stencil_kc[k, 2]
+                    if bx < 0 or bx >= nbx or by < 0 or by >= nby or bz < 0 or bz >= nbz:
+                        continue
+                    b_bin = (bx * nby + by) * nbz + bz
+                    lo = bin_start[b_bin]
+                    hi = bin_start[b_bin + 1]
+                for b in range(lo, hi):
+                    d0 = x_sc[b, 0] - xa0
+                    d1 = x_sc[b, 1] - xa1
+                    d2 = x_sc[b, 2] - xa2
+                    r2 = d0 * d0 + d1 * d1 + d2 * d2
+                    if r2 >= h2 or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                        continue
+                    half, g = _pair_terms(r2, inv_h, scale, kind, breaks, coef)
+                    ea += half
+                    fa0 += g * d0
+                    fa1 += g * d1
+                    fa2 += g * d2
+                    _scatter(b, half, g, d0, d1, d2, e_s, f_sc, vir, want_virial)
+            _owner_add(a, ea, fa0, fa1, fa2, e_s, f_sc)
+    return e_ts, f_tsc, vir_tv
+
+
+_list_serial = numba.njit(cache=True)(_list_pair_potential_impl)
+_list_parallel = numba.njit(cache=True, parallel=True)(_list_pair_potential_impl)
+_scan_serial = numba.njit(cache=True)(_scan_pair_potential_impl)
+_scan_parallel = numba.njit(cache=True, parallel=True)(_scan_pair_potential_impl)
+
+
+def _threads(n):
+    return numba.get_num_threads() if n >= PARALLEL_MIN else 1
+
+
+def _reduce(points, e_ts, f_tsc, vir_tv):
+    v = vir_tv.sum(axis=0)  # xx yy zz yz xz xy
+    virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
+    e_s = e_ts[0] if e_ts.shape[0] == 1 else e_ts.sum(axis=0)
+    f_sc = f_tsc[0] if f_tsc.shape[0] == 1 else f_tsc.sum(axis=0)
+    return points.fold(e_s), points.fold(f_sc), virial
+
+
+def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
     """Energy, forces and virial of ``phi(r) = scale * f(r / h)`` summed over pairs.
 
     Parameters
     ----------
-    nlist : NeighborList
-        Already updated for ``r_pc``.
+    pairs : NeighborList or BinnedPoints
+        A Verlet list updated for ``r_pc``, or binned points for a one-shot
+        evaluation fused into the bin scan (no list is stored).
     r_pc : ndarray (N, 3)
     h : float
         Kernel support radius.
@@ -97,14 +176,21 @@ def pair_potential_sums(nlist, r_pc, h, scale, kernel, want_virial=False):
     virial_cc : ndarray (3, 3)
         ``dE/d(strain)`` = sum over pairs of ``phi'(r) d d^T / r``.
     """
-    x_sc = nlist.extend(r_pc)
-    e_s, f_sc, virial = _pair_potential(x_sc, nlist.pair_start, nlist.pair_j, float(h), float(scale),
-                                        kernel.breaks, kernel.coef, bool(want_virial))
-    return nlist.fold(e_s), nlist.fold(f_sc), virial
+    x_sc = pairs.extend(r_pc)
+    nthreads = _threads(x_sc.shape[0])
+    args = (float(h), float(scale), kernel.kind, kernel.breaks, kernel.coef, bool(want_virial), nthreads)
+    if isinstance(pairs, BinnedPoints):
+        run = _scan_parallel if nthreads > 1 else _scan_serial
+        out = run(x_sc, pairs.src_s, pairs.img_sc, pairs.is_ghost_s, pairs.bin_s, pairs.nbin_c, pairs.bin_start,
+                  pairs.stencil_kc, *args)
+        return _reduce(pairs, *out)
+    run = _list_parallel if nthreads > 1 else _list_serial
+    out = run(x_sc, pairs.pair_start, pairs.pair_j, *args)
+    return _reduce(pairs.points, *out)
 
 
 @numba.njit(cache=True)
-def _kernel_sums(x_sc, pair_start, pair_j, h, breaks, coef):
+def _kernel_sums(x_sc, pair_start, pair_j, h, kind, breaks, coef):
     """Per point: sum_j f(r/h) (j != i) and sum_j f'(r/h) (x_i - x_j)/r."""
     n = x_sc.shape[0]
     w_s = np.zeros(n)
@@ -121,7 +207,7 @@ def _kernel_sums(x_sc, pair_start, pair_j, h, breaks, coef):
             if r2 >= h2:
                 continue
             r = np.sqrt(r2)
-            value, slope = profile_value_and_slope(r * inv_h, breaks, coef)
+            value, slope = profile_by_kind(r * inv_h, kind, breaks, coef)
             w_s[a] += value
             w_s[b] += value
             if r2 == 0.0:
@@ -148,7 +234,7 @@ class KernelSums:
 def kernel_sums(nlist, r_pc, h, kernel):
     """Return :class:`KernelSums` for particles at ``r_pc`` (list already updated)."""
     x_sc = nlist.extend(r_pc)
-    w_s, g_sc = _kernel_sums(x_sc, nlist.pair_start, nlist.pair_j, float(h), kernel.breaks, kernel.coef)
+    w_s, g_sc = _kernel_sums(x_sc, nlist.pair_start, nlist.pair_j, float(h), kernel.kind, kernel.breaks, kernel.coef)
     norm = kernel.sigma / h**kernel.dim
     w_p = norm * (nlist.fold(w_s) + kernel.f0)
     grad_pc = norm / h * nlist.fold(g_sc)

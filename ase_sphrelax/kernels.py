@@ -25,7 +25,7 @@ Each segment ``[b_s, b_{s+1})`` is stored in powers of ``u = b_{s+1} - q``,
 the distance to the segment's right end: near the cut-off the profile is a
 small power of ``u`` and is evaluated without the cancellation that powers of
 ``q`` would suffer. The numba hot loops evaluate the profile through
-:func:`profile_value_and_slope` with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
+:func:`profile_by_kind` (closed forms) or :func:`profile_value_and_slope` with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ import numba
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope"]
+__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind", "PIECEWISE"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
 
@@ -93,6 +93,39 @@ def profile_value_and_slope(q, breaks, coef):
     return value, -slope
 
 
+# closed forms (in u = 1 - q) for the hot loops; ids index Kernel.kind
+WENDLAND_C2, WENDLAND_C4, WENDLAND_C4_1D, CUBIC_SPLINE, PIECEWISE = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True, inline="always")
+def profile_by_kind(q, kind, breaks, coef):
+    """Profile f(q) and df/dq (zero for q >= 1) for the hot loops.
+
+    ``kind`` (``Kernel.kind``) selects a closed form, a loop-invariant branch that
+    costs less than the generic evaluation; ``PIECEWISE`` falls back to
+    :func:`profile_value_and_slope` with ``breaks``/``coef``.
+    """
+    if q >= 1.0:
+        return 0.0, 0.0
+    u = 1.0 - q
+    if kind == WENDLAND_C2:  # u^4 (5 - 4u)
+        u3 = u * u * u
+        return u3 * u * (5.0 - 4.0 * u), -20.0 * u3 * (1.0 - u)
+    if kind == WENDLAND_C4:  # u^6 (35 q^2 / 3 + 6 q + 1)
+        u5 = u * u * u * u * u
+        poly = (35.0 / 3.0) * q * q + 6.0 * q + 1.0
+        return u5 * u * poly, u5 * (u * ((70.0 / 3.0) * q + 6.0) - 6.0 * poly)
+    if kind == WENDLAND_C4_1D:  # u^5 (8 q^2 + 5 q + 1)
+        u4 = u * u * u * u
+        poly = 8.0 * q * q + 5.0 * q + 1.0
+        return u4 * u * poly, u4 * (u * (16.0 * q + 5.0) - 5.0 * poly)
+    if kind == CUBIC_SPLINE:
+        if q < 0.5:
+            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0)
+        return 2.0 * u * u * u, -6.0 * u * u
+    return profile_value_and_slope(q, breaks, coef)
+
+
 def _to_u(piece_q, right):
     """Coefficients in u = right - q of a polynomial given in powers of q."""
     composed = P.Polynomial(piece_q)(P.Polynomial([right, -1.0]))
@@ -116,6 +149,8 @@ class Kernel:
         ``W1 = A W`` (Eq. 3.5), times ``h**dim / h``.
     breaks, coef : ndarray
         Piecewise-polynomial profile for :func:`profile_value_and_slope`.
+    kind : int
+        Closed form used by the hot loops (``PIECEWISE`` evaluates ``breaks``/``coef``).
     """
 
     def __init__(self, name: str = "wendland_c2", dim: int = 2):
@@ -134,6 +169,8 @@ class Kernel:
         self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))
         self.sigma_1d = 1.0 / (2.0 * self._moment(0))
         self.f0 = float(P.polyval(self.breaks[1], self._pieces_u[0]))  # f(0)
+        self.kind = {"wendland_c2": WENDLAND_C2, "cubic_spline": CUBIC_SPLINE,
+                     "wendland_c4": WENDLAND_C4_1D if dim == 1 else WENDLAND_C4}.get(name, PIECEWISE)
 
     def __repr__(self):
         return f"Kernel({self.name!r}, dim={self.dim})"

@@ -27,7 +27,7 @@ import itertools
 import numba
 import numpy as np
 
-__all__ = ["NeighborList", "brute_force_pairs", "complete_cell"]
+__all__ = ["NeighborList", "BinnedPoints", "brute_force_pairs", "complete_cell", "is_canonical_pair"]
 
 
 def complete_cell(cell, pbc):
@@ -173,10 +173,37 @@ def _gather(r_pc, src_s, shift_sc):
     return x_sc
 
 
-def _half_stencil(m):
-    """Forward half of the (2m+1)^3 bin stencil (own bin excluded) as an (K, 3) array."""
-    span = range(-m, m + 1)
-    return np.array([o for o in itertools.product(span, span, span) if o > (0, 0, 0)], dtype=np.int64)
+@numba.njit(cache=True, inline="always")
+def is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+    """True if extended points a, b represent their physical pair in canonical form.
+
+    Two originals: always. Two ghosts: never (the pair appears with an original).
+    An original o and a ghost g: only if src_o < src_g, or for a particle and its own
+    image, if the image shift img_g - img_o is lexicographically positive.
+    """
+    ga = is_ghost_s[a]
+    gb = is_ghost_s[b]
+    if not (ga or gb):
+        return True
+    if ga and gb:
+        return False
+    sign = -1.0 if ga else 1.0
+    i = src_s[b] if ga else src_s[a]  # the original
+    j = src_s[a] if ga else src_s[b]  # the ghost's source
+    if i != j:
+        return i < j
+    for c in range(3):
+        shift = sign * (img_sc[b, c] - img_sc[a, c])
+        if shift != 0.0:
+            return shift > 0.0
+    return False
+
+
+def _half_stencil(m, nbin_c):
+    """Forward half of the (2m+1)^d bin stencil (own bin excluded) as a (K, 3) array,
+    without offsets along axes that have a single bin (2D sheets, 1D chains)."""
+    spans = [range(-m, m + 1) if nb > 1 else range(1) for nb in nbin_c]
+    return np.array([o for o in itertools.product(*spans) if o > (0, 0, 0)], dtype=np.int64).reshape(-1, 3)
 
 
 def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
@@ -195,7 +222,6 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
     for a in numba.prange(n):
         xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
         ca = cut_s[a]
-        ga = is_ghost_s[a]
         kz = bin_s[a] % nbz
         ky = (bin_s[a] // nbz) % nby
         kx = bin_s[a] // (nbz * nby)
@@ -221,28 +247,8 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
                 rc = max(ca, cut_s[b]) + skin
                 if d0 * d0 + d1 * d1 + d2 * d2 >= rc * rc:
                     continue
-                gb = is_ghost_s[b]
-                if ga or gb:
-                    if ga and gb:
-                        continue
-                    # i: the original, j: the ghost's source
-                    sign = -1.0 if ga else 1.0
-                    i = src_s[b] if ga else src_s[a]
-                    j = src_s[a] if ga else src_s[b]
-                    if i > j:
-                        continue
-                    if i == j:
-                        # a particle and its own image: keep the positive shift
-                        negative = False
-                        for c in range(3):
-                            shift = sign * (img_sc[b, c] - img_sc[a, c])
-                            if shift > 0:
-                                break
-                            if shift < 0:
-                                negative = True
-                                break
-                        if negative:
-                            continue
+                if not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                    continue
                 if fill:
                     pair_j[pos + count] = b
                 count += 1
@@ -284,6 +290,74 @@ def _max_displacement2(r_pc, r0_pc):
         if d2 > best:
             best = d2
     return best
+
+
+BIN_DIVISIONS = 1  # bins of edge reach / BIN_DIVISIONS (2 checks fewer candidates but costs as much here)
+
+
+class BinnedPoints:
+    """Particles and their periodic ghosts, sorted into bins of edge ``reach / m``.
+
+    The building block of :class:`NeighborList` and of the fused one-shot scans
+    in :mod:`ase_sphrelax.kernel_sums`. Arrays with suffix ``_s`` are over sorted
+    extended points.
+
+    Attributes
+    ----------
+    x_sc, src_s, img_sc, shift_sc, is_ghost_s, cut_s : ndarray
+        Position, source particle, integer image, Cartesian shift, ghost flag and
+        cut-off of each sorted extended point.
+    bin_s, nbin_c, bin_start, stencil_kc : ndarray
+        Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
+    """
+
+    def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
+        n = r_pc.shape[0]
+        full_cell, inv_cell = complete_cell(cell, pbc)
+        reach = float(cut_p.max()) + skin
+        # perpendicular widths of the cell; image layers needed per periodic axis
+        width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
+        pad_c = np.where(pbc, reach / width_c, 0.0)
+        layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
+        src_e, img_ec, x_ec = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        n_ext = src_e.shape[0]
+        lo_c = x_ec.min(axis=0)
+        extent_c = x_ec.max(axis=0) - lo_c
+        # bins of edge reach / m scanned with a (2m+1)^d stencil; for sparse sets
+        # (bins > 4 per point) fall back to m = 1 and larger bins
+        m = BIN_DIVISIONS
+        binsize = reach / m
+        nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
+        while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
+            m = 1
+            binsize *= 1.5
+            nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
+        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, max(binsize, reach / m), nbin_c)
+        self.n_particles = n
+        self.n_extended = n_ext
+        self.order_s = order_s
+        self.src_e = src_e
+        self.src_s = src_e[order_s]
+        self.img_sc = img_ec[order_s]
+        self.x_sc = x_ec[order_s]
+        self.shift_sc = self.x_sc - r_pc[self.src_s]
+        self.is_ghost_s = order_s >= n
+        self.cut_s = cut_p[self.src_s]
+        self.bin_s = bin_s
+        self.nbin_c = nbin_c
+        self.bin_start = bin_start
+        self.stencil_kc = _half_stencil(m, nbin_c)
+
+    def extend(self, positions):
+        """Positions of the sorted extended points for the current ``positions``."""
+        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc)
+
+    def fold(self, values_s):
+        """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
+        values_s = np.asarray(values_s, dtype=float)
+        flat = values_s.ndim == 1
+        out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self.src_e, self.n_particles)
+        return out[:, 0] if flat else out
 
 
 class NeighborList:
@@ -344,14 +418,23 @@ class NeighborList:
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``."""
-        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc)
+        return self.points.extend(positions)
 
     def fold(self, values_s):
-        """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
-        values_s = np.asarray(values_s, dtype=float)
-        flat = values_s.ndim == 1
-        out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self._src_e, self.n_particles)
-        return out[:, 0] if flat else out
+        """Sum per-extended-point values onto particles (see :meth:`BinnedPoints.fold`)."""
+        return self.points.fold(values_s)
+
+    @property
+    def n_particles(self):
+        return self.points.n_particles
+
+    @property
+    def n_extended(self):
+        return self.points.n_extended
+
+    @property
+    def src_s(self):
+        return self.points.src_s
 
     def get_pairs(self, positions):
         """Every listed pair once: (i_p, j_p, d_pc) with d = x_j + image - x_i.
@@ -365,55 +448,19 @@ class NeighborList:
 
     # -- build ------------------------------------------------------------------
     def _build(self, r_pc, cell, pbc):
-        n = r_pc.shape[0]
-        full_cell, inv_cell = complete_cell(cell, pbc)
-        cut_p = np.broadcast_to(self.cutoff, (n,)).astype(float)
-        reach = float(cut_p.max()) + self.skin
-
-        # perpendicular widths of the cell; image layers needed per periodic axis
-        width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
-        pad_c = np.where(pbc, reach / width_c, 0.0)
-        layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
-        src_e, img_ec, x_ec = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
-        n_ext = src_e.shape[0]
-
-        # bins of edge >= reach over the bounding box; cap the bin count at ~4 per point
-        lo_c = x_ec.min(axis=0)
-        extent_c = x_ec.max(axis=0) - lo_c
-        # bins of edge reach / m scanned with a (2m+1)^3 stencil: m = 2 checks ~35%
-        # fewer candidates than m = 1; fall back to m = 1 and larger bins if sparse
-        m = 2
-        binsize = reach / m
-        nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
-        while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
-            m = 1
-            binsize *= 1.5
-            nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
-        binsize = max(binsize, reach / m)
-        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, binsize, nbin_c)
-
-        self.n_particles = n
-        self.n_extended = n_ext
-        self.order_s = order_s
-        self._src_e = src_e
-        self.src_s = src_e[order_s]
-        self.img_sc = img_ec[order_s]
-        x_sc = x_ec[order_s]
-        self.shift_sc = x_sc - r_pc[self.src_s]
-        self.is_ghost_s = order_s >= n
-        cut_s = cut_p[self.src_s]
-        pair_start = np.zeros(n_ext + 1, dtype=np.int64)
-        args = (x_sc, cut_s, self.src_s, self.img_sc, self.is_ghost_s, self.skin, bin_s, nbin_c, bin_start,
-                _half_stencil(m))
+        cut_p = np.broadcast_to(self.cutoff, (r_pc.shape[0],)).astype(float)
+        pts = self.points = BinnedPoints(r_pc, cell, pbc, cut_p, self.skin)
+        pair_start = np.zeros(pts.n_extended + 1, dtype=np.int64)
+        args = (pts.x_sc, pts.cut_s, pts.src_s, pts.img_sc, pts.is_ghost_s, self.skin, pts.bin_s, pts.nbin_c,
+                pts.bin_start, pts.stencil_kc)
         _scan_pairs(*args, pair_start, self._pair_buffer[:0], False)
         np.cumsum(pair_start, out=pair_start)
         if self._pair_buffer.shape[0] < pair_start[-1]:
             # reuse the buffer between builds: fresh pages are expensive to touch
             self._pair_buffer = np.empty(int(1.2 * pair_start[-1]) + 16, dtype=np.int32)
-        pair_j = self._pair_buffer[: pair_start[-1]]
-        _scan_pairs(*args, pair_start, pair_j, True)
         self.pair_start = pair_start
-        self.pair_j = pair_j
+        self.pair_j = self._pair_buffer[: pair_start[-1]]
+        _scan_pairs(*args, pair_start, self.pair_j, True)
 
 
 def brute_force_pairs(positions, cell, pbc, cutoff):

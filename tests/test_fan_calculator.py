@@ -159,3 +159,19 @@ def test_bad_atoms_are_rejected_before_work():
     free = Atoms("X2", positions=[(0, 0, 0), (0.5, 0, 0)])
     with pytest.raises(ValueError, match="dx=None"):
         FanCalculator(h=1.0).get_potential_energy(free)
+
+
+@pytest.mark.parametrize("side", [12, 160])  # 144 particles (serial), 25600 (threaded, >= PARALLEL_MIN)
+def test_one_shot_scan_and_verlet_list_agree(side):
+    """The first evaluation fuses the pair sums into the bin scan; later ones use the Verlet list."""
+    atoms = periodic_box(side, dx=1.0, jitter=0.25, seed=4)
+    moved = atoms.copy()
+    moved.positions[:, :2] += np.random.default_rng(0).uniform(-0.01, 0.01, (len(atoms), 2))
+    reused = FanCalculator(h=2.6, dx=1.0, skin=0.3)
+    reused.get_forces(atoms)                    # one-shot scan
+    f_list = reused.get_forces(moved)           # Verlet list
+    assert reused.nlist.builds == 1
+    fresh = FanCalculator(h=2.6, dx=1.0)
+    f_scan = fresh.get_forces(moved)            # one-shot scan on the same positions
+    np.testing.assert_allclose(f_list, f_scan, rtol=0, atol=1e-12 * np.abs(f_scan).max())
+    assert reused.get_potential_energy(moved) == pytest.approx(fresh.get_potential_energy(moved), rel=1e-13)

@@ -80,3 +80,28 @@ def test_bad_kernel_arguments():
         get_kernel("wendland_c2", 4)
     with pytest.raises(ValueError, match="kernel"):
         get_kernel("gaussian", 2)
+
+
+@pytest.mark.parametrize("name", KERNEL_NAMES)
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_closed_forms_of_the_hot_loops_equal_the_exact_polynomials(name, dim):
+    import numba
+
+    from ase_sphrelax.kernels import PIECEWISE, profile_by_kind
+
+    @numba.njit
+    def evaluate(q_k, kind, breaks, coef):
+        out = np.empty((q_k.shape[0], 2))
+        for k in range(q_k.shape[0]):
+            out[k, 0], out[k, 1] = profile_by_kind(q_k[k], kind, breaks, coef)
+        return out
+
+    kernel = get_kernel(name, dim)
+    assert kernel.kind != PIECEWISE
+    q = np.linspace(0.0, 1.2, 241)
+    closed = evaluate(q, kernel.kind, kernel.breaks, kernel.coef)
+    generic = evaluate(q, PIECEWISE, kernel.breaks, kernel.coef)
+    # profiles and slopes are O(1): compare at 1e-13 absolute (coefficient rounding)
+    np.testing.assert_allclose(closed, generic, rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(closed[:, 0], kernel.profile(q), rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(closed[:, 1], kernel.profile_slope(q), rtol=1e-12, atol=1e-13)

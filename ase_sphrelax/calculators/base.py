@@ -13,7 +13,7 @@ import numpy as np
 from ase.calculators.calculator import Calculator, all_changes
 
 from ..kernels import KERNEL_NAMES, _check_dim
-from ..neighbors import NeighborList
+from ..neighbors import BinnedPoints, NeighborList
 
 __all__ = ["SPHCalculator", "check_positive", "periodic_measure"]
 
@@ -41,7 +41,8 @@ class SPHCalculator(Calculator):
     """Base class: parameter checking, Atoms checking and the neighbour list.
 
     Subclasses define ``default_parameters``, ``_validate_parameters()`` and
-    ``calculate()``, and call :meth:`prepare` at the start of ``calculate``.
+    ``calculate()``, and call :meth:`prepare` at the start of ``calculate``; the
+    pair sums then run over ``self.pairs`` (see :func:`ase_sphrelax.kernel_sums.pair_potential_sums`).
     """
 
     nolabel = True
@@ -50,6 +51,7 @@ class SPHCalculator(Calculator):
     def __init__(self, **kwargs):
         self._check_keys(kwargs)
         self.nlist = None
+        self.pairs = None
         Calculator.__init__(self, **kwargs)
         self._validate_parameters()
 
@@ -90,8 +92,14 @@ class SPHCalculator(Calculator):
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None:
+            # first evaluation: a one-shot scan fused with the pair sums, no stored list;
+            # the Verlet list is built from the second evaluation on, when it can be reused
             self.nlist = NeighborList(cutoff, skin=skin)
-        self.nlist.update(r_pc, atoms.cell.array, pbc)
+            cut_p = np.broadcast_to(np.asarray(cutoff, dtype=float), (len(r_pc),))
+            self.pairs = BinnedPoints(r_pc, atoms.cell.array, pbc, cut_p)
+        else:
+            self.nlist.update(r_pc, atoms.cell.array, pbc)
+            self.pairs = self.nlist
         return r_pc, pbc
 
     def check_state(self, atoms, tol=1e-15):

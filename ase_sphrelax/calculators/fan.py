@@ -108,7 +108,7 @@ class FanCalculator(SPHCalculator):
         kernel = self.kernel
         w_norm = kernel.sigma / p.h**p.dim  # W = w_norm * f(q)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
-        pair_e_p, f_pc, virial = pair_potential_sums(self.nlist, r_pc, p.h, 2.0 * v0 * v0 * w_norm, kernel,
+        pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, p.h, 2.0 * v0 * v0 * w_norm, kernel,
                                                      want_virial=want_stress)
         self_term = v0 * v0 * kernel.w0(p.h)
         energies_p = pair_e_p + self_term - volume / n
