@@ -13,7 +13,7 @@ import numba
 import numpy as np
 
 from .kernels import profile_by_kind
-from .neighbors import PARALLEL_MIN, BinnedPoints, is_canonical_pair
+from .neighbors import PARALLEL_MIN, BinnedPoints, bin_coords, is_canonical_pair, stencil_range
 
 __all__ = ["pair_potential_sums", "kernel_sums", "KernelSums"]
 
@@ -93,29 +93,15 @@ def _scan_pair_potential_impl(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bi
     vir_tv = np.zeros((nthreads, 6))
     h2 = h * h
     inv_h = 1.0 / h
-    nbx, nby, nbz = nbin_c[0], nbin_c[1], nbin_c[2]
     chunk = (n + nthreads - 1) // nthreads
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
             xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
             ea = fa0 = fa1 = fa2 = 0.0
-            kz = bin_s[a] % nbz
-            ky = (bin_s[a] // nbz) % nby
-            kx = bin_s[a] // (nbz * nby)
+            kx, ky, kz = bin_coords(a, bin_s, nbin_c)
             for k in range(-1, stencil_kc.shape[0]):
-                if k < 0:  # own bin, b > a
-                    lo = a + 1
-                    hi = bin_start[bin_s[a] + 1]
-                else:
-                    bx = kx + stencil_kc[k, 0]
-                    by = ky + stencil_kc[k, 1]
-                    bz = kz + stencil_kc[k, 2]
-                    if bx < 0 or bx >= nbx or by < 0 or by >= nby or bz < 0 or bz >= nbz:
-                        continue
-                    b_bin = (bx * nby + by) * nbz + bz
-                    lo = bin_start[b_bin]
-                    hi = bin_start[b_bin + 1]
+                lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
                 for b in range(lo, hi):
                     d0 = x_sc[b, 0] - xa0
                     d1 = x_sc[b, 1] - xa1

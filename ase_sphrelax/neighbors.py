@@ -27,7 +27,8 @@ import itertools
 import numba
 import numpy as np
 
-__all__ = ["NeighborList", "BinnedPoints", "brute_force_pairs", "complete_cell", "is_canonical_pair"]
+__all__ = ["NeighborList", "BinnedPoints", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
+           "stencil_range"]
 
 
 def complete_cell(cell, pbc):
@@ -206,6 +207,30 @@ def _half_stencil(m, nbin_c):
     return np.array([o for o in itertools.product(*spans) if o > (0, 0, 0)], dtype=np.int64).reshape(-1, 3)
 
 
+@numba.njit(cache=True, inline="always")
+def bin_coords(a, bin_s, nbin_c):
+    """Integer bin coordinates (kx, ky, kz) of sorted point a."""
+    nby, nbz = nbin_c[1], nbin_c[2]
+    return bin_s[a] // (nbz * nby), (bin_s[a] // nbz) % nby, bin_s[a] % nbz
+
+
+@numba.njit(cache=True, inline="always")
+def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
+    """Sorted points [lo, hi) of half-stencil entry k of point a in bin (kx, ky, kz).
+
+    k = -1 is the own bin with b > a; an offset outside the bin grid gives an empty range.
+    """
+    if k < 0:
+        return a + 1, bin_start[bin_s[a] + 1]
+    bx = kx + stencil_kc[k, 0]
+    by = ky + stencil_kc[k, 1]
+    bz = kz + stencil_kc[k, 2]
+    if bx < 0 or bx >= nbin_c[0] or by < 0 or by >= nbin_c[1] or bz < 0 or bz >= nbin_c[2]:
+        return 0, 0
+    b_bin = (bx * nbin_c[1] + by) * nbin_c[2] + bz
+    return bin_start[b_bin], bin_start[b_bin + 1]
+
+
 def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
                 pair_start, pair_j, fill):
     """Half-stencil bin scan. With fill=False counts the pairs of each point
@@ -217,29 +242,14 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
     the own bin is scanned for b > a.
     """
     n = x_sc.shape[0]
-    nbx, nby, nbz = nbin_c[0], nbin_c[1], nbin_c[2]
-    n_offsets = stencil_kc.shape[0]
     for a in numba.prange(n):
         xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
         ca = cut_s[a]
-        kz = bin_s[a] % nbz
-        ky = (bin_s[a] // nbz) % nby
-        kx = bin_s[a] // (nbz * nby)
+        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
         count = 0
         pos = pair_start[a] if fill else 0
-        for k in range(-1, n_offsets):
-            if k < 0:
-                lo = a + 1
-                hi = bin_start[bin_s[a] + 1]
-            else:
-                bx = kx + stencil_kc[k, 0]
-                by = ky + stencil_kc[k, 1]
-                bz = kz + stencil_kc[k, 2]
-                if bx < 0 or bx >= nbx or by < 0 or by >= nby or bz < 0 or bz >= nbz:
-                    continue
-                b_bin = (bx * nby + by) * nbz + bz
-                lo = bin_start[b_bin]
-                hi = bin_start[b_bin + 1]
+        for k in range(-1, stencil_kc.shape[0]):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
             for b in range(lo, hi):
                 d0 = x_sc[b, 0] - xa0
                 d1 = x_sc[b, 1] - xa1
