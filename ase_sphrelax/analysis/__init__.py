@@ -7,7 +7,7 @@ import importlib
 
 _WHERE = {
     "Quality": "quality",
-    "quality": "quality",
+    "quality_summary": "quality",
     "characteristic_volume": "lattice",
     "predict_pattern": "lattice",
     "classify_lattice": "symmetry",

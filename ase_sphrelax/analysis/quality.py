@@ -22,7 +22,7 @@ from ..kernel_sums import kernel_sums
 from ..kernels import _check_dim, get_kernel
 from ..neighbors import NeighborList
 
-__all__ = ["Quality", "quality"]
+__all__ = ["Quality", "quality_summary"]
 
 BOUNDARY_LAYER = 0.75  # boundary layer: -phi < BOUNDARY_LAYER * dp
 
@@ -140,6 +140,6 @@ def _min(x):
     return float(np.min(x)) if len(x) else float("nan")
 
 
-def quality(atoms, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
+def quality_summary(atoms, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
     """Shortcut: ``Quality(h, dx, domain, dim, kernel).compute(atoms).summary()``."""
     return Quality(h, dx=dx, domain=domain, dim=dim, kernel=kernel).compute(atoms).summary()
