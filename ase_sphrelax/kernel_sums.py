@@ -129,12 +129,25 @@ def _threads(n):
     return numba.get_num_threads() if n >= PARALLEL_MIN else 1
 
 
+@numba.njit(cache=True)
+def _sum_threads(e_ts, f_tsc):
+    """(n, 4) array of energies and forces summed over the thread buffers."""
+    n = e_ts.shape[1]
+    out = np.zeros((n, 4))
+    for t in range(e_ts.shape[0]):
+        for s in range(n):
+            out[s, 0] += e_ts[t, s]
+            out[s, 1] += f_tsc[t, s, 0]
+            out[s, 2] += f_tsc[t, s, 1]
+            out[s, 3] += f_tsc[t, s, 2]
+    return out
+
+
 def _reduce(points, e_ts, f_tsc, vir_tv):
     v = vir_tv.sum(axis=0)  # xx yy zz yz xz xy
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
-    e_s = e_ts[0] if e_ts.shape[0] == 1 else e_ts.sum(axis=0)
-    f_sc = f_tsc[0] if f_tsc.shape[0] == 1 else f_tsc.sum(axis=0)
-    return points.fold(e_s), points.fold(f_sc), virial
+    folded = points.fold(_sum_threads(e_ts, f_tsc))  # one pass for energies and forces
+    return folded[:, 0].copy(), folded[:, 1:].copy(), virial
 
 
 def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):

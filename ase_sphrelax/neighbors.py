@@ -164,6 +164,30 @@ def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
 
 
 @numba.njit(cache=True)
+def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
+    """Per sorted extended point: source, image, position, shift, ghost flag and cut-off."""
+    n_ext = order_s.shape[0]
+    n = r_pc.shape[0]
+    src_s = np.empty(n_ext, dtype=np.int64)
+    img_sc = np.empty((n_ext, 3))
+    x_sc = np.empty((n_ext, 3))
+    shift_sc = np.empty((n_ext, 3))
+    is_ghost_s = np.empty(n_ext, dtype=np.bool_)
+    cut_s = np.empty(n_ext)
+    for s in range(n_ext):
+        e = order_s[s]
+        p = src_e[e]
+        src_s[s] = p
+        is_ghost_s[s] = e >= n
+        cut_s[s] = cut_p[p]
+        for c in range(3):
+            img_sc[s, c] = img_ec[e, c]
+            x_sc[s, c] = x_ec[e, c]
+            shift_sc[s, c] = x_ec[e, c] - r_pc[p, c]
+    return src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s
+
+
+@numba.njit(cache=True)
 def _gather(r_pc, src_s, shift_sc):
     """x_s = r[src_s] + shift_s."""
     x_sc = np.empty(shift_sc.shape)
@@ -347,12 +371,8 @@ class BinnedPoints:
         self.n_extended = n_ext
         self.order_s = order_s
         self.src_e = src_e
-        self.src_s = src_e[order_s]
-        self.img_sc = img_ec[order_s]
-        self.x_sc = x_ec[order_s]
-        self.shift_sc = self.x_sc - r_pc[self.src_s]
-        self.is_ghost_s = order_s >= n
-        self.cut_s = cut_p[self.src_s]
+        (self.src_s, self.img_sc, self.x_sc, self.shift_sc, self.is_ghost_s,
+         self.cut_s) = _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p)
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
