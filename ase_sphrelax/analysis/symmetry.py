@@ -15,8 +15,8 @@ A relaxed cell of ``n`` particles is usually a supercell of the pattern: the
 arrangement is accepted as a lattice when spglib finds ``n / max_basis`` pure
 translations, and the point symmetry is that of this primitive arrangement.
 Relaxation noise is tolerated by trying a ladder of tolerances (relative to
-the mean spacing ``(V/N)**(1/d)``) and taking the smallest that finds the
-lattice.
+the mean spacing ``(V/N)**(1/d)``): the smallest that finds the lattice, then
+the highest symmetry up to ``classify_up_to`` (1e-2) times the spacing.
 """
 from __future__ import annotations
 
@@ -39,6 +39,12 @@ __all__ = [
 #: tolerances tried, in units of the mean particle spacing
 SYMPREC_LADDER = (1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1)
 CUBIC_NAMES = {"cP": "sc", "cI": "bcc", "cF": "fcc"}
+
+
+# order of the point group of each lattice (2D patterns; 3D Pearson symbols), to rank symmetries
+_HOLOHEDRY_ORDER = {"parallelogram": 2, "rectangular": 4, "diamond": 4, "square": 8, "hexagonal": 12,
+                    "aP": 2, "mP": 4, "mS": 4, "oP": 8, "oS": 8, "oI": 8, "oF": 8, "hR": 12,
+                    "tP": 16, "tI": 16, "hP": 24, "cP": 48, "cI": 48, "cF": 48}
 
 
 class LatticeNotFoundError(ValueError):
@@ -139,7 +145,7 @@ def _dataset(cell, dim, symprec):
         spglib.error.OLD_ERROR_HANDLING = old
 
 
-def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=False):
+def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=False, classify_up_to=1e-2):
     """Bravais lattice of a periodic particle arrangement.
 
     Parameters
@@ -148,13 +154,20 @@ def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=
         Periodic along the first ``dim`` axes (2D: pbc = (True, True, False),
         particles at z = 0). May be any supercell of the pattern.
     symprec : float, optional
-        spglib distance tolerance (length units). Default: the smallest of
-        :data:`SYMPREC_LADDER` times the mean spacing that finds a lattice.
+        spglib distance tolerance (length units). Default: climb
+        :data:`SYMPREC_LADDER` (times the mean spacing ``s``) until the
+        arrangement is a lattice, then keep climbing up to
+        ``classify_up_to * s`` and report the highest point symmetry seen
+        (relaxed cells carry strain noise of order 1e-3; genuine distortions
+        smaller than ``classify_up_to`` times the spacing are not resolved).
     dim : {2, 3, None}
         Default: 2 when pbc = (True, True, False), else 3.
     max_basis : int
         Largest accepted number of particles per primitive cell (1: a Bravais
         lattice; 2 accepts e.g. hcp in 3D or honeycomb in 2D).
+    classify_up_to : float
+        Largest relative tolerance used to *upgrade* the symmetry once a
+        lattice is found (default 1e-2).
     return_details : bool
         Also return a dict with ``symprec``, ``number``, ``symbol`` (layer or
         space group), ``n_basis`` (particles per primitive cell) and
@@ -184,7 +197,10 @@ def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=
         ladder = [float(symprec)]
     n = len(atoms)
     tried = []
-    for tol in ladder:
+    found = []  # (order of the lattice point group, tol, name, details) at every accepted rung
+    for i, tol in enumerate(ladder):
+        if found and tol > max(found[0][1], classify_up_to * spacing):
+            break
         data = _dataset(cell, dim, tol)
         if data is None:
             tried.append((tol, None))
@@ -197,10 +213,13 @@ def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=
                 name = layer_group_to_pattern(data.number, data.international)
             else:
                 name = space_group_to_bravais(data.number, data.international)
-            if not return_details:
-                return name
-            return name, dict(symprec=tol, number=data.number, symbol=data.international, n_basis=n_basis,
-                              primitive_cell=np.asarray(data.primitive_lattice))
+            info = dict(symprec=tol, number=data.number, symbol=data.international, n_basis=n_basis,
+                        primitive_cell=np.asarray(data.primitive_lattice))
+            found.append((_HOLOHEDRY_ORDER[name], tol, name, info))
+    if found:
+        # highest point symmetry among the accepted tolerances (the smallest tolerance on ties)
+        _, _, name, info = max(found, key=lambda item: (item[0], -item[1]))
+        return (name, info) if return_details else name
     summary = ", ".join(f"symprec={t:.2g}: " + ("spglib failed" if b is None else f"{b} per primitive cell")
                         for t, b in tried)
     raise LatticeNotFoundError(
