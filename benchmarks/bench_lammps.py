@@ -45,13 +45,23 @@ def system(n_target, dim, seed=0):
     return periodic_box((side,) * dim, dx=DX, dim=dim, lattice=lattice, jitter=0.25, seed=seed)
 
 
-def timed(fn, repeats):
+CPU = {}  # label -> process CPU seconds of the fastest repeat (all threads; robust to other load)
+
+
+def timed(fn, repeats, label=None):
+    """Best wall time of ``repeats`` calls (and its process CPU time in CPU[label])."""
     best = math.inf
+    best_cpu = math.inf
     out = None
     for _ in range(repeats):
+        c0 = time.process_time()
         t0 = time.perf_counter()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
+        wall = time.perf_counter() - t0
+        if wall < best:
+            best, best_cpu = wall, time.process_time() - c0
+    if label is not None:
+        CPU[label] = best_cpu
     return best, out
 
 
@@ -77,24 +87,27 @@ def bench_calculator(make_calc, atoms, dim, repeats):
         a.positions = a.positions + disp
         return a.get_forces()
 
-    t_rebuild, _ = timed(lambda: call(large), repeats)
-    t_reuse, _ = timed(lambda: call(small), repeats)
+    t_rebuild, _ = timed(lambda: call(large), repeats, "rebuild")
+    t_reuse, _ = timed(lambda: call(small), repeats, "reuse")
     calc = a.calc
-    return a, calc, dict(first=t_first, rebuild=t_rebuild, reuse=t_reuse, energy=energy)
+    return a, calc, dict(first=t_first, rebuild=t_rebuild, reuse=t_reuse, energy=energy,
+                         rebuild_cpu=CPU["rebuild"], reuse_cpu=CPU["reuse"])
 
 
 def lammps_engine_step(calc, steps=20):
     """Seconds per MD step of bare LAMMPS (forces with list reuse, v = 0)."""
     lmp = calc._lmp
     lmp.command("velocity all set 0.0 0.0 0.0")
+    c0 = time.process_time()
     t0 = time.perf_counter()
     lmp.command(f"run {steps} pre no post no")
+    CPU["engine_step"] = (time.process_time() - c0) / steps
     return (time.perf_counter() - t0) / steps
 
 
 def lammps_setup_run0(calc, repeats):
     lmp = calc._lmp
-    return timed(lambda: lmp.command("run 0 post no"), repeats)[0]
+    return timed(lambda: lmp.command("run 0 post no"), repeats, "engine_run0")[0]
 
 
 def run_size(n_target, dim, threads, repeats, style):
@@ -110,24 +123,29 @@ def run_size(n_target, dim, threads, repeats, style):
         _, calc, entry["lammps"] = bench_calculator(
             lambda: lammps_io.fan_calculator(h, DX, dim, style=style, nthreads=nt), atoms, dim, repeats)
         entry["lammps"]["engine_run0"] = lammps_setup_run0(calc, repeats)
+        entry["lammps"]["engine_run0_cpu"] = CPU["engine_run0"]
         calc.close()
         _, calc, entry["lammps_reuse"] = bench_calculator(
             lambda: lammps_io.fan_calculator(h, DX, dim, style=style, nthreads=nt, reuse_neighbors=True),
             atoms, dim, repeats)
         entry["lammps_reuse"]["engine_step"] = lammps_engine_step(calc)
+        entry["lammps_reuse"]["engine_step_cpu"] = CPU["engine_step"]
         calc.close()
         gc.collect()
         e_fan = entry["fan"]["energy"]
         entry["energy_rel_diff"] = abs(entry["lammps"]["energy"] - e_fan) / abs(e_fan)
         entry["ratio_rebuild_fan_over_lammps"] = entry["fan"]["rebuild"] / entry["lammps"]["rebuild"]
         entry["ratio_reuse_fan_over_lammps"] = entry["fan"]["reuse"] / entry["lammps_reuse"]["reuse"]
+        entry["ratio_cpu_fan_reuse_over_lammps_engine_step"] = (entry["fan"]["reuse_cpu"]
+                                                                 / entry["lammps_reuse"]["engine_step_cpu"])
         row["threads"][str(nt)] = entry
         print(f"dim={dim} N={len(atoms):>8d} threads={nt}  "
               f"Fan rebuild {entry['fan']['rebuild']:.3f}s reuse {entry['fan']['reuse']:.3f}s | "
               f"LAMMPS calc rebuild {entry['lammps']['rebuild']:.3f}s reuse {entry['lammps_reuse']['reuse']:.3f}s | "
               f"engine run0 {entry['lammps']['engine_run0']:.3f}s step {entry['lammps_reuse']['engine_step']:.4f}s | "
               f"Fan/LAMMPS rebuild x{entry['ratio_rebuild_fan_over_lammps']:.1f} "
-              f"reuse x{entry['ratio_reuse_fan_over_lammps']:.1f} | dE/E {entry['energy_rel_diff']:.1e}",
+              f"reuse x{entry['ratio_reuse_fan_over_lammps']:.1f} | CPU s: Fan reuse {entry['fan']['reuse_cpu']:.3f} "
+              f"LAMMPS step {entry['lammps_reuse']['engine_step_cpu']:.4f} | dE/E {entry['energy_rel_diff']:.1e}",
               flush=True)
     return row
 
@@ -137,15 +155,18 @@ def relax_1e6(steps, nthreads, nprocs):
     h = RATIO * DX
     calc = FanCalculator(h=h, dx=DX, dim=2)
     e0 = calc.get_potential_energy(atoms)
+    c0 = time.process_time()
     t0 = time.perf_counter()
     relaxed = lammps_io.run(atoms, h, DX, steps=steps, style="table", nthreads=nthreads, nprocs=nprocs)
     wall = time.perf_counter() - t0
     info = relaxed.info["lammps"]
     out = dict(n=len(atoms), steps=steps, nthreads=nthreads, nprocs=nprocs, wall_time_end_to_end=wall,
+               cpu_time_end_to_end=time.process_time() - c0, load_average=os.getloadavg(),
                lammps_minimize_wall=info["wall_time"], iterations=info["iterations"], e_start=e0,
                e_final=info["energy"], fnorm_final=info["fnorm"])
     print(f"1e6 2D relaxation: N={len(atoms)} {info['iterations']} FIRE iterations, nthreads={nthreads} "
-          f"nprocs={nprocs}: end-to-end {wall:.1f} s (LAMMPS part {info['wall_time']:.1f} s), "
+          f"nprocs={nprocs}: end-to-end {wall:.1f} s wall, {out['cpu_time_end_to_end']:.1f} s CPU "
+          f"(LAMMPS part {info['wall_time']:.1f} s wall), "
           f"E {e0:.6g} -> {info['energy']:.6g}", flush=True)
     return out
 
@@ -176,7 +197,7 @@ def main(argv=None):
             results["runs"].append(run_size(n, dim, threads, 2 if n >= 5e5 else 3, args.style))
             gc.collect()
     if not args.no_relax:
-        results["relaxation_1e6_2d"] = [relax_1e6(args.relax_steps, 1, 1), relax_1e6(args.relax_steps, 2, 1)]
+        results["relaxation_1e6_2d"] = [relax_1e6(args.relax_steps, nt, 1) for nt in threads]
     results["load_average_at_end"] = os.getloadavg()
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(results, indent=1))
