@@ -1,11 +1,20 @@
 """Kernels: normalisation (quadrature), derivatives (finite differences), published constants."""
 import math
 
+import numba
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from ase_sphrelax.kernels import KERNEL_NAMES, get_kernel
+from ase_sphrelax.kernels import KERNEL_NAMES, PIECEWISE, get_kernel, profile_by_kind
+
+@numba.njit(cache=True)
+def _evaluate_by_kind(q_k, kind, breaks, coef):
+    out = np.empty((q_k.shape[0], 2))
+    for k in range(q_k.shape[0]):
+        out[k, 0], out[k, 1] = profile_by_kind(q_k[k], kind, breaks, coef)
+    return out
+
 
 SURFACE = {1: lambda r: 2.0, 2: lambda r: 2 * math.pi * r, 3: lambda r: 4 * math.pi * r * r}
 
@@ -85,22 +94,11 @@ def test_bad_kernel_arguments():
 @pytest.mark.parametrize("name", KERNEL_NAMES)
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_closed_forms_of_the_hot_loops_equal_the_exact_polynomials(name, dim):
-    import numba
-
-    from ase_sphrelax.kernels import PIECEWISE, profile_by_kind
-
-    @numba.njit
-    def evaluate(q_k, kind, breaks, coef):
-        out = np.empty((q_k.shape[0], 2))
-        for k in range(q_k.shape[0]):
-            out[k, 0], out[k, 1] = profile_by_kind(q_k[k], kind, breaks, coef)
-        return out
-
     kernel = get_kernel(name, dim)
     assert kernel.kind != PIECEWISE
     q = np.linspace(0.0, 1.2, 241)
-    closed = evaluate(q, kernel.kind, kernel.breaks, kernel.coef)
-    generic = evaluate(q, PIECEWISE, kernel.breaks, kernel.coef)
+    closed = _evaluate_by_kind(q, kernel.kind, kernel.breaks, kernel.coef)
+    generic = _evaluate_by_kind(q, PIECEWISE, kernel.breaks, kernel.coef)
     # profiles and slopes are O(1): compare at 1e-13 absolute (coefficient rounding)
     np.testing.assert_allclose(closed, generic, rtol=1e-12, atol=1e-13)
     np.testing.assert_allclose(closed[:, 0], kernel.profile(q), rtol=1e-12, atol=1e-13)
