@@ -138,10 +138,10 @@ def test_relaxation_matches_ase_fire(lattice, ratio):
 @pytest.mark.slow
 def test_two_mpi_processes_match_one():
     """mpiexec -n 2 (mpich wheel) with the fix external boundary callback gives the 1-process result."""
-    domain = Circle((0.0, 0.0), 4.0)
+    domain = Circle((0.0, 0.0), 3.0)
     start = fill(domain, 1.0, jitter=0.1, seed=1)
-    one = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=3000)
-    two = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=3000, nprocs=2)
+    one = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=400)
+    two = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=400, nprocs=2)
     assert two.info["lammps"]["nprocs"] == 2
     assert two.info["lammps"]["energy"] == pytest.approx(one.info["lammps"]["energy"], rel=1e-9)
     assert np.abs(two.positions - one.positions).max() < 1e-6
