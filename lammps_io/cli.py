@@ -38,7 +38,7 @@ def add_export_arguments(parser):
     parser.add_argument("--format", choices=EXPORT_FORMATS, default=None,
                         help="output format (default: from the output suffix)")
     parser.add_argument("--atom-style", choices=ATOM_STYLES, default="sph", help="LAMMPS atom style (default sph)")
-    parser.add_argument("--units", choices=tuple(u for u in UNIT_STYLES if u != "electron"), default="lj",
+    parser.add_argument("--units", choices=UNIT_STYLES, default="lj",
                         help="LAMMPS unit system named in the data file (default lj; coordinates are not converted)")
     parser.add_argument("--dx", type=float, default=None,
                         help="particle spacing (default atoms.info['dx'], else cell measure / N)")

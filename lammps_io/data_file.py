@@ -29,23 +29,24 @@ UNIT_STYLES = ("lj", "real", "metal", "si", "cgs", "electron", "micro", "nano")
 
 
 def check_units_style(units, atom_style):
-    """Validate ``units``/``atom_style`` before LAMMPS sees them.
+    """Validate ``units``/``atom_style`` names before LAMMPS sees them.
+
+    LAMMPS itself accepts every unit system with these atom styles (checked:
+    ``units electron/real/micro`` with ``atom_style sph`` run ``sph/taitwater``);
+    what it rejects are SPH pair styles without ``atom_style sph``, 2D boxes
+    with z tilts or off-plane atoms, and atoms outside non-periodic boxes,
+    which :func:`lammps_io.box.lammps_box` and :func:`lammps_io.sph_at_rest`
+    rule out before LAMMPS starts.
 
     Raises
     ------
     ValueError
-        for unknown names, and for ``units electron`` (only meant for the
-        electron force field / atom_style electron, which LAMMPS pairs with it).
+        for unknown names.
     """
     if atom_style not in ATOM_STYLES:
         raise ValueError(f"atom_style must be one of {ATOM_STYLES}, got {atom_style!r}")
     if units not in UNIT_STYLES:
         raise ValueError(f"units must be one of {UNIT_STYLES}, got {units!r}")
-    if units == "electron":
-        raise ValueError(
-            "units='electron' is reserved for the eFF electron model in LAMMPS (atom_style electron); "
-            f"use one of {tuple(u for u in UNIT_STYLES if u != 'electron')} for SPH particles"
-        )
 
 
 def _per_particle(value, n, name, positive=False):
@@ -98,7 +99,7 @@ def write_data(
         Periodic directions follow ``atoms.pbc``; 2D sets live at z = 0.
     path : str or Path
     atom_style : {"atomic", "sph", "sphere"}
-    units : {"lj", "real", "metal", "si", "cgs", "micro", "nano"}
+    units : {"lj", "real", "metal", "si", "cgs", "electron", "micro", "nano"}
         Unit system the file is meant for (written in the header comment).
     dim : {1, 2, 3, None}
         Physical dimension, inferred by :func:`lammps_io.box.infer_dim` if None.
@@ -129,7 +130,8 @@ def write_data(
     ------
     ValueError
         for unknown styles/units, non-positive masses/volumes, particles
-        outside a non-periodic box without ``margin``.
+        outside a non-periodic box without ``margin``, several masses in one
+        type for atomic/sph (one mass per type in LAMMPS).
     """
     check_units_style(units, atom_style)
     box = lammps_box(atoms, dim=dim, margin=margin, thickness=thickness)

@@ -68,4 +68,4 @@ def test_argparse_helpers():
     args = parser.parse_args(["relax", "--engine", "lammps", "--nprocs", "2"])
     assert (args.engine, args.nprocs, args.nthreads, args.lammps_style) == ("lammps", 2, 1, "table")
     with pytest.raises(SystemExit):
-        parser.parse_args(["export", "a", "b", "--units", "electron"])
+        parser.parse_args(["export", "a", "b", "--units", "furlongs"])

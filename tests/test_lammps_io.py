@@ -149,7 +149,7 @@ def test_box_dimensions():
     "kwargs, match",
     [
         (dict(units="furlongs"), "units must be one of"),
-        (dict(units="electron"), "electron"),
+        (dict(units="metal", atom_style="sph", masses=np.arange(1.0, 5.0)), "one mass per type"),
         (dict(atom_style="full"), "atom_style must be one of"),
         (dict(masses=-1.0), "masses must be positive"),
         (dict(masses=[1.0, 2.0]), "masses must be"),
