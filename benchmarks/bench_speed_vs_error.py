@@ -44,6 +44,7 @@ import datetime  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
+import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -72,7 +73,6 @@ VARIANTS = [
     ("fire c=0.05", "fire", 0.05, {}),
     ("fire c=0.01 dtmax=30dt", "fire", 0.01, {"dtmax_factor": 30.0}),
     ("lbfgs c=0.05", "lbfgs", 0.05, {}),
-    ("lbfgs c=0.01 maxstep=0.5h", "lbfgs", 0.01, {"maxstep_h": 0.5}),
 ]
 BFGS = [("bfgs", "bfgs", 0.01, {})]
 
@@ -276,6 +276,15 @@ def slim(result):
     return out
 
 
+def git_version():
+    """``git describe --always --dirty`` of the checkout (uncommitted core changes show as -dirty)."""
+    try:
+        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).resolve().parent,
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: smaller scenes, 200 steps")
@@ -295,7 +304,9 @@ def main(argv=None):
     chosen = args.scenes or list(all_scenes)
     started = datetime.datetime.now(datetime.timezone.utc)
     load_before = os.getloadavg()
+    stem.parent.mkdir(parents=True, exist_ok=True)
     results = {}
+    failed = {}
     t_start = time.perf_counter()
     for name in chosen:
         scene = all_scenes[name]
@@ -305,7 +316,12 @@ def main(argv=None):
               f"LBFGS reference {ref_n} steps, E = {e_ref:.10g}, max|F|/max|F0| = {f_rel:.2e}", flush=True)
         traces = []
         for method in methods:
-            traces.append(run(scene, method, steps, quality_steps))
+            try:
+                traces.append(run(scene, method, steps, quality_steps))
+            except ValueError as err:  # e.g. ASE (L)BFGS refuses maxstep > 1.0 (absolute length units)
+                failed[f"{name}: {method[0]}"] = str(err)
+                print(f"[{time.perf_counter() - t_start:6.0f} s]   {method[0]:28s} FAILED: {err}", flush=True)
+                continue
             t = traces[-1]
             print(f"[{time.perf_counter() - t_start:6.0f} s]   {t['label']:28s} E = {t['final_energy']:.10g} "
                   f"evals {t['evals'][-1]} wall {t['wall'][-1]:.1f} s", flush=True)
@@ -313,6 +329,8 @@ def main(argv=None):
                    ref_energy=e_ref, ref_fmax_rel=f_rel, ref_steps=ref_n, traces=traces)
         analyse(res)
         results[name] = res
+        partial = stem.parent / (stem.name + "_partial.json")
+        partial.write_text(json.dumps({k: slim(v) for k, v in results.items()}))
 
     load_after = os.getloadavg()
     print()
@@ -340,14 +358,17 @@ def main(argv=None):
         else:
             print("  goal: MISSED, no ASE optimiser reached the target error")
             res["goal_met"] = False
+    for key, err in failed.items():
+        print(f"FAILED {key}: {err}")
     print(f"load average before {load_before[0]:.2f}, after {load_after[0]:.2f} (1 min); "
           f"total {time.perf_counter() - t_start:.0f} s")
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     plot(results, stem.with_suffix(".png"))
     out = dict(date_utc=started.isoformat(timespec="seconds"),
+               git=git_version(),
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(), python=platform.python_version()),
-               load_average_before=load_before, load_average_after=load_after, quick=args.quick,
+               load_average_before=load_before, load_average_after=load_after, quick=args.quick, failed=failed,
                scenes={k: slim(v) for k, v in results.items()})
     stem.with_suffix(".json").write_text(json.dumps(out, indent=1))
     print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.png')}")
