@@ -183,7 +183,7 @@ def relax_command(args):
     write(out / "relaxed.extxyz", atoms, format="extxyz")
     plot_particles(atoms, quality.volume_p / dx**dim, out / "relaxed.png", domain=domain, dx=dx,
                    title=f"{args.domain}: h = {args.h:g} dx, {steps_done} steps ({args.optimizer})",
-                   label="particle volume 1/Σ_j W_ij  [dx^d]")
+                   label="particle volume 1/Σ_j W_ij  [dx^d]", range_mask=quality.interior_p)
     summary = dict(scene=args.domain, dim=dim, n_particles=len(atoms), dx=dx, h_over_dx=args.h,
                    optimizer=args.optimizer, steps=steps_done, stop_reason=stop_reason,
                    energy_before=e_before, energy_after=e_after, quality_before=before, quality_after=after,

@@ -4,11 +4,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="", slice_width=None):
+def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="", slice_width=None,
+                   range_mask=None):
     """Scatter plot of the particles coloured by ``value_p``; writes ``path`` (PNG).
 
     2D: all particles, with the domain boundary (``phi = 0`` contour). 3D: the
-    slab ``|z - z_mid| < slice_width / 2`` (default ``dx``).
+    slab ``|z - z_mid| < slice_width / 2`` (default ``dx``). The colour range spans
+    the 1st to 99th percentile of ``value_p[range_mask]`` (e.g. interior particles,
+    so that the boundary layer does not hide the interior variation).
     """
     import matplotlib
 
@@ -18,6 +21,7 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
     r_pc = atoms.positions
     dim = domain.dim if domain is not None else (3 if atoms.pbc[2] or np.ptp(r_pc[:, 2]) > 0 else 2)
     value_p = np.asarray(value_p)
+    ranged_p = value_p if range_mask is None or not np.any(range_mask) else value_p[np.asarray(range_mask)]
     if dim == 3:
         z_mid = 0.5 * (r_pc[:, 2].min() + r_pc[:, 2].max())
         width = slice_width or dx or np.ptp(r_pc[:, 2]) / 10
@@ -31,7 +35,7 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
     # marker diameter ~ 0.8 of the particle spacing, in points
     size = (0.8 * spacing / extent * 5.0 * 72) ** 2
     # robust colour range: a few boundary particles must not hide the interior variation
-    vmin, vmax = np.percentile(value_p, [1, 99]) if len(value_p) > 50 else (value_p.min(), value_p.max())
+    vmin, vmax = np.percentile(ranged_p, [1, 99]) if len(ranged_p) > 50 else (ranged_p.min(), ranged_p.max())
     points = ax.scatter(r_pc[:, 0], r_pc[:, 1], c=value_p, s=size, cmap="viridis", linewidths=0,
                         vmin=vmin, vmax=vmax)
     if domain is not None and domain.dim == 2:
