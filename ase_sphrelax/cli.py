@@ -146,7 +146,8 @@ def relax_command(args):
     before = quality.compute(atoms).summary()
     print(f"scene: {args.domain} ({dim}D), {len(atoms)} particles, dx = {dx:.6g}, h = {args.h:g} dx, "
           f"optimizer = {args.optimizer if getattr(args, 'engine', 'ase') == 'ase' else 'lammps fire'}")
-    stop_reason = ""
+    atoms.calc = FanCalculator(h=h, dx=dx, domain=domain, dim=dim)
+    e_before = atoms.get_potential_energy()
     if getattr(args, "engine", "ase") == "lammps":
         from lammps_io.cli import cli_relax
 
@@ -155,16 +156,12 @@ def relax_command(args):
         steps_done = args.steps
         stop_reason = "LAMMPS minimisation finished"
         atoms.calc = FanCalculator(h=h, dx=dx, domain=domain, dim=dim)
-        e_before = float("nan")
     else:
-        atoms.calc = FanCalculator(h=h, dx=dx, domain=domain, dim=dim)
-        e_before = atoms.get_potential_energy()
         f0 = float(np.linalg.norm(atoms.get_forces(), axis=1).max())
         opt = make_optimizer(args.optimizer, atoms, c=args.c)
         bar = _progress(opt, atoms, args.steps, f"relax ({args.optimizer})")
-        fmax = args.fmax * f0
         try:
-            converged = opt.run(fmax=fmax, steps=args.steps)
+            converged = opt.run(fmax=args.fmax * f0, steps=args.steps)
         finally:
             bar.close()
         steps_done = opt.nsteps
