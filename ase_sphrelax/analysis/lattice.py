@@ -379,7 +379,7 @@ def _reduce_cell(cell):
     """Niggli-reduced cell (ase) as rows, same lattice."""
     from ase.geometry.minkowski_reduction import minkowski_reduce
     red, _ = minkowski_reduce(cell)
-    return red
+    return np.asarray(red, dtype=float)
 
 
 def _to_tri_params(cell):
@@ -528,7 +528,8 @@ def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
         2D keys: ``h``, ``v_<pattern>`` (Fan convention), ``pattern``, ``k``,
         ``r`` (winner's parameters), ``v_best`` (global maximum),
         ``pattern_bravais``, ``k_bravais``, ``r_bravais``.
-        3D keys: ``h``, ``v_<pattern>``, ``pattern``, ``cell_general``.
+        3D keys: ``h``, ``v_<pattern>``, ``pattern``, ``bravais_general`` (Pearson
+        symbol of the best one-atom lattice), ``cell_general``.
     """
     dim = _check_dim(dim)
     if h_values is None:
@@ -551,6 +552,9 @@ def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
             winner, values = predict_pattern(h, 3, kernel, return_values=True)
             for name in PATTERNS_3D:
                 row[f"v_{name}"] = values[name][0]
-            row.update(pattern=winner, cell_general=values["general"][1]["cell"])
+            from .symmetry import classify_cell
+
+            row.update(pattern=winner, bravais_general=classify_cell(values["general"][1]["cell"]),
+                       cell_general=values["general"][1]["cell"])
         rows.append(row)
     return rows

@@ -243,12 +243,13 @@ def write_table(path_csv, path_png=None, dim=2, h_values=None):
         The rows written.
     """
     rows = pattern_table(h_values, dim)
-    names = PATTERNS_2D if dim == 2 else PATTERNS_3D
+    # Table 2's column order
+    names = ("hexagonal", "square", "diamond", "rectangular", "parallelogram") if dim == 2 else PATTERNS_3D
     if dim == 2:
         fields = ["h"] + [f"v_{n}" for n in names] + ["pattern", "k", "r", "v_best", "pattern_bravais",
                                                        "k_bravais", "r_bravais"]
     else:
-        fields = ["h"] + [f"v_{n}" for n in names] + ["pattern", "cell_general"]
+        fields = ["h"] + [f"v_{n}" for n in names] + ["pattern", "bravais_general", "cell_general"]
     with open(path_csv, "w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(fields)
@@ -259,7 +260,8 @@ def write_table(path_csv, path_png=None, dim=2, h_values=None):
                 if isinstance(v, np.ndarray):
                     v = " ".join(f"{x:.6f}" for x in v.ravel())
                 elif isinstance(v, float):
-                    v = "" if math.isnan(v) else f"{v:.8f}" if f.startswith("v_") else f"{v:.4f}"
+                    v = "" if math.isnan(v) else f"{v:.8f}" if f.startswith("v_") else f"{v:.4g}" if f == "h" else \
+                        f"{v:.4f}"
                 out.append(v)
             writer.writerow(out)
     if path_png:
@@ -286,8 +288,12 @@ def _plot_table(rows, names, dim, path_png):
         key = f"v_{win}" if f"v_{win}" in r else "v_general"
         ax1.plot(r["h"], r[key] - r[ref], "k*", ms=9, zorder=5)
     ax1.plot([], [], "k*", ms=9, label="winner")
+    # zoom on the competition near the top; far-off curves leave the panel
+    gap = max(max(r[f"v_{n}"] for n in names) - r[ref] for r in rows)
+    top = 1.25 * gap + 2e-4
+    ax1.set_ylim(-1.6 * top, top)
     ax0.set_ylabel("$v_c$ (unit particle volume)")
-    ax1.set_ylabel(f"$v_c - v_{{{ref[2:]}}}$")
+    ax1.set_ylabel(f"$v_c - v_{{{ref[2:]}}}$ (zoom)")
     ax1.set_xlabel("$h/\\Delta x$")
     ax1.axhline(0.0, color="0.6", lw=0.5)
     ax1.legend(fontsize=8, ncol=2)

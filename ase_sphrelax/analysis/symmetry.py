@@ -227,8 +227,11 @@ def classify_lattice(atoms, symprec=None, dim=None, max_basis=1, return_details=
         f"({summary}); the arrangement is not periodic within tolerance")
 
 
-def classify_cell(cell_vv, dim=3, symprec=1e-5):
-    """Bravais lattice of a one-particle cell (rows); see :func:`classify_lattice`."""
+def classify_cell(cell_vv, dim=3, symprec=None):
+    """Bravais lattice of a one-particle cell (rows); see :func:`classify_lattice`.
+
+    ``symprec`` is relative to the spacing ``|det cell|**(1/dim)``; None climbs the ladder.
+    """
     from ase import Atoms
 
     cell_vv = np.asarray(cell_vv, dtype=float)
@@ -239,7 +242,7 @@ def classify_cell(cell_vv, dim=3, symprec=1e-5):
     else:
         atoms = Atoms("X", positions=[[0, 0, 0]], cell=cell_vv, pbc=True)
     scale = abs(np.linalg.det(cell_vv[:dim, :dim])) ** (1.0 / dim)
-    return classify_lattice(atoms, symprec=symprec * scale, dim=dim)
+    return classify_lattice(atoms, symprec=None if symprec is None else symprec * scale, dim=dim)
 
 
 def pattern_name_3d(atoms, symprec=None):
