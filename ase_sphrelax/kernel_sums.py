@@ -52,17 +52,19 @@ def _owner_add(a, ea, fa0, fa1, fa2, e_s, f_sc):
     f_sc[a, 2] += fa2
 
 
-def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, coef, want_virial, nthreads):
-    """phi = scale f(r/h) over a stored half list."""
+def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, coef, want_virial,
+                              e_ts, f_tsc, vir_tv):
+    """phi = scale f(r/h) over a stored half list, into the (zeroed) per-thread buffers."""
     n = x_sc.shape[0]
-    e_ts = np.zeros((nthreads, n))
-    f_tsc = np.zeros((nthreads, n, 3))
-    vir_tv = np.zeros((nthreads, 6))
+    nthreads = e_ts.shape[0]
     h2 = h * h
     inv_h = 1.0 / h
     chunk = (n + nthreads - 1) // nthreads
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
+        e_s[:] = 0.0
+        f_sc[:] = 0.0
+        vir[:] = 0.0
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
             xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
             ea = fa0 = fa1 = fa2 = 0.0
@@ -85,17 +87,18 @@ def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, 
 
 
 def _scan_pair_potential_impl(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc,
-                              h, scale, kind, breaks, coef, want_virial, nthreads):
+                              h, scale, kind, breaks, coef, want_virial, e_ts, f_tsc, vir_tv):
     """The same sums fused into the half-stencil bin scan (no stored list)."""
     n = x_sc.shape[0]
-    e_ts = np.zeros((nthreads, n))
-    f_tsc = np.zeros((nthreads, n, 3))
-    vir_tv = np.zeros((nthreads, 6))
+    nthreads = e_ts.shape[0]
     h2 = h * h
     inv_h = 1.0 / h
     chunk = (n + nthreads - 1) // nthreads
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
+        e_s[:] = 0.0
+        f_sc[:] = 0.0
+        vir[:] = 0.0
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
             xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
             ea = fa0 = fa1 = fa2 = 0.0
@@ -127,6 +130,19 @@ _scan_parallel = numba.njit(cache=True, parallel=True)(_scan_pair_potential_impl
 
 def _threads(n):
     return numba.get_num_threads() if n >= PARALLEL_MIN else 1
+
+
+_BUFFERS: dict = {}
+
+
+def _thread_buffers(nthreads, n):
+    """Per-thread output buffers, kept between calls: touching fresh pages costs more
+    than the pair loop on some machines (measured: 8 MB in 2.4 ms fresh, 0.4 ms reused)."""
+    key = (nthreads, n)
+    if key not in _BUFFERS:
+        _BUFFERS.clear()
+        _BUFFERS[key] = (np.empty((nthreads, n)), np.empty((nthreads, n, 3)), np.empty((nthreads, 6)))
+    return _BUFFERS[key]
 
 
 @numba.njit(cache=True)
@@ -177,7 +193,8 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
     """
     x_sc = pairs.extend(r_pc)
     nthreads = _threads(x_sc.shape[0])
-    args = (float(h), float(scale), kernel.kind, kernel.breaks, kernel.coef, bool(want_virial), nthreads)
+    args = (float(h), float(scale), kernel.kind, kernel.breaks, kernel.coef, bool(want_virial),
+            *_thread_buffers(nthreads, x_sc.shape[0]))
     if isinstance(pairs, BinnedPoints):
         run = _scan_parallel if nthreads > 1 else _scan_serial
         out = run(x_sc, pairs.src_s, pairs.img_sc, pairs.is_ghost_s, pairs.bin_s, pairs.nbin_c, pairs.bin_start,
