@@ -9,6 +9,7 @@ a centred rectangular lattice by our lattice analysis). The interior
 vectors and by the hexatic orders |psi_4|, |psi_6| (freud).
 
     python examples/bounded_patterns.py --out bounded_out [--steps 1500] [--jitter 0.45] [--h 2.25 2.0]
+    python examples/bounded_patterns.py --out bounded_out --continue --steps 3000 --h 2.25   # more steps
 
 Writes bounded_out/circle_<h>.png (figures like Figs. 12-14), circle_<h>.extxyz
 and summary.txt.
@@ -16,6 +17,8 @@ and summary.txt.
 import argparse
 import os
 import time
+
+from ase.io import read
 
 from ase_sphrelax.analysis.bounded import classify_bounded_pattern, plot_bounded_pattern, relax_circle
 from ase_sphrelax.analysis.lattice import predict_pattern
@@ -30,17 +33,23 @@ def main(argv=None):
     parser.add_argument("--jitter", type=float, default=0.45)
     parser.add_argument("--optimizer", default="fire")
     parser.add_argument("--h", type=float, nargs="*", default=CASES)
+    parser.add_argument("--continue", dest="cont", action="store_true",
+                        help="continue from <out>/circle_<h>.extxyz when it exists")
     args = parser.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "summary.txt"), "a") as summary:
         for h in args.h:
             t0 = time.time()
-            atoms, domain = relax_circle(h, steps=args.steps, optimizer=args.optimizer, jitter=args.jitter)
+            path = os.path.join(args.out, f"circle_{h:g}.extxyz")
+            start = read(path) if args.cont and os.path.exists(path) else None
+            atoms, domain = relax_circle(h, steps=args.steps, optimizer=args.optimizer, jitter=args.jitter,
+                                         start=start)
             pattern, info = classify_bounded_pattern(atoms, domain, margin=2.0 * atoms.info["h"])
             fractions = " ".join(f"{k}={v:.2f}" for k, v in info["fractions"].items())
             line = (f"h/dp={h:g} N={len(atoms)} steps={atoms.info['steps']} E={atoms.info['energy']:.6g} "
                     f"interior={info['n_interior']} pattern={pattern} [{fractions}] psi4={info['psi4']:.3f} "
-                    f"psi6={info['psi6']:.3f} | Table 1: {predict_pattern(h)}, best lattice: "
+                    f"psi6={info['psi6']:.3f} median |a2|/|a1|={info['median_ratio']:.3f} "
+                    f"angle={info['median_angle']:.1f} | Table 1: {predict_pattern(h)}, best lattice: "
                     f"{predict_pattern(h, convention='bravais')} ({time.time() - t0:.0f} s)")
             print(line, flush=True)
             summary.write(line + "\n")

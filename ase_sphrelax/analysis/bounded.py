@@ -44,7 +44,7 @@ def _reduce_pair(a1, a2):
     return a1, a2
 
 
-def local_lattice_patterns(r_pc, mask=None, rtol=0.04, angle_tol=4.0):
+def local_lattice_patterns(r_pc, mask=None, rtol=0.04, angle_tol=4.0, return_geometry=False):
     """Local 2D lattice class of each particle from its nearest-neighbour vectors.
 
     Parameters
@@ -56,6 +56,9 @@ def local_lattice_patterns(r_pc, mask=None, rtol=0.04, angle_tol=4.0):
         Relative tolerance on length ratios and on the centring projection.
     angle_tol : float
         Tolerance on angles, degrees.
+
+    return_geometry : bool
+        Also return ``(ratio, gamma)``: ``|a2|/|a1| >= 1`` and the angle in degrees.
 
     Returns
     -------
@@ -88,6 +91,8 @@ def local_lattice_patterns(r_pc, mask=None, rtol=0.04, angle_tol=4.0):
     out[right] = "rectangular"
     out[right & rhombic] = "square"
     out[(rhombic | centred) & (np.abs(gamma - 60.0) < angle_tol) & (np.abs(ratio - 1.0) < rtol)] = "hexagonal"
+    if return_geometry:
+        return out.astype(str), ratio, gamma
     return out.astype(str)
 
 
@@ -106,8 +111,16 @@ def hexatic_order(r_pc, k, mask=None):
     return float(psi.mean() if mask is None else psi[mask].mean())
 
 
-def classify_bounded_pattern(atoms, domain, margin):
-    """Majority local lattice among particles deeper than ``margin`` inside ``domain``.
+def classify_bounded_pattern(atoms, domain, margin, order_threshold=0.8):
+    """Pattern of the particles deeper than ``margin`` inside ``domain``.
+
+    ``"hexagonal"`` when the mean ``|psi_6|`` reaches ``order_threshold`` and
+    the median local lattice has ``|a2|/|a1| < 1.1`` and an angle within 8
+    degrees of 60; ``"square"`` when the mean ``|psi_4|`` reaches it with a
+    median ratio below 1.05 and an angle within 4 degrees of 90 (the
+    bond-orientational order and the medians are robust to the elastic
+    distortions of an unfinished relaxation, the per-particle lattice test is
+    not); otherwise the majority local lattice of :func:`local_lattice_patterns`.
 
     Returns
     -------
@@ -119,22 +132,31 @@ def classify_bounded_pattern(atoms, domain, margin):
     mask = np.asarray(domain.phi(r)) < -margin
     if mask.sum() < 10:
         raise ValueError(f"fewer than 10 particles deeper than margin={margin} inside the domain")
-    labels = local_lattice_patterns(r, mask)
+    labels, ratio, gamma = local_lattice_patterns(r, mask, return_geometry=True)
     fractions = {name: float(np.mean(labels == name)) for name in _PATTERN_CODES}
-    pattern = max(fractions, key=fractions.get)
-    info = dict(fractions=fractions, psi4=hexatic_order(r, 4, mask), psi6=hexatic_order(r, 6, mask),
+    psi4, psi6 = hexatic_order(r, 4, mask), hexatic_order(r, 6, mask)
+    med_ratio, med_gamma = float(np.median(ratio)), float(np.median(gamma))
+    if psi6 >= order_threshold and med_ratio < 1.1 and abs(med_gamma - 60.0) < 8.0:
+        pattern = "hexagonal"
+    elif psi4 >= order_threshold and med_ratio < 1.05 and abs(med_gamma - 90.0) < 4.0:
+        pattern = "square"
+    else:
+        pattern = max(fractions, key=fractions.get)
+    info = dict(fractions=fractions, psi4=psi4, psi6=psi6, median_ratio=med_ratio, median_angle=med_gamma,
                 n_interior=int(mask.sum()), labels=labels, mask=mask)
     return pattern, info
 
 
 def relax_circle(h_over_dp, dx=1.0 / 256.0, steps=3000, optimizer="fire", seed=0, fmax=None, logfile=None,
-                 jitter=0.1):
+                 jitter=0.1, start=None):
     """Fan's circle (centre (0.5, 0.5), r = 0.2) filled on a ``dx`` mesh and relaxed at ``h = h_over_dp * dp``.
 
     ``dp = sqrt(V / N)`` (Sec. 5.2); the calculator uses ``v0 = vt = V / N``.
     ``jitter`` is the initial random shift (fraction of ``dx``) of the
     cell-centre particles: the square start is a stationary point, a large
     jitter (e.g. 0.45) lets non-square patterns form in fewer steps.
+    ``start`` (Atoms of the same filled circle, e.g. an earlier result)
+    continues a relaxation from its positions.
     Returns the relaxed Atoms with ``info["h"]``, ``info["dp"]``.
     """
     from ..build import fill
@@ -144,12 +166,18 @@ def relax_circle(h_over_dp, dx=1.0 / 256.0, steps=3000, optimizer="fire", seed=0
 
     domain = Circle((0.5, 0.5), 0.2)
     atoms = fill(domain, dx, jitter=jitter, seed=seed)
+    if start is not None:
+        if len(start) != len(atoms):
+            raise ValueError(f"start has {len(start)} particles, the filled circle {len(atoms)}")
+        atoms.positions = start.positions
     dp = math.sqrt(domain.volume / len(atoms))
     h = h_over_dp * dp
     atoms.calc = FanCalculator(h=h, dx=None, domain=domain, dim=2)
     opt = make_optimizer(optimizer, atoms, h=h, logfile=logfile)
     opt.run(fmax=fmax if fmax is not None else 1e-12, steps=steps)
-    atoms.info.update(h=h, dp=dp, h_over_dp=h_over_dp, steps=opt.nsteps, energy=atoms.get_potential_energy())
+    previous = int(start.info.get("steps", 0)) if start is not None else 0
+    atoms.info.update(h=h, dp=dp, h_over_dp=h_over_dp, steps=previous + opt.nsteps,
+                      energy=atoms.get_potential_energy())
     return atoms, domain
 
 
