@@ -59,6 +59,7 @@ from ase_sphrelax.drivers import make_optimizer  # noqa: E402
 RATIO = 2.6
 RESULTS = Path(__file__).resolve().parent / "results"
 FAN_REFERENCE_STEPS = 2000  # the yardstick: Eq. 2.4, c = 0.01, 2000 steps
+ERROR_FLOOR = 1e-9  # plotted errors are floored at this fraction of the initial error
 
 # (label, optimizer name, c, extra keyword arguments for the optimiser)
 METHODS = [
@@ -72,7 +73,8 @@ METHODS = [
 VARIANTS = [
     ("fire c=0.05", "fire", 0.05, {}),
     ("fire c=0.01 dtmax=30dt", "fire", 0.01, {"dtmax_factor": 30.0}),
-    ("lbfgs c=0.05", "lbfgs", 0.05, {}),
+    ("lbfgs c=0.05", "lbfgs", 0.05, {"uncap_maxstep": True}),
+    ("lbfgs c=0.05 memory=20", "lbfgs", 0.05, {"uncap_maxstep": True, "memory": 20}),
 ]
 BFGS = [("bfgs", "bfgs", 0.01, {})]
 
@@ -124,6 +126,11 @@ def optimizer_kwargs(scene, name, c, extra, atoms):
         kwargs["dtmax"] = extra.pop("dtmax_factor") * dt
     if "maxstep_h" in extra:
         kwargs["maxstep"] = extra.pop("maxstep_h") * scene["h"]
+    if extra.pop("uncap_maxstep", False):
+        # ASE's LBFGS raises ValueError for maxstep > 1.0 (absolute length): pass
+        # a legal value and restore make_optimizer's 10 c h after construction
+        kwargs["_maxstep_after"] = kwargs.get("maxstep", 10.0 * c * scene["h"])
+        kwargs["maxstep"] = min(1.0, kwargs["_maxstep_after"])
     kwargs.update(extra)
     return kwargs
 
@@ -134,6 +141,7 @@ def run(scene, method, steps, quality_steps):
     atoms = scene["atoms"].copy()
     atoms.calc = calculator(scene)
     kwargs = optimizer_kwargs(scene, name, c, extra, atoms)  # may evaluate forces: not counted, not timed
+    maxstep_after = kwargs.pop("_maxstep_after", None)
     atoms.calc = calculator(scene)
     counter = CountingCalculator(atoms.calc)
     quality = Quality(scene["h"], dx=scene["dx"], domain=scene["domain"], dim=2)
@@ -157,6 +165,9 @@ def run(scene, method, steps, quality_steps):
 
     t0 = time.perf_counter()
     opt = make_optimizer(name, atoms, c=c, **kwargs)
+    if maxstep_after is not None:
+        opt.maxstep = maxstep_after
+        trace["kwargs"]["maxstep"] = maxstep_after
     gen = opt.irun(fmax=0.0, steps=steps)
     next(gen)  # initial forces
     wall = time.perf_counter() - t0
@@ -230,7 +241,8 @@ def plot(results, path):
         res = results[name]
         for t in res["traces"]:
             style = "-" if t["optimizer"] == "fan" else "--"
-            err = np.maximum(np.asarray(t["error"]), 1e-300)
+            # E - E_ref reaches 0 (to rounding) for runs that found E_ref: floor the log axis
+            err = np.maximum(np.asarray(t["error"]), ERROR_FLOOR * t["error"][0])
             line, = row[0].plot(t["evals"], err, style, lw=1.2, label=t["label"])
             row[1].plot(t["wall"], err, style, lw=1.2, color=line.get_color())
             row[2].plot(t["q_evals"], t["kernel_sum_error"], style + "o", ms=2.5, lw=1.0, color=line.get_color())
@@ -293,7 +305,14 @@ def main(argv=None):
     parser.add_argument("--scenes", nargs="*", default=None, choices=["circle", "periodic", "small"])
     parser.add_argument("--no-variants", action="store_true", help="skip the make_optimizer parameter experiments")
     parser.add_argument("--out", default=None, help="output stem (default benchmarks/results/speed_vs_error[_quick])")
+    parser.add_argument("--replot", metavar="JSON", default=None,
+                        help="only redraw the PNG (beside the JSON) from a results JSON of this script")
     args = parser.parse_args(argv)
+    if args.replot:
+        saved = json.loads(Path(args.replot).read_text())["scenes"]
+        plot(saved, Path(args.replot).with_suffix(".png"))
+        print(f"wrote {Path(args.replot).with_suffix('.png')}")
+        return
     steps = args.steps or (200 if args.quick else FAN_REFERENCE_STEPS)
     ref_steps = args.ref_steps or (500 if args.quick else 6000)
     stem = Path(args.out) if args.out else RESULTS / ("speed_vs_error_quick" if args.quick else "speed_vs_error")
