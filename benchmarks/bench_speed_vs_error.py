@@ -268,22 +268,28 @@ def plot(results, path):
         row[2].set_title("kernel-sum error vs evaluations", fontsize=9)
         row[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=75)
     plt.close(fig)
 
 
-def slim(result):
-    """Copy for JSON with traces thinned to <= ~400 points each."""
+def slim(result, points=150):
+    """Copy for JSON: traces thinned to about ``points`` log-spaced records, 4 significant digits."""
+    def r4(values):
+        return [float(f"{v:.4g}") for v in values]
+
     out = {k: v for k, v in result.items() if k != "traces"}
     out["traces"] = []
     for t in result["traces"]:
-        n = len(t["step"])
-        keep = sorted(set(np.unique(np.geomspace(1, n, 300).astype(int) - 1).tolist()) | {0, n - 1})
+        n = len(t["evals"])
+        keep = sorted(set(np.unique(np.geomspace(1, n, points).astype(int) - 1).tolist()) | {0, n - 1})
         s = {k: v for k, v in t.items() if not isinstance(v, list)}
-        for k in ("step", "evals", "wall", "energy", "error"):
-            s[k] = [t[k][i] for i in keep]
-        for k in ("q_step", "q_evals", "q_wall", "kernel_sum_error", "gradient_error"):
-            s[k] = t[k]
+        for k in ("step", "evals", "q_step", "q_evals"):
+            if k in t:
+                s[k] = [t[k][i] for i in keep] if k in ("step", "evals") else t[k]
+        for k in ("wall", "error"):
+            s[k] = r4(t[k][i] for i in keep)
+        for k in ("q_wall", "kernel_sum_error", "gradient_error"):
+            s[k] = r4(t[k])
         out["traces"].append(s)
     return out
 
@@ -309,8 +315,10 @@ def main(argv=None):
                         help="only redraw the PNG (beside the JSON) from a results JSON of this script")
     args = parser.parse_args(argv)
     if args.replot:
-        saved = json.loads(Path(args.replot).read_text())["scenes"]
-        plot(saved, Path(args.replot).with_suffix(".png"))
+        data = json.loads(Path(args.replot).read_text())
+        data["scenes"] = {k: slim(v) for k, v in data["scenes"].items()}
+        Path(args.replot).write_text(json.dumps(data))
+        plot(data["scenes"], Path(args.replot).with_suffix(".png"))
         print(f"wrote {Path(args.replot).with_suffix('.png')}")
         return
     steps = args.steps or (200 if args.quick else FAN_REFERENCE_STEPS)
@@ -324,6 +332,7 @@ def main(argv=None):
     started = datetime.datetime.now(datetime.timezone.utc)
     load_before = os.getloadavg()
     stem.parent.mkdir(parents=True, exist_ok=True)
+    partial = stem.parent / (stem.name + "_partial.json")  # per-scene results while running
     results = {}
     failed = {}
     t_start = time.perf_counter()
@@ -348,7 +357,6 @@ def main(argv=None):
                    ref_energy=e_ref, ref_fmax_rel=f_rel, ref_steps=ref_n, traces=traces)
         analyse(res)
         results[name] = res
-        partial = stem.parent / (stem.name + "_partial.json")
         partial.write_text(json.dumps({k: slim(v) for k, v in results.items()}))
 
     load_after = os.getloadavg()
@@ -389,7 +397,8 @@ def main(argv=None):
                machine=dict(platform=platform.platform(), cpus=os.cpu_count(), python=platform.python_version()),
                load_average_before=load_before, load_average_after=load_after, quick=args.quick, failed=failed,
                scenes={k: slim(v) for k, v in results.items()})
-    stem.with_suffix(".json").write_text(json.dumps(out, indent=1))
+    stem.with_suffix(".json").write_text(json.dumps(out))
+    partial.unlink(missing_ok=True)
     print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.png')}")
 
 
