@@ -124,6 +124,9 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
     dim : {2, 3}
     optimizer : {"fire", "bfgs", "lbfgs", "fan"}
         Built by :func:`ase_sphrelax.drivers.make_optimizer` on the filter.
+        ``"fan"`` (Eq. 2.4, fixed step ``c h``) oscillates at the step scale
+        and does not reach a tight ``fmax``; ``"fire"`` is the tested choice
+        (``"bfgs"`` is slow here: scipy/LAPACK calls on tiny matrices cost ms).
     seed : int, optional
         Seed of the random starts.
     n_starts : int
