@@ -10,10 +10,12 @@ Systems (periodic, jittered square/cubic lattice, jitter 0.25 dx, h = 2.6 dx):
 Timings (best of ``--repeats``), each pair of codes in the same run:
 
 * ``cold``: a fresh calculator: neighbour search (cell list / cKDTree) + kernel sums.
-  FanCalculator builds its list with its default skin 0.1 h; the reference
-  with skin 0 (its fastest one-shot choice).
+  FanCalculator does what its first call does (currently a bin scan fused with
+  the pair sums, no list stored); the reference builds a cKDTree and calls
+  ``query_pairs(h)`` (skin 0, its fastest one-shot choice).
 * ``warm``: the neighbour list is reused: positions moved by at most 0.02 dx
-  (< skin / 2 = 0.13 dx) since the build. The reference keeps its
+  (< skin / 2 = 0.13 dx) since the build (FanCalculator builds its Verlet list,
+  skin 0.1 h, on its second call, which is not timed). The reference keeps its
   ``query_pairs(h + skin)`` array (skin 0.1 h) the same way.
 
 FanCalculator is timed with 1 and 2 numba threads (``numba.set_num_threads``);
