@@ -51,7 +51,9 @@ def build_parser():
                        help="stop when max |F| < fmax, in units of the initial max |F| (default 0: run all steps)")
     relax.add_argument("--optimizer", choices=("fan", "fire", "bfgs", "lbfgs"), default="fan",
                        help="fan: Eq. 2.4 with step c*h (default); fire/bfgs/lbfgs: ASE optimisers")
-    relax.add_argument("--c", type=_positive(float), default=0.01, help="Eq. 2.4 step coefficient (0.01)")
+    relax.add_argument("--c", type=_positive(float), default=None,
+                       help="step scale: Eq. 2.4 coefficient for fan; first step c*h for fire/bfgs/lbfgs "
+                            "(default 0.01 for fan and fire, 0.05 for bfgs and lbfgs)")
     relax.add_argument("--dim", type=int, choices=(2, 3), default=None, help="dimension (default from the domain)")
     relax.add_argument("--jitter", type=float, default=0.1, help="initial random shift, fraction of dx (0.1)")
     relax.add_argument("--seed", type=int, default=0, help="random seed for the initial shift (0)")

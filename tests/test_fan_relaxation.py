@@ -194,3 +194,14 @@ def test_bad_driver_parameters(kwargs, match):
 def test_unknown_optimizer_name_is_rejected():
     with pytest.raises(ValueError, match="optimizer must be one of"):
         make_optimizer("adam", jittered_box())
+
+
+def test_quasi_newton_optimisers_accept_steps_longer_than_one_length_unit():
+    """ASE's LBFGS refuses maxstep > 1 (Angstrom sanity check); SPH units have no such scale."""
+    atoms = periodic_box((8, 8), dx=10.0, jitter=0.2, seed=1)
+    atoms.calc = FanCalculator(h=26.0, dx=10.0)
+    opt = make_optimizer("lbfgs", atoms)
+    assert opt.maxstep == pytest.approx(10 * 0.05 * 26.0)
+    e0 = atoms.get_potential_energy()
+    opt.run(fmax=0.0, steps=20)
+    assert atoms.get_potential_energy() < e0
