@@ -146,24 +146,25 @@ def _thread_buffers(nthreads, n):
 
 
 @numba.njit(cache=True)
-def _sum_threads(e_ts, f_tsc):
-    """(n, 4) array of energies and forces summed over the thread buffers."""
-    n = e_ts.shape[1]
-    out = np.zeros((n, 4))
+def _fold_threads(e_ts, f_tsc, order_s, src_e, n):
+    """Energies (n,) and forces (n, 3) on particles: thread buffers summed and ghosts folded in one pass."""
+    e_p = np.zeros(n)
+    f_pc = np.zeros((n, 3))
     for t in range(e_ts.shape[0]):
-        for s in range(n):
-            out[s, 0] += e_ts[t, s]
-            out[s, 1] += f_tsc[t, s, 0]
-            out[s, 2] += f_tsc[t, s, 1]
-            out[s, 3] += f_tsc[t, s, 2]
-    return out
+        for s in range(e_ts.shape[1]):
+            p = src_e[order_s[s]]
+            e_p[p] += e_ts[t, s]
+            f_pc[p, 0] += f_tsc[t, s, 0]
+            f_pc[p, 1] += f_tsc[t, s, 1]
+            f_pc[p, 2] += f_tsc[t, s, 2]
+    return e_p, f_pc
 
 
 def _reduce(points, e_ts, f_tsc, vir_tv):
     v = vir_tv.sum(axis=0)  # xx yy zz yz xz xy
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
-    folded = points.fold(_sum_threads(e_ts, f_tsc))  # one pass for energies and forces
-    return folded[:, 0].copy(), folded[:, 1:].copy(), virial
+    e_p, f_pc = _fold_threads(e_ts, f_tsc, points.order_s, points.src_e, points.n_particles)
+    return e_p, f_pc, virial
 
 
 def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):

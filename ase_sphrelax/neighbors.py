@@ -188,9 +188,8 @@ def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
 
 
 @numba.njit(cache=True)
-def _gather(r_pc, src_s, shift_sc):
-    """x_s = r[src_s] + shift_s."""
-    x_sc = np.empty(shift_sc.shape)
+def _gather(r_pc, src_s, shift_sc, x_sc):
+    """x_s = r[src_s] + shift_s, written into x_sc."""
     for s in range(src_s.shape[0]):
         p = src_s[s]
         for c in range(3):
@@ -339,8 +338,8 @@ class BinnedPoints:
     Attributes
     ----------
     x_sc, src_s, img_sc, shift_sc, is_ghost_s, cut_s : ndarray
-        Position, source particle, integer image, Cartesian shift, ghost flag and
-        cut-off of each sorted extended point.
+        Position (at the build, then at the last :meth:`extend`), source particle,
+        integer image, Cartesian shift, ghost flag and cut-off of each sorted extended point.
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
     """
@@ -373,14 +372,18 @@ class BinnedPoints:
         self.src_e = src_e
         (self.src_s, self.img_sc, self.x_sc, self.shift_sc, self.is_ghost_s,
          self.cut_s) = _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p)
+        self._x_buffer = self.x_sc  # extend() writes current positions here
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
         self.stencil_kc = _half_stencil(m, nbin_c)
 
     def extend(self, positions):
-        """Positions of the sorted extended points for the current ``positions``."""
-        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc)
+        """Positions of the sorted extended points for the current ``positions``.
+
+        The array is reused by the next call: copy it to keep it.
+        """
+        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc, self._x_buffer)
 
     def fold(self, values_s):
         """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
