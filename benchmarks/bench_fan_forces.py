@@ -38,7 +38,6 @@ import json
 import math
 import os
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -51,6 +50,7 @@ from ase_sphrelax import FanCalculator
 from ase_sphrelax.build import periodic_box
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _provenance import git_version  # noqa: E402
 from _reference import ReferenceFan  # noqa: E402
 
 RATIO = 2.6
@@ -206,15 +206,6 @@ def scaling(rows, threads_list):
             out[f"ref_{kind[:-2]}_1e6_over_1e5"] = b["ref_" + kind] / a["ref_" + kind]
         out["n_ratio"] = b["n"] / a["n"]
     return out
-
-
-def git_version():
-    """``git describe --always --dirty`` of the checkout (uncommitted core changes show as -dirty)."""
-    try:
-        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).resolve().parent,
-                              capture_output=True, text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 def main(argv=None):

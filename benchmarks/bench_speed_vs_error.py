@@ -44,7 +44,6 @@ import datetime  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
-import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -55,6 +54,7 @@ from ase_sphrelax.analysis.quality import Quality  # noqa: E402
 from ase_sphrelax.build import fill, periodic_box  # noqa: E402
 from ase_sphrelax.domains import Circle  # noqa: E402
 from ase_sphrelax.drivers import make_optimizer  # noqa: E402
+from _provenance import git_version  # noqa: E402
 
 RATIO = 2.6
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -292,15 +292,6 @@ def slim(result, points=150):
             s[k] = r4(t[k])
         out["traces"].append(s)
     return out
-
-
-def git_version():
-    """``git describe --always --dirty`` of the checkout (uncommitted core changes show as -dirty)."""
-    try:
-        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).resolve().parent,
-                              capture_output=True, text=True, timeout=10).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
 
 
 def main(argv=None):

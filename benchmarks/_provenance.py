@@ -1,0 +1,14 @@
+"""Provenance recorded in every benchmark's JSON."""
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+
+def git_version():
+    """``git describe --always --dirty`` of the checkout (uncommitted core changes show as -dirty)."""
+    try:
+        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).resolve().parent,
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
