@@ -5,7 +5,9 @@ and touch each physical pair once. Per-point results are folded back onto the
 particles with ``fold``. Pair potentials run either over a stored Verlet list or
 fused into the bin scan of :class:`~ase_sphrelax.neighbors.BinnedPoints` (one-shot
 evaluations, no list stored). Above ``PARALLEL_MIN`` points the loops use numba
-threads, each on a static chunk of points with its own output buffers.
+threads, each on a static chunk of points with its own output buffers. (The thread
+index comes from the loop, not from ``numba.get_thread_id``: after LAMMPS has run
+OpenMP threads in the same process that id can exceed numba's thread count.)
 """
 from __future__ import annotations
 
@@ -60,11 +62,13 @@ def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, 
     h2 = h * h
     inv_h = 1.0 / h
     chunk = (n + nthreads - 1) // nthreads
+    # zero outside the prange: array expressions inside it would be nested parallel
+    # loops, which leave the outer loop sequential
+    e_ts[:] = 0.0
+    f_tsc[:] = 0.0
+    vir_tv[:] = 0.0
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
-        e_s[:] = 0.0
-        f_sc[:] = 0.0
-        vir[:] = 0.0
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
             xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
             ea = fa0 = fa1 = fa2 = 0.0
@@ -94,11 +98,13 @@ def _scan_pair_potential_impl(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bi
     h2 = h * h
     inv_h = 1.0 / h
     chunk = (n + nthreads - 1) // nthreads
+    # zero outside the prange: array expressions inside it would be nested parallel
+    # loops, which leave the outer loop sequential
+    e_ts[:] = 0.0
+    f_tsc[:] = 0.0
+    vir_tv[:] = 0.0
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
-        e_s[:] = 0.0
-        f_sc[:] = 0.0
-        vir[:] = 0.0
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
             xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
             ea = fa0 = fa1 = fa2 = 0.0
@@ -145,14 +151,27 @@ def _thread_buffers(nthreads, n):
     return _BUFFERS[key]
 
 
-@numba.njit(cache=True)
-def _fold_threads(e_ts, f_tsc, order_s, src_e, n):
-    """Energies (n,) and forces (n, 3) on particles: thread buffers summed and ghosts folded in one pass."""
+def _fold_threads_impl(e_ts, f_tsc, order_s, ghost_s, src_e, n):
+    """Energies (n,) and forces (n, 3) on particles: thread buffers summed and ghosts folded.
+
+    Each original particle appears once among the sorted points, so those are summed in
+    parallel without races; the (few) ghosts are added afterwards.
+    """
     e_p = np.zeros(n)
     f_pc = np.zeros((n, 3))
-    for t in range(e_ts.shape[0]):
-        for s in range(e_ts.shape[1]):
-            p = src_e[order_s[s]]
+    n_threads = e_ts.shape[0]
+    for s in numba.prange(e_ts.shape[1]):
+        e = order_s[s]
+        if e < n:
+            for t in range(n_threads):
+                e_p[e] += e_ts[t, s]
+                f_pc[e, 0] += f_tsc[t, s, 0]
+                f_pc[e, 1] += f_tsc[t, s, 1]
+                f_pc[e, 2] += f_tsc[t, s, 2]
+    for g in range(ghost_s.shape[0]):
+        s = ghost_s[g]
+        p = src_e[order_s[s]]
+        for t in range(n_threads):
             e_p[p] += e_ts[t, s]
             f_pc[p, 0] += f_tsc[t, s, 0]
             f_pc[p, 1] += f_tsc[t, s, 1]
@@ -160,10 +179,15 @@ def _fold_threads(e_ts, f_tsc, order_s, src_e, n):
     return e_p, f_pc
 
 
+_fold_threads_serial = numba.njit(cache=True)(_fold_threads_impl)
+_fold_threads_parallel = numba.njit(cache=True, parallel=True)(_fold_threads_impl)
+
+
 def _reduce(points, e_ts, f_tsc, vir_tv):
     v = vir_tv.sum(axis=0)  # xx yy zz yz xz xy
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
-    e_p, f_pc = _fold_threads(e_ts, f_tsc, points.order_s, points.src_e, points.n_particles)
+    fold = _fold_threads_parallel if e_ts.shape[0] > 1 else _fold_threads_serial
+    e_p, f_pc = fold(e_ts, f_tsc, points.order_s, points.ghost_s, points.src_e, points.n_particles)
     return e_p, f_pc, virial
 
 

@@ -187,10 +187,9 @@ def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
     return src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s
 
 
-@numba.njit(cache=True)
-def _gather(r_pc, src_s, shift_sc, x_sc):
+def _gather_impl(r_pc, src_s, shift_sc, x_sc):
     """x_s = r[src_s] + shift_s, written into x_sc."""
-    for s in range(src_s.shape[0]):
+    for s in numba.prange(src_s.shape[0]):
         p = src_s[s]
         for c in range(3):
             x_sc[s, c] = r_pc[p, c] + shift_sc[s, c]
@@ -289,6 +288,15 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
             pair_start[a + 1] = count
 
 
+_gather_serial = numba.njit(cache=True)(_gather_impl)
+_gather_parallel = numba.njit(cache=True, parallel=True)(_gather_impl)
+
+
+def _gather(r_pc, src_s, shift_sc, x_sc):
+    gather = _gather_parallel if src_s.shape[0] >= PARALLEL_MIN and numba.get_num_threads() > 1 else _gather_serial
+    return gather(r_pc, src_s, shift_sc, x_sc)
+
+
 # threads pay off only for large systems: below PARALLEL_MIN points the serial
 # version avoids waking threads (measured: 400 particles, 16 ms parallel vs 0.1 ms serial under load)
 PARALLEL_MIN = 20000
@@ -373,6 +381,7 @@ class BinnedPoints:
         (self.src_s, self.img_sc, self.x_sc, self.shift_sc, self.is_ghost_s,
          self.cut_s) = _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p)
         self._x_buffer = self.x_sc  # extend() writes current positions here
+        self.ghost_s = np.nonzero(self.is_ghost_s)[0]
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
