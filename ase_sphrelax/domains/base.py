@@ -144,6 +144,24 @@ def _smooth_heaviside(x):
         x >= 1.0, 0.0, 0.5 * (1.0 - x - np.sin(np.pi * x) / np.pi)))
 
 
+class SearchedDomain(Domain):
+    """A domain whose phi comes from an exact search (``_exact_phi_grad``) or, when
+    ``self._table`` is set, from its tabulated, interpolated copy (Fan Sec. 2)."""
+
+    _table = None
+
+    def _exact_phi_grad(self, r_pd):
+        raise NotImplementedError
+
+    def _exact_phi(self, r_pd):
+        return self._exact_phi_grad(r_pd)[0]
+
+    def _phi_grad(self, r_pd):
+        if self._table is not None:
+            return self._table.phi_grad(r_pd)
+        return self._exact_phi_grad(r_pd)
+
+
 def smoothed_volume(domain, n_cells=None):
     """Volume of ``{phi < 0}`` by integrating a smoothed Heaviside on a grid.
 

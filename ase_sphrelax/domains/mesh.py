@@ -21,7 +21,7 @@ import os
 import numba
 import numpy as np
 
-from .base import Domain, check_positive
+from .base import SearchedDomain, check_positive
 
 
 @numba.njit(cache=True)
@@ -194,7 +194,7 @@ def _pseudo_normals(mesh):
     return np.ascontiguousarray(pn)
 
 
-class Mesh(Domain):
+class Mesh(SearchedDomain):
     """3D domain enclosed by a closed (watertight) triangle mesh.
 
     Parameters
@@ -272,14 +272,6 @@ class Mesh(Domain):
         _mesh_phi_grad(r_pd, self._tri, self._pn, self._glo, self._gh, self._gn,
                        self._start, self._cand, phi_p, g_pd)
         return phi_p, g_pd
-
-    def _exact_phi(self, r_pd):
-        return self._exact_phi_grad(r_pd)[0]
-
-    def _phi_grad(self, r_pd):
-        if self._table is not None:
-            return self._table.phi_grad(r_pd)
-        return self._exact_phi_grad(r_pd)
 
     @property
     def bounds(self):

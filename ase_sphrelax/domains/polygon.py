@@ -42,7 +42,7 @@ import math
 import numba
 import numpy as np
 
-from .base import Domain, check_positive
+from .base import SearchedDomain, check_positive
 
 
 # ----------------------------------------------------------------------------
@@ -285,7 +285,7 @@ def _read_edges(path, tol):
     return loops
 
 
-class Polygon(Domain):
+class Polygon(SearchedDomain):
     """2D domain bounded by closed polygonal loops (outer boundaries and holes).
 
     Parameters
@@ -408,14 +408,6 @@ class Polygon(Domain):
         _polygon_phi_grad(r_pd, self._seg, self._nrm, self._vna, self._vnb, self._glo,
                           self._gh, self._gn, self._start, self._cand, self._cdist, phi_p, g_pd)
         return phi_p, g_pd
-
-    def _exact_phi(self, r_pd):
-        return self._exact_phi_grad(r_pd)[0]
-
-    def _phi_grad(self, r_pd):
-        if self._table is not None:
-            return self._table.phi_grad(r_pd)
-        return self._exact_phi_grad(r_pd)
 
     @property
     def n_segments(self):
