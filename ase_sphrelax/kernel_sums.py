@@ -54,19 +54,27 @@ def _owner_add(a, ea, fa0, fa1, fa2, e_s, f_sc):
     f_sc[a, 2] += fa2
 
 
+@numba.njit(cache=True, inline="always")
+def _zeroed_thread_chunks(n, e_ts, f_tsc, vir_tv):
+    """Zero the per-thread buffers; return (threads, points per thread chunk).
+
+    Called before the prange, not inside it: array expressions in a prange body become
+    nested parallel loops, which leave the outer loop sequential.
+    """
+    e_ts[:] = 0.0
+    f_tsc[:] = 0.0
+    vir_tv[:] = 0.0
+    nthreads = e_ts.shape[0]
+    return nthreads, (n + nthreads - 1) // nthreads
+
+
 def _list_pair_potential_impl(x_sc, pair_start, pair_j, h, scale, kind, breaks, coef, want_virial,
                               e_ts, f_tsc, vir_tv):
     """phi = scale f(r/h) over a stored half list, into the (zeroed) per-thread buffers."""
     n = x_sc.shape[0]
-    nthreads = e_ts.shape[0]
     h2 = h * h
     inv_h = 1.0 / h
-    chunk = (n + nthreads - 1) // nthreads
-    # zero outside the prange: array expressions inside it would be nested parallel
-    # loops, which leave the outer loop sequential
-    e_ts[:] = 0.0
-    f_tsc[:] = 0.0
-    vir_tv[:] = 0.0
+    nthreads, chunk = _zeroed_thread_chunks(n, e_ts, f_tsc, vir_tv)
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
         for a in range(t * chunk, min(n, (t + 1) * chunk)):
@@ -94,15 +102,9 @@ def _scan_pair_potential_impl(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bi
                               h, scale, kind, breaks, coef, want_virial, e_ts, f_tsc, vir_tv):
     """The same sums fused into the half-stencil bin scan (no stored list)."""
     n = x_sc.shape[0]
-    nthreads = e_ts.shape[0]
     h2 = h * h
     inv_h = 1.0 / h
-    chunk = (n + nthreads - 1) // nthreads
-    # zero outside the prange: array expressions inside it would be nested parallel
-    # loops, which leave the outer loop sequential
-    e_ts[:] = 0.0
-    f_tsc[:] = 0.0
-    vir_tv[:] = 0.0
+    nthreads, chunk = _zeroed_thread_chunks(n, e_ts, f_tsc, vir_tv)
     for t in numba.prange(nthreads):
         e_s, f_sc, vir = e_ts[t], f_tsc[t], vir_tv[t]
         for a in range(t * chunk, min(n, (t + 1) * chunk)):

@@ -518,7 +518,6 @@ def brute_force_pairs(positions, cell, pbc, cutoff):
     span = np.ptp(r_pc @ inv_cell, axis=0)
     layers = [int(np.ceil(cutoff / width_c[c] + span[c])) + 1 if pbc[c] else 0 for c in range(3)]
     pairs = {}
-    n = len(r_pc)
     for shift in itertools.product(*[range(-l, l + 1) for l in layers]):
         t_c = np.array(shift) @ full_cell
         d_ppc = r_pc[None, :, :] + t_c - r_pc[:, None, :]

@@ -1,5 +1,4 @@
 """FanCalculator: Eq. 3.8 energy with exact Eq. 3.17 / 4.4 forces and exact stress."""
-import math
 
 import numpy as np
 import pytest

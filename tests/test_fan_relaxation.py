@@ -3,7 +3,6 @@ bounded relaxations keep particles inside with the boundary layer where Sec. 4.2
 import numpy as np
 import pytest
 from ase.constraints import FixAtoms
-from ase.optimize import FIRE
 
 from ase_sphrelax import FanCalculator, FanRelaxation
 from ase_sphrelax.analysis import Quality

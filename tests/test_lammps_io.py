@@ -27,7 +27,7 @@ def random_set(n, dim, seed=0, tilt=True):
 
 def lammps_from_data(path, atom_style, dimension, boundary="p p p"):
     lmp = _library.new_lammps()
-    lmp.commands_list([f"units lj", f"dimension {dimension}", f"boundary {boundary}", f"atom_style {atom_style}",
+    lmp.commands_list(["units lj", f"dimension {dimension}", f"boundary {boundary}", f"atom_style {atom_style}",
                        "atom_modify map array", f"read_data {path}"])
     return lmp
 

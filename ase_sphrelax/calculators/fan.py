@@ -100,9 +100,9 @@ class FanCalculator(SPHCalculator):
         p = self.parameters
         atoms = self.atoms
         want_stress = "stress" in properties
-        if want_stress and (p.domain is not None or periodic_measure(atoms.cell.array, atoms.pbc, p.dim) is None):
-            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes and no domain")
         volume, v0, measure = self.volumes(atoms)
+        if want_stress and (p.domain is not None or measure is None):
+            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes and no domain")
         r_pc, _ = self.prepare(atoms, p.h, p.skin)
         n = len(atoms)
         kernel = self.kernel
