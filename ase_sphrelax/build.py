@@ -14,18 +14,10 @@ import numbers
 import numpy as np
 from ase import Atoms
 
+from .checks import check_positive
 from .domains.base import Domain
 
 _LATTICES = {2: ("square", "hexagonal"), 3: ("square", "cubic", "sc", "fcc", "bcc")}
-
-
-def _check_dx(dx):
-    if isinstance(dx, bool) or not isinstance(dx, numbers.Real):
-        raise TypeError(f"dx must be a real number > 0, got {dx!r}")
-    dx = float(dx)
-    if not math.isfinite(dx) or dx <= 0.0:
-        raise ValueError(f"dx must be a finite number > 0, got {dx!r}")
-    return dx
 
 
 def _check_jitter(jitter):
@@ -92,7 +84,7 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
     """
     if not isinstance(domain, Domain):
         raise TypeError(f"domain must be an ase_sphrelax Domain, got {type(domain).__name__}")
-    dx = _check_dx(dx)
+    dx = check_positive("dx", dx)
     jitter = _check_jitter(jitter)
     dim = domain.dim
     if origin is None:
@@ -181,7 +173,7 @@ def periodic_box(n, dx=1.0, dim=2, lattice="square", jitter=0.0, seed=None):
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
     if not isinstance(lattice, str) or lattice not in _LATTICES[dim]:
         raise ValueError(f"lattice must be one of {_LATTICES[dim]} for dim={dim}, got {lattice!r}")
-    dx = _check_dx(dx)
+    dx = check_positive("dx", dx)
     jitter = _check_jitter(jitter)
     n = _counts(n, dim)
     if lattice in ("square", "cubic", "sc"):

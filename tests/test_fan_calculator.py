@@ -174,3 +174,9 @@ def test_one_shot_scan_and_verlet_list_agree(side):
     f_scan = fresh.get_forces(moved)            # one-shot scan on the same positions
     np.testing.assert_allclose(f_list, f_scan, rtol=0, atol=1e-12 * np.abs(f_scan).max())
     assert reused.get_potential_energy(moved) == pytest.approx(fresh.get_potential_energy(moved), rel=1e-13)
+
+
+@pytest.mark.parametrize("value", ["2.6", None, True])
+def test_non_numbers_are_rejected_as_type_errors(value):
+    with pytest.raises(TypeError, match="h must be a positive finite number"):
+        FanCalculator(h=value)

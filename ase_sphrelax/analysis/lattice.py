@@ -67,12 +67,12 @@ The lattice is always scaled to unit area per particle. Two conventions:
 from __future__ import annotations
 
 import math
-import numbers
 
 import numba
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from ..checks import check_positive
 from ..kernels import get_kernel, profile_value_and_slope
 
 __all__ = [
@@ -100,15 +100,6 @@ _SQRT3 = math.sqrt(3.0)
 
 
 # -- input checks -------------------------------------------------------------------
-def _check_h(h_over_dx):
-    if isinstance(h_over_dx, bool) or not isinstance(h_over_dx, numbers.Real):
-        raise TypeError(f"h_over_dx must be a real number > 0, got {h_over_dx!r}")
-    h = float(h_over_dx)
-    if not math.isfinite(h) or h <= 0.0:
-        raise ValueError(f"h_over_dx must be a finite number > 0, got {h_over_dx!r}")
-    return h
-
-
 def _check_dim(dim):
     if isinstance(dim, bool) or dim not in (2, 3):
         raise ValueError(f"dim must be 2 or 3, got {dim!r}")
@@ -199,7 +190,7 @@ def characteristic_volume_of_cell(cell_vv, h_over_dx, kernel="wendland_c2", basi
     The cell (rows) and basis are scaled so that ``|det cell| / n_basis = 1``;
     ``v_c = 1 / mean_i sum_j W(|r_ij|, h)``.
     """
-    h = _check_h(h_over_dx)
+    h = check_positive("h_over_dx", h_over_dx)
     cell_vv = np.asarray(cell_vv, dtype=float)
     dim = cell_vv.shape[0]
     nb = 1 if basis_bv is None else len(np.asarray(basis_bv).reshape(-1, dim))
@@ -457,7 +448,7 @@ def characteristic_volume(pattern, h_over_dx, dim=2, kernel="wendland_c2", conve
     """
     dim = _check_dim(dim)
     _check_pattern(pattern, dim)
-    h = _check_h(h_over_dx)
+    h = check_positive("h_over_dx", h_over_dx)
     _check_convention(convention)
     get_kernel(kernel, dim)  # validates the name
     if dim == 2:

@@ -19,6 +19,7 @@ import numbers
 import numpy as np
 from ase import Atoms
 
+from ..checks import check_positive
 from .cell_filter import ConstantMeasureCellFilter
 from .lattice import PATTERNS_2D, PATTERNS_3D, characteristic_volume, pattern_cell, pattern_table, predict_pattern
 
@@ -150,9 +151,9 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
         (Eq. 3.8), ``v_c = 1 / (E/N + 1)`` (Eq. 5.2), ``converged``,
         ``steps`` and ``start`` (which start produced it).
     """
-    from .lattice import _check_dim, _check_h
+    from .lattice import _check_dim
 
-    h = _check_h(h_over_dx)
+    h = check_positive("h_over_dx", h_over_dx)
     dim = _check_dim(dim)
     n_atoms = _check_int("n_atoms", n_atoms, 1)
     n_starts = _check_int("n_starts", n_starts, 0)

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calculators.base import check_positive, periodic_measure
+from ..calculators.base import periodic_measure
+from ..checks import check_positive
 from ..kernel_sums import kernel_sums
 from ..kernels import _check_dim, get_kernel
 from ..neighbors import NeighborList

@@ -7,25 +7,13 @@ calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 from ase.calculators.calculator import Calculator, all_changes
 
 from ..kernels import KERNEL_NAMES, _check_dim
 from ..neighbors import BinnedPoints, NeighborList
 
-__all__ = ["SPHCalculator", "check_positive", "periodic_measure"]
-
-
-def check_positive(name, value, allow_none=False):
-    """Return ``float(value)`` or raise ValueError naming ``name``."""
-    if value is None and allow_none:
-        return None
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
-        accepted = "a positive finite number" + (" or None" if allow_none else "")
-        raise ValueError(f"{name} must be {accepted}, got {value!r}")
-    return float(value)
+__all__ = ["SPHCalculator", "periodic_measure"]
 
 
 def periodic_measure(cell, pbc, dim):

@@ -22,7 +22,8 @@ from ase.calculators.calculator import PropertyNotImplementedError, all_changes
 
 from ..kernel_sums import pair_potential_sums
 from ..kernels import get_kernel
-from .base import SPHCalculator, check_positive, periodic_measure
+from ..checks import check_positive
+from .base import SPHCalculator, periodic_measure
 
 __all__ = ["FanCalculator"]
 

@@ -8,7 +8,8 @@ import math
 
 import numpy as np
 
-from .base import Domain, check_positive, check_vector
+from ..checks import check_positive
+from .base import Domain, check_vector
 
 
 class Ball(Domain):
@@ -21,7 +22,7 @@ class Ball(Domain):
     def __init__(self, center, radius, dim=None):
         self.center = check_vector(center, "center", dim)
         self.dim = self.center.size
-        self.radius = check_positive(radius, "radius")
+        self.radius = check_positive("radius", radius)
 
     def _phi_grad(self, r_pd):
         d_pd = r_pd - self.center

@@ -13,20 +13,8 @@ axis), so a calculator whose energy contains ``phi`` gets exact forces.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
-
-
-def check_positive(value, name):
-    """Return ``value`` as a finite float > 0 or raise ValueError naming it."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a positive real number, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
 
 
 def check_vector(value, name, dim=None):

@@ -21,7 +21,8 @@ import os
 import numba
 import numpy as np
 
-from .base import SearchedDomain, check_positive
+from ..checks import check_positive
+from .base import SearchedDomain
 
 
 @numba.njit(cache=True)
@@ -243,7 +244,7 @@ class Mesh(SearchedDomain):
         if grid_spacing is not None:
             from .table import CubicTable
 
-            grid_spacing = check_positive(grid_spacing, "grid_spacing")
+            grid_spacing = check_positive("grid_spacing", grid_spacing)
             self._table = CubicTable(self._exact_phi, self.bounds, grid_spacing)
 
     def _build_buckets(self):

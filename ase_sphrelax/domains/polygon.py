@@ -42,7 +42,8 @@ import math
 import numba
 import numpy as np
 
-from .base import SearchedDomain, check_positive
+from ..checks import check_positive
+from .base import SearchedDomain
 
 
 # ----------------------------------------------------------------------------
@@ -348,7 +349,7 @@ class Polygon(SearchedDomain):
         if grid_spacing is not None:
             from .table import CubicTable
 
-            grid_spacing = check_positive(grid_spacing, "grid_spacing")
+            grid_spacing = check_positive("grid_spacing", grid_spacing)
             self._table = CubicTable(self._exact_phi, self.bounds, grid_spacing)
 
     @classmethod

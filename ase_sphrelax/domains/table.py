@@ -17,7 +17,8 @@ import math
 import numba
 import numpy as np
 
-from .base import Domain, check_positive
+from ..checks import check_positive
+from .base import Domain
 
 
 @numba.njit(cache=True, inline="always")
@@ -162,7 +163,7 @@ class CubicTable:
     """
 
     def __init__(self, phi_function, bounds, dx, margin=4):
-        self.dx = check_positive(dx, "dx")
+        self.dx = check_positive("dx", dx)
         if int(margin) != margin or margin < 1:
             raise ValueError(f"margin must be an integer >= 1, got {margin!r}")
         lo, hi = (np.asarray(b, dtype=float) for b in bounds)

@@ -11,10 +11,10 @@ BFGS and LBFGS adapt their step and reach lower E with fewer force calls.
 """
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 from ase.optimize.optimize import Optimizer
+
+from ..checks import check_positive
 
 __all__ = ["FanRelaxation"]
 
@@ -49,15 +49,11 @@ class FanRelaxation(Optimizer):
     """
 
     def __init__(self, atoms, c=0.01, h=None, logfile="-", **kwargs):
-        if isinstance(c, bool) or not isinstance(c, numbers.Real) or not np.isfinite(c) or c <= 0:
-            raise ValueError(f"c must be a positive finite number (Eq. 2.4 step coefficient), got {c!r}")
+        self.c = check_positive("c", c)  # Eq. 2.4 step coefficient
         h = _calculator_h(atoms) if h is None else h
         if h is None:
             raise ValueError("h must be given, or the calculator must have a parameter 'h'")
-        if isinstance(h, bool) or not isinstance(h, numbers.Real) or not np.isfinite(h) or h <= 0:
-            raise ValueError(f"h must be a positive finite number, got {h!r}")
-        self.c = float(c)
-        self.h = float(h)
+        self.h = check_positive("h", h)
         self.last_step = 0.0
         Optimizer.__init__(self, atoms, logfile=logfile, **kwargs)
 

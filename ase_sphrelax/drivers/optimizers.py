@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from ase.optimize import BFGS, FIRE, LBFGS
 
+from ..checks import check_positive
 from .fan_relaxation import FanRelaxation, _calculator_h
 
 __all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer"]
@@ -49,8 +50,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, **kwargs):
         return FanRelaxation(atoms, c=c, h=h, logfile=logfile, **kwargs)
     if h is None:
         raise ValueError("h must be given, or the calculator must have a parameter 'h'")
-    if isinstance(c, bool) or not np.isfinite(c) or c <= 0:
-        raise ValueError(f"c must be a positive finite number, got {c!r}")
+    c = check_positive("c", c)
     forces = atoms.get_forces()
     f_max = float(np.sqrt((forces**2).sum(axis=1)).max())
     step = c * h
