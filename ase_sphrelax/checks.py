@@ -4,7 +4,9 @@ from __future__ import annotations
 import math
 import numbers
 
-__all__ = ["check_positive"]
+import numpy as np
+
+__all__ = ["check_positive", "check_dim", "check_skin"]
 
 
 def check_positive(name, value, allow_none=False):
@@ -21,3 +23,17 @@ def check_positive(name, value, allow_none=False):
     if not math.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return float(value)
+
+
+def check_dim(dim):
+    """Return ``dim`` as an int in {1, 2, 3}; ValueError naming ``dim`` otherwise."""
+    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
+        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
+    return int(dim)
+
+
+def check_skin(skin, name="skin"):
+    """Return a Verlet skin as a finite float >= 0."""
+    if isinstance(skin, bool) or not isinstance(skin, numbers.Real) or not math.isfinite(skin) or skin < 0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {skin!r}")
+    return float(skin)

@@ -35,6 +35,8 @@ import numba
 import numpy as np
 from numpy.polynomial import polynomial as P
 
+from .checks import check_dim
+
 __all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind", "PIECEWISE"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
@@ -154,7 +156,7 @@ class Kernel:
     """
 
     def __init__(self, name: str = "wendland_c2", dim: int = 2):
-        dim = _check_dim(dim)
+        dim = check_dim(dim)
         breaks, pieces = _profiles(name, dim)
         self.name = name
         self.dim = dim
@@ -253,12 +255,6 @@ class Kernel:
         return out[()] if out.ndim == 0 else out
 
 
-def _check_dim(dim):
-    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
-        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
-    return int(dim)
-
-
 _CACHE: dict = {}
 
 
@@ -273,7 +269,7 @@ def get_kernel(name="wendland_c2", dim=2) -> Kernel:
         return name
     if name not in KERNEL_NAMES:
         raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {name!r}")
-    key = (name, _check_dim(dim))
+    key = (name, check_dim(dim))
     if key not in _CACHE:
         _CACHE[key] = Kernel(name, dim)
     return _CACHE[key]

@@ -27,7 +27,10 @@ import itertools
 import numba
 import numpy as np
 
-__all__ = ["NeighborList", "BinnedPoints", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
+from .checks import check_skin
+from .parallel import PARALLEL_MIN, run_chunks
+
+__all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
 
 
@@ -187,13 +190,13 @@ def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
     return src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s
 
 
-def _gather_impl(r_pc, src_s, shift_sc, x_sc):
-    """x_s = r[src_s] + shift_s, written into x_sc."""
-    for s in numba.prange(src_s.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _gather_chunk(r_pc, src_s, shift_sc, x_sc, first, last):
+    """x_s = r[src_s] + shift_s for s in [first, last), written into x_sc."""
+    for s in range(first, last):
         p = src_s[s]
         for c in range(3):
             x_sc[s, c] = r_pc[p, c] + shift_sc[s, c]
-    return x_sc
 
 
 @numba.njit(cache=True, inline="always")
@@ -253,8 +256,9 @@ def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
     return bin_start[b_bin], bin_start[b_bin + 1]
 
 
-def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
-                pair_start, pair_j, fill):
+@numba.njit(cache=True, nogil=True)
+def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
+                      pair_start, pair_j, fill, first, last):
     """Half-stencil bin scan. With fill=False counts the pairs of each point
     into pair_start[a+1]; with fill=True writes the partners into pair_j.
 
@@ -263,8 +267,7 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
     ``stencil_kc`` holds the bin offsets (x, y, z) of the forward half stencil;
     the own bin is scanned for b > a.
     """
-    n = x_sc.shape[0]
-    for a in numba.prange(n):
+    for a in range(first, last):
         xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
         ca = cut_s[a]
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
@@ -288,25 +291,13 @@ def _scan_pairs_impl(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c
             pair_start[a + 1] = count
 
 
-_gather_serial = numba.njit(cache=True)(_gather_impl)
-_gather_parallel = numba.njit(cache=True, parallel=True)(_gather_impl)
-
-
 def _gather(r_pc, src_s, shift_sc, x_sc):
-    gather = _gather_parallel if src_s.shape[0] >= PARALLEL_MIN and numba.get_num_threads() > 1 else _gather_serial
-    return gather(r_pc, src_s, shift_sc, x_sc)
-
-
-# threads pay off only for large systems: below PARALLEL_MIN points the serial
-# version avoids waking threads (measured: 400 particles, 16 ms parallel vs 0.1 ms serial under load)
-PARALLEL_MIN = 20000
-_scan_pairs_parallel = numba.njit(cache=True, parallel=True)(_scan_pairs_impl)
-_scan_pairs_serial = numba.njit(cache=True)(_scan_pairs_impl)
+    run_chunks(_gather_chunk, src_s.shape[0], (r_pc, src_s, shift_sc, x_sc))
+    return x_sc
 
 
 def _scan_pairs(*args):
-    scan = _scan_pairs_parallel if args[0].shape[0] >= PARALLEL_MIN else _scan_pairs_serial
-    return scan(*args)
+    run_chunks(_scan_pairs_chunk, args[0].shape[0], args)
 
 
 @numba.njit(cache=True)
@@ -318,6 +309,51 @@ def _fold(f_sc, order_s, src_e, n):
         for c in range(f_sc.shape[1]):
             out[p, c] += f_sc[s, c]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _fold_originals(bufs, order_s, n, outs, first, last):
+    """outs[i][p] = sum over threads of bufs[i][:, s], for the originals s in [first, last).
+
+    Each original particle appears once among the sorted points, so chunks never write
+    the same row.
+    """
+    for i in range(len(bufs)):
+        buf_tsk = bufs[i]
+        out_pk = outs[i]
+        n_threads, _, k_max = buf_tsk.shape
+        for s in range(first, last):
+            e = order_s[s]
+            if e < n:
+                for k in range(k_max):
+                    total = buf_tsk[0, s, k]
+                    for t in range(1, n_threads):
+                        total += buf_tsk[t, s, k]
+                    out_pk[e, k] = total
+
+
+@numba.njit(cache=True)
+def _fold_ghosts(bufs, order_s, ghost_s, src_e, outs):
+    """Add the (few) ghosts' values to their source particles."""
+    for i in range(len(bufs)):
+        buf_tsk = bufs[i]
+        out_pk = outs[i]
+        n_threads, _, k_max = buf_tsk.shape
+        for g in range(ghost_s.shape[0]):
+            s = ghost_s[g]
+            p = src_e[order_s[s]]
+            for t in range(n_threads):
+                for k in range(k_max):
+                    out_pk[p, k] += buf_tsk[t, s, k]
+
+
+def fold_thread_buffers(bufs, order_s, ghost_s, src_e, n):
+    """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer."""
+    bufs = tuple(bufs)
+    outs = tuple(np.empty((n, buf.shape[2])) for buf in bufs)
+    run_chunks(_fold_originals, bufs[0].shape[1], (bufs, order_s, n, outs), nthreads=bufs[0].shape[0])
+    _fold_ghosts(bufs, order_s, ghost_s, src_e, outs)
+    return outs
 
 
 @numba.njit(cache=True)
@@ -386,6 +422,7 @@ class BinnedPoints:
         self.nbin_c = nbin_c
         self.bin_start = bin_start
         self.stencil_kc = _half_stencil(m, nbin_c)
+        self._gather_buffers = {}
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``.
@@ -394,6 +431,24 @@ class BinnedPoints:
         """
         return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc, self._x_buffer)
 
+    def gather(self, values_p, slot=0):
+        """Per-particle values (N, ...) on the sorted extended points, without image shifts.
+
+        For quantities that do not move with a periodic image (velocities, masses,
+        smoothing lengths, densities). The array is reused by the next call with the same
+        ``slot``: copy it to keep it.
+        """
+        values_p = np.asarray(values_p)
+        if values_p.ndim == 0 or values_p.shape[0] != self.n_particles:
+            raise ValueError(f"values_p must have one row per particle ({self.n_particles}), "
+                             f"got shape {values_p.shape}")
+        shape = (self.n_extended,) + values_p.shape[1:]
+        buf = self._gather_buffers.get(slot)
+        if buf is None or buf.shape != shape or buf.dtype != values_p.dtype:
+            buf = self._gather_buffers[slot] = np.empty(shape, dtype=values_p.dtype)
+        np.take(values_p, self.src_s, axis=0, out=buf)
+        return buf
+
     def fold(self, values_s):
         """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
         values_s = np.asarray(values_s, dtype=float)
@@ -401,18 +456,40 @@ class BinnedPoints:
         out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self.src_e, self.n_particles)
         return out[:, 0] if flat else out
 
+    def fold_threads(self, bufs):
+        """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer."""
+        return fold_thread_buffers(bufs, self.order_s, self.ghost_s, self.src_e, self.n_particles)
+
+    def loop_arrays(self):
+        """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
+        return "scan", (self.src_s, self.img_sc, self.is_ghost_s, self.bin_s, self.nbin_c, self.bin_start,
+                        self.stencil_kc)
+
 
 class NeighborList:
     """Verlet half list built from a cell list; O(N) in time and memory.
+
+    The one neighbour interface of the package: every pair sum of
+    :mod:`ase_sphrelax.pairs` takes a NeighborList, whichever state it is in:
+
+    * *stored*: the half list ``pair_start``/``pair_j`` over sorted extended points,
+      built with ``cutoff + skin`` and reused while it stays valid;
+    * *one-shot* (``update(..., store=False)``): the points are binned but no list is
+      stored; the pair sums are fused into the bin scan. A calculator's first
+      evaluation works this way, since a list pays off only when it is reused.
 
     Parameters
     ----------
     cutoff : float or array_like of shape (N,)
         Interaction radius, or one per particle (a pair interacts within the
-        larger of the two).
+        larger of the two). It may be changed at every :meth:`update`.
     skin : float
-        Extra radius; the list is reused until a particle moved more than
-        ``skin / 2`` since the last build.
+        Extra radius of the stored list.
+
+    The stored list is reused as long as ``2 max|displacement| + max(cutoff - cutoff_build, 0)
+    <= skin`` since the build (and the cell, pbc and particle number are unchanged): then
+    every pair within the current cut-offs is listed. Per-particle cut-offs may therefore
+    grow by less than the skin without a rebuild (adaptive smoothing lengths).
 
     Attributes
     ----------
@@ -420,51 +497,96 @@ class NeighborList:
         Number of particles and of extended points (particles + ghosts).
     pair_start : ndarray of int64, shape (n_extended + 1,)
     pair_j : ndarray of int32
-        Half list over *sorted extended* points (see module docstring).
+        Half list over *sorted extended* points (see module docstring); None in the
+        one-shot state.
     builds : int
-        How many times the list was (re)built.
+        How many times the stored list was (re)built.
     """
 
     def __init__(self, cutoff, skin=0.0):
-        cutoff_arr = np.asarray(cutoff, dtype=float)
-        if cutoff_arr.ndim > 1 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
-            raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
-        if not np.isfinite(skin) or skin < 0:
-            raise ValueError(f"skin must be a finite number >= 0, got {skin!r}")
-        self.cutoff = cutoff_arr
-        self.skin = float(skin)
+        self.cutoff = _check_cutoff(cutoff)
+        self.skin = check_skin(skin)
         self.builds = 0
+        self.points = None
+        self.pair_start = None
+        self.pair_j = None
         self._pair_buffer = np.empty(0, dtype=np.int32)
         self._key = None
         self._r0_pc = None
+        self._cut_build = None
 
     # -- public -----------------------------------------------------------------
-    def update(self, positions, cell, pbc) -> bool:
-        """Rebuild the list if needed; return True if it was rebuilt."""
+    @property
+    def stored(self):
+        """True when a Verlet list is stored (False: one-shot bins, or nothing built)."""
+        return self.pair_j is not None
+
+    @property
+    def max_cutoff(self):
+        """The largest current cut-off."""
+        return float(self.cutoff.max())
+
+    def update(self, positions, cell, pbc, cutoff=None, store=True) -> bool:
+        """Make the neighbours valid for ``positions``; return True if anything was (re)built.
+
+        Parameters
+        ----------
+        positions : ndarray (N, 3)
+        cell, pbc
+            As in ASE.
+        cutoff : float, array_like (N,) or None
+            New cut-off(s); None keeps the current ones.
+        store : bool
+            False asks for a one-shot evaluation: if no valid stored list exists, the points
+            are binned (skin 0) and the pair sums scan the bins; no list is built.
+        """
         r_pc = _check_positions(positions)
         pbc = np.array(pbc, dtype=bool).reshape(3) if np.ndim(pbc) else np.array([bool(pbc)] * 3)
         cell = np.array(cell, dtype=float).reshape(3, 3)
+        if cutoff is not None:
+            self.cutoff = _check_cutoff(cutoff)
         if self.cutoff.ndim == 1 and self.cutoff.shape[0] != r_pc.shape[0]:
             raise ValueError(f"cutoff has {self.cutoff.shape[0]} entries but there are {r_pc.shape[0]} particles")
-        key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes(), self.cutoff.tobytes())
-        if key == self._key:
-            if self.skin == 0.0 and np.array_equal(r_pc, self._r0_pc):
-                return False
-            if self.skin > 0.0 and _max_displacement2(r_pc, self._r0_pc) <= (0.5 * self.skin) ** 2:
-                return False
-        self._build(r_pc, cell, pbc)
+        key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes())
+        if key == self._key and (self.stored or not store) and self._still_valid(r_pc):
+            return False
+        self._build(r_pc, cell, pbc, store)
         self._key = key
         self._r0_pc = r_pc.copy()
-        self.builds += 1
         return True
+
+    def _still_valid(self, r_pc):
+        growth = float(np.max(self.cutoff - self._cut_build))
+        if not self.stored:  # one-shot bins: only for the positions and cut-offs they were made for
+            return growth <= 0.0 and np.array_equal(r_pc, self._r0_pc)
+        margin = self.skin - max(growth, 0.0)
+        if margin < 0.0:
+            return False
+        if margin == 0.0:
+            return np.array_equal(r_pc, self._r0_pc)
+        return _max_displacement2(r_pc, self._r0_pc) <= (0.5 * margin) ** 2
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``."""
         return self.points.extend(positions)
 
+    def gather(self, values_p, slot=0):
+        """Per-particle values on the sorted extended points, without image shifts
+        (see :meth:`BinnedPoints.gather`)."""
+        return self.points.gather(values_p, slot)
+
     def fold(self, values_s):
         """Sum per-extended-point values onto particles (see :meth:`BinnedPoints.fold`)."""
         return self.points.fold(values_s)
+
+    def fold_threads(self, bufs):
+        return self.points.fold_threads(bufs)
+
+    def loop_arrays(self):
+        """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""
+        if self.stored:
+            return "list", (self.pair_start, self.pair_j)
+        return self.points.loop_arrays()
 
     @property
     def n_particles(self):
@@ -483,15 +605,22 @@ class NeighborList:
 
         Pairs within ``cutoff + skin`` are returned; filter by distance as needed.
         """
+        if not self.stored:
+            raise ValueError("get_pairs needs a stored list: call update(..., store=True)")
         x_sc = self.extend(positions)
         a_p = np.repeat(np.arange(self.n_extended), np.diff(self.pair_start))
         b_p = self.pair_j
         return self.src_s[a_p], self.src_s[b_p], x_sc[b_p] - x_sc[a_p]
 
     # -- build ------------------------------------------------------------------
-    def _build(self, r_pc, cell, pbc):
+    def _build(self, r_pc, cell, pbc, store):
         cut_p = np.broadcast_to(self.cutoff, (r_pc.shape[0],)).astype(float)
-        pts = self.points = BinnedPoints(r_pc, cell, pbc, cut_p, self.skin)
+        self._cut_build = cut_p
+        skin = self.skin if store else 0.0
+        pts = self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
+        if not store:
+            self.pair_start = self.pair_j = None
+            return
         pair_start = np.zeros(pts.n_extended + 1, dtype=np.int64)
         args = (pts.x_sc, pts.cut_s, pts.src_s, pts.img_sc, pts.is_ghost_s, self.skin, pts.bin_s, pts.nbin_c,
                 pts.bin_start, pts.stencil_kc)
@@ -503,6 +632,14 @@ class NeighborList:
         self.pair_start = pair_start
         self.pair_j = self._pair_buffer[: pair_start[-1]]
         _scan_pairs(*args, pair_start, self.pair_j, True)
+        self.builds += 1
+
+
+def _check_cutoff(cutoff):
+    cutoff_arr = np.asarray(cutoff, dtype=float)
+    if cutoff_arr.ndim > 1 or cutoff_arr.size == 0 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
+        raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
+    return cutoff_arr
 
 
 def brute_force_pairs(positions, cell, pbc, cutoff):

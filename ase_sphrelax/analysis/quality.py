@@ -18,9 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..calculators.base import periodic_measure
-from ..checks import check_positive
+from ..checks import check_dim, check_positive
 from ..kernel_sums import kernel_sums
-from ..kernels import _check_dim, get_kernel
+from ..kernels import get_kernel
 from ..neighbors import NeighborList
 
 __all__ = ["Quality", "quality_summary"]
@@ -62,7 +62,7 @@ class Quality:
     def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
         self.h = check_positive("h", h)
         self.dx = check_positive("dx", dx, allow_none=True)
-        self.dim = _check_dim(dim)
+        self.dim = check_dim(dim)
         self.domain = domain
         self.kernel = get_kernel(kernel, self.dim)
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 from ase.calculators.calculator import Calculator, all_changes
 
-from ..kernels import KERNEL_NAMES, _check_dim
-from ..neighbors import BinnedPoints, NeighborList
+from ..checks import check_dim
+from ..kernels import KERNEL_NAMES
+from ..neighbors import NeighborList
 
 __all__ = ["SPHCalculator", "periodic_measure"]
 
@@ -30,18 +31,31 @@ class SPHCalculator(Calculator):
 
     Subclasses define ``default_parameters``, ``_validate_parameters()`` and
     ``calculate()``, and call :meth:`prepare` at the start of ``calculate``; the
-    pair sums then run over ``self.pairs`` (see :func:`ase_sphrelax.kernel_sums.pair_potential_sums`).
+    pair sums (:mod:`ase_sphrelax.pairs`) then run over ``self.nlist``, whatever its state.
+
+    Class attributes
+    ----------------
+    velocity_dependent : bool
+        True for forces that depend on the momenta (viscosity, friction): then
+        :meth:`check_state` compares momenta too, so that a velocity change is never
+        served from the cache.
     """
 
     nolabel = True
     default_parameters: dict = {}
+    velocity_dependent = False
 
     def __init__(self, **kwargs):
         self._check_keys(kwargs)
         self.nlist = None
-        self.pairs = None
+        self._evaluations = 0
         Calculator.__init__(self, **kwargs)
         self._validate_parameters()
+
+    @property
+    def pairs(self):
+        """The neighbour list of the last :meth:`prepare` (an alias of ``nlist``)."""
+        return self.nlist
 
     def _check_keys(self, kwargs):
         unknown = set(kwargs) - set(self.default_parameters)
@@ -50,24 +64,30 @@ class SPHCalculator(Calculator):
                             f"accepted: {sorted(self.default_parameters)}")
 
     def set(self, **kwargs):
+        """Change parameters; any change discards the results and the neighbour list."""
         self._check_keys(kwargs)
         changed = Calculator.set(self, **kwargs)
         if changed:
             self._validate_parameters()
+            self.reset()  # ASE keeps results on set() unless told otherwise
             self.nlist = None
+            self._evaluations = 0
         return changed
 
     def _validate_parameters(self):
         p = self.parameters
-        p.dim = _check_dim(p.dim)
+        p.dim = check_dim(p.dim)
         if "kernel" in p and p.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {p.kernel!r}")
 
     # -- per-call preparation ---------------------------------------------------
     def prepare(self, atoms, cutoff, skin):
-        """Validate ``atoms``; return in-plane positions r_pc and the effective pbc.
+        """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
-        Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+        ``cutoff`` (a number or one per particle) is taken on every call. The first
+        evaluation leaves the list in its one-shot state (pair sums fused into the bin
+        scan); the Verlet list is built from the second evaluation on, when it can be
+        reused. Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
         """
         dim = self.parameters.dim
         if atoms is None or len(atoms) == 0:
@@ -79,25 +99,21 @@ class SPHCalculator(Calculator):
         r_pc[:, dim:] = 0.0
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
-        if self.nlist is None:
-            # first evaluation: a one-shot scan fused with the pair sums, no stored list;
-            # the Verlet list is built from the second evaluation on, when it can be reused
+        if self.nlist is None or self.nlist.skin != skin:
             self.nlist = NeighborList(cutoff, skin=skin)
-            cut_p = np.broadcast_to(np.asarray(cutoff, dtype=float), (len(r_pc),))
-            self.pairs = BinnedPoints(r_pc, atoms.cell.array, pbc, cut_p)
-        else:
-            self.nlist.update(r_pc, atoms.cell.array, pbc)
-            self.pairs = self.nlist
+        self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
+        self._evaluations += 1
         return r_pc, pbc
 
     def check_state(self, atoms, tol=1e-15):
-        """Which of positions, numbers, cell, pbc changed (exact comparison).
+        """Which of positions, numbers, cell, pbc (and momenta, for velocity-dependent
+        forces) changed, by exact comparison.
 
         ASE's generic ``compare_atoms`` runs ``np.isclose`` over every array on every
         property request, which costs more than a relaxation step of a small system.
         """
         if self.atoms is None or len(atoms) != len(self.atoms):
-            return list(all_changes)
+            return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
         if not np.array_equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
@@ -107,6 +123,8 @@ class SPHCalculator(Calculator):
             changes.append("cell")
         if not np.array_equal(atoms.pbc, self.atoms.pbc):
             changes.append("pbc")
+        if self.velocity_dependent and not np.array_equal(atoms.get_momenta(), self.atoms.get_momenta()):
+            changes.append("momenta")
         return changes
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):

@@ -1,0 +1,311 @@
+"""The pair mechanism: a method's per-pair physics, written once, run over any neighbour set.
+
+A method writes its pair physics as one small, pure numba function (PySPH's
+``Equation.loop``, JAX-MD's ``smap.pair``) that *returns* the terms it adds::
+
+    @numba.njit(cache=True, inline="always")
+    def soft_sphere(a, b, r2, d, params, inp):
+        k, = params                    # global parameters (numbers, small arrays)
+        radius_s, v_sc = inp           # per-point inputs, indexed by sorted extended point
+        ...
+        return (e_half, fx, fy, fz), (e_half, -fx, -fy, -fz), ()   # to a, to b, global
+
+Arguments: ``a`` and ``b`` are sorted extended points (particles and their periodic
+ghosts, see :mod:`ase_sphrelax.neighbors`), ``d`` the tuple ``x_b - x_a`` of length D
+(the dimension of the stored coordinates: 3 for ASE Atoms) and ``r2 = |d|^2``.
+The terms are the per-point outputs flattened in their declared order (a scalar output
+takes one term, a ``(3,)`` output three), and the global outputs (e.g. a virial) flattened
+the same way. :class:`PairInteraction` turns the function into the loops:
+
+* the walk over a stored Verlet half list and the bin scan fused with the pair physics
+  (one-shot evaluations, no list stored), from one definition;
+* a's terms summed in registers over its partners and written once; b's added to b;
+  global terms summed per thread;
+* serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
+  each thread on a static chunk of points with its own output buffers (kept between calls:
+  fresh pages cost more than the pair loop on these machines), folded afterwards onto the
+  particles, ghosts included.
+
+Two kinds of interaction:
+
+``symmetric=True``
+    Called once per pair; returns ``(terms_a, terms_b, terms_global)`` (a pair potential,
+    ``sum_b grad W_ab``, a symmetric pressure force).
+``symmetric=False`` (gather)
+    Written for "a gathers from b" (e.g. a density sum with a's own smoothing length
+    ``H_a``); returns ``(terms_a, terms_global)`` and is called for both orientations,
+    ``(a, b, d)`` and ``(b, a, -d)``.
+
+Every pair within ``reach`` is passed to the function: with per-particle ranges (adaptive
+``H``) it makes its own finer test and returns zeros beyond. Multi-pass evaluations (a
+density pass, a per-particle update in numpy, then a force pass) are successive
+:meth:`PairInteraction.compute` calls over the same neighbour list; per-point inputs are
+gathered for the ghosts without image shifts
+(:meth:`~ase_sphrelax.neighbors.NeighborList.gather`), positions with them
+(:meth:`~ase_sphrelax.neighbors.NeighborList.extend`).
+
+The loops are generated as Python source and compiled by numba against the physics
+function's own source file, so that numba's disk cache holds them like any other jitted
+function (numba functions that receive a jitted function as an argument, or capture one in
+a closure, are recompiled in every process).
+"""
+from __future__ import annotations
+
+import inspect
+import itertools
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .neighbors import bin_coords, is_canonical_pair, stencil_range
+from .parallel import run_chunks, thread_count
+
+__all__ = ["PairInteraction", "Output", "PairResult"]
+
+
+@dataclass(frozen=True)
+class Output:
+    """An accumulator of a pair interaction.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        Per-point shape: ``()`` for a scalar per point, ``(3,)`` for a vector.
+    per_point : bool
+        False for a global sum (e.g. the virial, shape ``(6,)``).
+    """
+
+    shape: tuple = ()
+    per_point: bool = True
+
+    @property
+    def size(self):
+        return int(np.prod(self.shape, dtype=int))
+
+
+class PairResult(dict):
+    """Outputs of :meth:`PairInteraction.compute` by name, per particle (or global)."""
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+
+# -- generated loops -------------------------------------------------------------------------
+# Templates, filled with the unrolled term bookkeeping of one interaction; the walk itself
+# is shared by all interactions.
+
+_LIST_TEMPLATE = """
+def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
+    {views}
+    {zero_global}
+    for a in range(first, last):
+        {load_a}
+        {zero_own}
+        for p in range(pair_start[a], pair_start[a + 1]):
+            b = pair_j[p]
+            {diff}
+            r2 = {norm2}
+            if r2 >= reach2:
+                continue
+            {body}
+        {store_own}
+    {store_global}
+"""
+
+_SCAN_TEMPLATE = """
+def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc, reach2, params, inp, out,
+           first, last):
+    {views}
+    {zero_global}
+    for a in range(first, last):
+        {load_a}
+        {zero_own}
+        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
+        for k in range(-1, stencil_kc.shape[0]):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+            for b in range(lo, hi):
+                {diff}
+                r2 = {norm2}
+                if r2 >= reach2 or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                    continue
+                {body}
+        {store_own}
+    {store_global}
+"""
+
+
+def _targets(outputs, per_point, point):
+    """Buffer element of every flattened term of the per-point (or global) outputs:
+    "o0[b]", "o1[b, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of output k."""
+    names = []
+    for k, output in enumerate(outputs):
+        if output.per_point != per_point:
+            continue
+        for index in itertools.product(*[range(n) for n in output.shape]):
+            parts = ([point] if per_point else []) + [str(i) for i in index]
+            names.append(f"o{k}[{', '.join(parts or ['0'])}]")
+    return names
+
+
+def _loop_source(template, name, outputs, dim, symmetric, indent):
+    """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``."""
+    own = _targets(outputs, True, "a")
+    other = _targets(outputs, True, "b")
+    glob_t = _targets(outputs, False, None)
+    pad = "\n" + " " * indent
+    d = "(" + "".join(f"d{c}, " for c in range(dim)) + ")"
+    minus_d = "(" + "".join(f"-d{c}, " for c in range(dim)) + ")"
+    lines = []
+    if symmetric:
+        lines.append(f"ta, tb, tg = pair(a, b, r2, {d}, params, inp)")
+        lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
+        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
+        lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
+    else:
+        lines.append(f"ta, tg = pair(a, b, r2, {d}, params, inp)")
+        lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
+        lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
+        lines.append(f"tb, tg = pair(b, a, r2, {minus_d}, params, inp)")
+        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
+        lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
+    pad_a = "\n" + " " * 8
+    pad_t = "\n" + " " * 4
+    return template.format(
+        name=name,
+        views=pad_t.join(f"o{k} = out[{k}]" for k in range(len(outputs))),
+        zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
+        store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
+        load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(dim)),
+        zero_own=pad_a.join(f"ta{i} = 0.0" for i in range(len(own))) or "pass",
+        store_own=pad_a.join(f"{t} += ta{i}" for i, t in enumerate(own)) or "pass",
+        diff=pad.join(f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(dim)),
+        norm2=" + ".join(f"d{c} * d{c}" for c in range(dim)),
+        body=pad.join(lines),
+    )
+
+
+def _compile(pair, template, kind, outputs, dim, symmetric):
+    base = pair.py_func.__name__
+    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d__{base}"
+    indent = 12 if kind == "list" else 16
+    source = _loop_source(template, name, outputs, dim, symmetric, indent)
+    namespace = {"pair": pair, "bin_coords": bin_coords, "stencil_range": stencil_range,
+                 "is_canonical_pair": is_canonical_pair}
+    # compiled against the physics function's file: numba's disk cache then keys the loop by
+    # that file (its time stamp) and by the loop's own bytecode
+    exec(compile(source, inspect.getfile(pair.py_func), "exec"), namespace)  # noqa: S102
+    function = namespace[name]
+    function.__module__ = pair.py_func.__module__
+    # nogil: the chunks of one evaluation run at once on a thread pool (see PairInteraction.compute)
+    return numba.njit(cache=True, nogil=True)(function), source
+
+
+class PairInteraction:
+    """Per-pair physics turned into list walks and bin scans (see the module docstring).
+
+    Parameters
+    ----------
+    pair : numba dispatcher
+        ``pair(a, b, r2, d, params, inp)``, jitted with ``inline="always"``, returning
+        ``(terms_a, terms_b, terms_global)`` (symmetric) or ``(terms_a, terms_global)`` (gather).
+    outputs : dict of str to Output
+        The accumulators, in the order of ``out``.
+    symmetric : bool
+        True: called once per pair, writes both partners. False: written for a gathering
+        from b, called for both orientations.
+    dim : int
+        Number of stored coordinates (3 for ASE positions; any D for point sets of higher
+        dimension walked over a stored list).
+    """
+
+    def __init__(self, pair, outputs, symmetric=True, dim=3):
+        if not hasattr(pair, "py_func"):
+            raise TypeError(f"pair must be a numba.njit function, got {type(pair).__name__}")
+        if not outputs:
+            raise ValueError("outputs: an interaction needs at least one accumulator")
+        self.pair = pair
+        self.outputs = {name: (o if isinstance(o, Output) else Output(tuple(o))) for name, o in outputs.items()}
+        self.symmetric = bool(symmetric)
+        self.dim = int(dim)
+        self._loops = {}
+        self._buffers = {}
+
+    def __repr__(self):
+        kind = "symmetric" if self.symmetric else "gather"
+        return f"PairInteraction({self.pair.py_func.__name__}, {kind}, outputs={list(self.outputs)})"
+
+    def loop(self, kind):
+        """The generated loop over one chunk of points (``kind`` "list" or "scan"), compiled on first use."""
+        if kind not in self._loops:
+            template = _LIST_TEMPLATE if kind == "list" else _SCAN_TEMPLATE
+            self._loops[kind] = _compile(self.pair, template, kind, list(self.outputs.values()), self.dim,
+                                         self.symmetric)
+        return self._loops[kind][0]
+
+    def source(self, kind="list"):
+        """Python source of a generated loop (for reading and debugging)."""
+        self.loop(kind)
+        return self._loops[kind][1]
+
+    def _thread_buffers(self, nthreads, n_ext):
+        """Zeroed per-thread accumulators, reused between calls of the same size."""
+        key = (nthreads, n_ext)
+        if key not in self._buffers:
+            self._buffers.clear()
+            self._buffers[key] = tuple(
+                np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
+                for o in self.outputs.values())
+        buffers = self._buffers[key]
+        for buf in buffers:
+            buf.fill(0.0)
+        return buffers
+
+    def compute(self, neighbors, positions, params=(), inputs=(), reach=None):
+        """Run the interaction over every pair within ``reach``; return the folded outputs.
+
+        Parameters
+        ----------
+        neighbors : NeighborList
+            Updated for ``positions`` (in either state: stored list or one-shot bins), or
+            any object of the same interface (``extend``, ``gather``, ``loop_arrays``,
+            ``fold_threads``).
+        positions : ndarray (N, D)
+        params : tuple
+            Passed unchanged to the pair function (numbers, small arrays).
+        inputs : tuple of ndarray
+            Per-particle arrays (N, ...), gathered to the sorted extended points.
+        reach : float or None
+            Largest interaction distance (default: the neighbour list's largest cut-off).
+
+        Returns
+        -------
+        PairResult
+            Per-point outputs folded onto particles, shape (N,) + shape; global outputs
+            summed over threads.
+        """
+        x_sc = neighbors.extend(positions)
+        inp = tuple(neighbors.gather(values, slot=k) for k, values in enumerate(inputs))
+        reach = neighbors.max_cutoff if reach is None else float(reach)
+        n_ext = x_sc.shape[0]
+        nthreads = thread_count(n_ext)
+        buffers = self._thread_buffers(nthreads, n_ext)
+        kind, arrays = neighbors.loop_arrays()
+        run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
+                   per_thread=[(tuple(buf[t] for buf in buffers),) for t in range(nthreads)])
+        return self._fold(neighbors, buffers)
+
+    def _fold(self, neighbors, buffers):
+        result = PairResult()
+        per_point = [(name, o, buf) for (name, o), buf in zip(self.outputs.items(), buffers) if o.per_point]
+        if per_point:
+            folded = neighbors.fold_threads([buf.reshape(buf.shape[0], buf.shape[1], -1) for _, _, buf in per_point])
+            for (name, output, _), values in zip(per_point, folded):
+                result[name] = values.reshape((values.shape[0],) + output.shape)
+        for (name, output), buf in zip(self.outputs.items(), buffers):
+            if not output.per_point:
+                result[name] = buf.sum(axis=0)
+        return result

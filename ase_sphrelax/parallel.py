@@ -1,0 +1,67 @@
+"""One threading model for the hot loops: numba ``nogil`` functions over static chunks.
+
+Every parallel loop of the package (pair loops, neighbour-list passes, gathers and folds)
+is a serial numba function compiled with ``nogil=True`` that works on the points
+``[first, last)``; :func:`run_chunks` runs one chunk per thread of a persistent thread
+pool. Only one threading model is used because mixing them costs: after a numba
+``prange`` loop its OpenMP workers spin for a while and take a core from the next
+loop's threads (measured: a pair loop at 2 threads ran at the speed of 1).
+
+Systems below :data:`PARALLEL_MIN` points run serially: waking threads costs more than
+the work (measured: 400 particles, 16 ms parallel vs 0.1 ms serial under load). The
+thread count follows ``numba.get_num_threads()`` (``numba.set_num_threads`` or
+``NUMBA_NUM_THREADS``).
+"""
+from __future__ import annotations
+
+import numba
+
+__all__ = ["PARALLEL_MIN", "thread_count", "run_chunks"]
+
+PARALLEL_MIN = 20000
+
+_POOLS: dict = {}
+
+
+def thread_count(n_points):
+    """Threads used for a loop over ``n_points`` points (1 below ``PARALLEL_MIN``)."""
+    return numba.get_num_threads() if n_points >= PARALLEL_MIN else 1
+
+
+def _pool(nthreads):
+    if nthreads not in _POOLS:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOLS[nthreads] = ThreadPoolExecutor(max_workers=nthreads, thread_name_prefix="ase_sphrelax")
+    return _POOLS[nthreads]
+
+
+def run_chunks(loop, n, args, per_thread=None, nthreads=None):
+    """Call ``loop(*args, *per_thread[t], first, last)`` on ``nthreads`` static chunks of ``range(n)``.
+
+    Parameters
+    ----------
+    loop : numba dispatcher compiled with ``nogil=True``
+    n : int
+        Number of points.
+    args : tuple
+        Arguments shared by every chunk.
+    per_thread : list of tuples or None
+        Extra arguments of each thread (e.g. its own output buffers); its length sets
+        the number of threads.
+    nthreads : int or None
+        Number of threads when ``per_thread`` is None (default :func:`thread_count`).
+    """
+    if per_thread is not None:
+        nthreads = len(per_thread)
+    elif nthreads is None:
+        nthreads = thread_count(n)
+    extra = per_thread if per_thread is not None else [()] * nthreads
+    if nthreads == 1:
+        return loop(*args, *extra[0], 0, n)
+    chunk = (n + nthreads - 1) // nthreads
+    pool = _pool(nthreads)
+    jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads)]
+    for job in jobs:
+        job.result()
+    return None
