@@ -145,6 +145,31 @@ class FanLammpsCalculator(SPHCalculator):
         lmp.commands_list(cmds)
         self._lmp = lmp
 
+    def _run(self, box, n, rebuilt, periodic):
+        """Move the atoms to ``box.r_pc`` and evaluate: ``run 0`` (full set-up) or, reusing
+        neighbours, one ``fix nve/noforce`` step."""
+        lmp = self._lmp
+        if rebuilt or not self.parameters.reuse_neighbors:
+            if not rebuilt:
+                x = np.ascontiguousarray(box.r_pc.ravel())
+                lmp.scatter_atoms("x", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(x))
+            lmp.command("run 0 post no")
+        else:
+            # one nve/noforce step of length 1 with v = displacement: LAMMPS keeps its
+            # neighbour list unless an atom moved more than skin/2 since the last build
+            x_old = _gather(lmp, "x", n)
+            d_pc = box.r_pc - x_old
+            if periodic:
+                cell_lmp = np.array([[*(box.hi_c - box.lo_c)[:1], 0, 0],
+                                     [box.tilt_t[0], (box.hi_c - box.lo_c)[1], 0],
+                                     [box.tilt_t[1], box.tilt_t[2], (box.hi_c - box.lo_c)[2]]])
+                act = slice(0, box.dim)
+                frac = np.linalg.solve(cell_lmp[act, act].T, d_pc[:, act].T).T
+                d_pc[:, act] = (frac - np.round(frac)) @ cell_lmp[act, act]
+            v = np.ascontiguousarray(d_pc.ravel())
+            lmp.scatter_atoms("v", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(v))
+            lmp.command("run 1 pre no post no")
+
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
         model = self.model
@@ -165,29 +190,18 @@ class FanLammpsCalculator(SPHCalculator):
             self._build(box, vols.v0)
             self._key = key
             rebuilt = True
+        try:
+            self._run(box, n, rebuilt, periodic)
+        except Exception:
+            self.close()  # never reuse an instance LAMMPS stopped in
+            raise
         lmp = self._lmp
-        if rebuilt or not self.parameters.reuse_neighbors:
-            if not rebuilt:
-                x = np.ascontiguousarray(box.r_pc.ravel())
-                lmp.scatter_atoms("x", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(x))
-            lmp.command("run 0 post no")
-        else:
-            # one nve/noforce step of length 1 with v = displacement: LAMMPS keeps its
-            # neighbour list unless an atom moved more than skin/2 since the last build
-            x_old = _gather(lmp, "x", n)
-            d_pc = box.r_pc - x_old
-            if periodic:
-                cell_lmp = np.array([[*(box.hi_c - box.lo_c)[:1], 0, 0],
-                                     [box.tilt_t[0], (box.hi_c - box.lo_c)[1], 0],
-                                     [box.tilt_t[1], box.tilt_t[2], (box.hi_c - box.lo_c)[2]]])
-                act = slice(0, model.dim)
-                frac = np.linalg.solve(cell_lmp[act, act].T, d_pc[:, act].T).T
-                d_pc[:, act] = (frac - np.round(frac)) @ cell_lmp[act, act]
-            v = np.ascontiguousarray(d_pc.ravel())
-            lmp.scatter_atoms("v", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(v))
-            lmp.command("run 1 pre no post no")
         thermo = lmp.last_thermo()
         f_pc = box.to_ase(_gather(lmp, "f", n))
+        if not np.all(np.isfinite(f_pc)):
+            bad = np.where(~np.all(np.isfinite(f_pc), axis=1))[0]
+            raise ValueError(f"atoms: LAMMPS gave non-finite forces on particles {bad[:10].tolist()}: coincident "
+                             "particles (r = 0) make pair_style lepton divide by r; separate them or use FanCalculator")
         energy = float(thermo["PotEng"]) + model.self_energy(n, vols.v0, vols.volume)
         if model.domain is not None:
             boundary_e_p, boundary_f_pc = model.boundary(atoms.positions, vols.v0)
