@@ -103,7 +103,8 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     -------
     dict
         ``deck`` (Path), ``data``, ``dump``, ``v0``, ``volume`` (V of Eq. 3.8),
-        ``self_energy`` (N v0 vt W(0) - V), ``dim``, ``commands`` (list).
+        ``self_energy`` (N v0 vt W(0) - V), ``dim``, ``commands`` (list), ``h``, ``kernel``,
+        ``ftol``, ``dt`` and ``model`` (the :class:`~ase_sphrelax.models.fan.FanModel`).
     """
     model, skin = _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, 1, style, min_style)
     h, dim = model.h, model.dim

@@ -98,7 +98,15 @@ BAD_EVALUATIONS = {
     "stress with a domain": (dict(h=1.0, dx=0.5, domain=Circle((0, 0), 2.0)),
                              lambda: fill(Circle((0, 0), 2.0), 0.5), "stress"),
     "stress of an open set": (dict(h=1.0, dx=0.5), lambda: fill(Circle((0, 0), 2.0), 0.5), "stress"),
+    "stress of a flat cell": (dict(h=1.0, dx=0.5), lambda: _flat_sheet(), "stress"),
 }
+
+
+def _flat_sheet():
+    """A periodic 2D sheet whose cell has no c vector: zero cell volume, stress undefined (not inf)."""
+    atoms = periodic_box((6, 6), dx=0.5, jitter=0.1, seed=1)
+    atoms.cell[2] = 0.0
+    return atoms
 
 
 @pytest.mark.lammps
