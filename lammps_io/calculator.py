@@ -17,7 +17,7 @@ import numpy as np
 from ase.calculators.calculator import all_changes
 
 from ase_sphrelax.calculators.base import SPHCalculator, periodic_measure
-from ase_sphrelax.models.fan import FanModel
+from ase_sphrelax.models.fan import FanModel, verlet_skin
 
 from ._library import check_threads, import_lammps, new_lammps
 from .box import lammps_box
@@ -82,6 +82,7 @@ class FanLammpsCalculator(SPHCalculator):
         super()._validate_parameters()
         p = self.parameters
         self.model = FanModel.from_parameters(p)
+        self.skin = verlet_skin(p.skin, self.model.h)  # None: 0.1 h of the current h
         check_pair_style(p.style, self.model.kernel, self.model.dim)
         p.n_table = check_table_points(p.n_table)
         p.nthreads = check_threads(p.nthreads)
@@ -133,7 +134,7 @@ class FanLammpsCalculator(SPHCalculator):
         cmds = pair_commands(model.h, model.dx, model.dim, style=p.style, kernel=model.kernel,
                              table_path=Path(self._tmp.name) / "fan.table", n_table=p.n_table, v0=v0)
         cmds += [
-            f"neighbor {p.skin:.17g} bin",
+            f"neighbor {self.skin:.17g} bin",
             "neigh_modify every 1 delay 0 check yes",
             "compute fanvir all pressure NULL virial",
             "thermo_style custom step pe c_fanvir[1] c_fanvir[2] c_fanvir[3] c_fanvir[4] c_fanvir[5] c_fanvir[6]",

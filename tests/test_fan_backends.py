@@ -186,8 +186,10 @@ def test_set_with_unchanged_values_keeps_the_results(cls):
 def test_parameters_live_in_self_parameters(cls):
     calc = cls(h=2.6, dx=1.0, dim=2)
     assert calc.parameters.h == 2.6 and calc.parameters.dx == 1.0 and calc.parameters.dim == 2
-    assert calc.parameters.skin == pytest.approx(0.26)  # the default 0.1 h, the same on both backends
+    assert calc.parameters.skin is None and calc.skin == pytest.approx(0.26)  # default 0.1 h on both backends
     assert calc.model.h == 2.6
+    calc.set(h=2.0)
+    assert calc.model.h == 2.0 and calc.skin == pytest.approx(0.2)  # the default follows h, as in a fresh one
     with pytest.raises(TypeError, match=r"unknown parameter\(s\) \['smoothing'\]"):
         calc.set(smoothing=3)
 

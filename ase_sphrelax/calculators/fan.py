@@ -20,7 +20,7 @@ from __future__ import annotations
 from ase.calculators.calculator import all_changes
 
 from ..kernel_sums import pair_potential_sums
-from ..models.fan import FanModel
+from ..models.fan import FanModel, verlet_skin
 from .base import SPHCalculator, periodic_measure
 
 __all__ = ["FanCalculator"]
@@ -67,6 +67,7 @@ class FanCalculator(SPHCalculator):
     def _validate_parameters(self):
         super()._validate_parameters()
         self.model = FanModel.from_parameters(self.parameters)
+        self.skin = verlet_skin(self.parameters.skin, self.model.h)  # None: 0.1 h of the current h
         self.kernel = self.model.kernel
 
     def volumes(self, atoms):
@@ -81,7 +82,7 @@ class FanCalculator(SPHCalculator):
         vols = self.volumes(atoms)
         if want_stress:
             model.check_stress(vols, atoms.cell.volume)
-        r_pc, _ = self.prepare(atoms, model.h, self.parameters.skin)
+        r_pc, _ = self.prepare(atoms, model.h, self.skin)
         n = len(atoms)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, model.h, model.pair_prefactor(vols.v0),

@@ -102,16 +102,11 @@ class FanModel:
 
     @classmethod
     def from_parameters(cls, parameters):
-        """The model of a calculator's ``parameters`` (h, dx, domain, dim, kernel, skin).
-
-        Normalises them in place: ``h``, ``dx`` as floats and ``skin`` (if present)
-        as a float >= 0, ``SKIN_FRACTION * h`` when None.
-        """
+        """The model of a calculator's ``parameters`` (h, dx, domain, dim, kernel), which are
+        normalised in place (``h``, ``dx`` as floats)."""
         p = parameters
         model = cls(p.h, p.dx, p.domain, p.dim, p.kernel)
         p.h, p.dx, p.dim = model.h, model.dx, model.dim
-        if "skin" in p:
-            p.skin = verlet_skin(p.skin, model.h)
         return model
 
     def __repr__(self):
