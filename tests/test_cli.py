@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from ase.io import read
 
-from ase_sphrelax.cli import main, make_scene
+from ase_sphrelax.cli import main
+from ase_sphrelax.cli.scene import make_scene
 
 
 def test_default_scene_is_fans_appendix_a_circle():
