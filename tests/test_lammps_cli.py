@@ -102,3 +102,16 @@ def test_relax_engine_lammps_from_the_command_line(tmp_path, capsys):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["engine"] == "lammps" and 0 < summary["steps"] <= 50
     assert summary["energy_after"] < summary["energy_before"]
+
+
+def test_relax_engine_lammps_without_lammps_is_a_usage_error(tmp_path, capsys, monkeypatch):
+    from ase_sphrelax.cli import main
+
+    def missing():
+        raise ImportError(f"the LAMMPS Python module is not usable; install `{lammps_io.INSTALL_HINT}`")
+
+    monkeypatch.setattr(_library, "import_lammps", missing)
+    assert main(["relax", "--engine", "lammps", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sphrelax relax: error: --engine lammps: the LAMMPS Python module is not usable")
+    assert lammps_io.INSTALL_HINT in err and err.count("\n") == 1
