@@ -15,6 +15,10 @@ load numba through ase_sphrelax): to export a name, add one line to ``_WHERE``.
 """
 from ase_sphrelax._lazy import lazy_exports
 
+# a function named like its module is bound now: otherwise ``import lammps_io.sph_at_rest``
+# (run before first use) would leave the module under the name (light: numpy and ase only)
+from .sph_at_rest import sph_at_rest
+
 _WHERE = {
     "INSTALL_HINT": "._library",
     "import_lammps": "._library",
@@ -32,10 +36,9 @@ _WHERE = {
     "pair_commands": ".potential",
     "run": ".relaxation",
     "write_relaxation_input": ".relaxation",
-    "sph_at_rest": ".sph_at_rest",
     "cli_export": ".cli",
     "cli_relax": ".cli",
     "write_vtk": ".cli",
 }
-__all__ = list(_WHERE)
+__all__ = list(_WHERE) + ["sph_at_rest"]
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

@@ -74,7 +74,7 @@ from ase_sphrelax.cli import UsageError, usage_errors
 
 
 class Hello:
-    """say hello from a plug-in
+    """say hello from a plug-in (100% fake)
 
     Registered in ase_sphrelax.commands by this fake distribution.
     """
@@ -172,7 +172,7 @@ def test_registered_command_is_listed_and_runs(plugin, capsys):
     assert {"hello", "boom", "export"} <= set(found) and "broken" not in found
     with pytest.warns(RuntimeWarning), pytest.raises(SystemExit):
         main(["--help"])
-    assert "say hello from a plug-in" in capsys.readouterr().out
+    assert "say hello from a plug-in (100% fake)" in capsys.readouterr().out
     with pytest.warns(RuntimeWarning):
         assert main(["hello", "--name", "sph"]) == 0
     assert capsys.readouterr().out == "hello sph\n"

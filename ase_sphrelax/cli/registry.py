@@ -111,6 +111,9 @@ def engines():
 
 
 def help_texts(obj):
-    """``(short, long)`` help of a registered object: its docstring's first line, and the whole docstring."""
+    """``(short, long)`` help of a registered object: its docstring's first line, and the whole docstring.
+
+    ``short`` is ready for argparse's ``help=`` (a literal ``%`` is doubled).
+    """
     doc = inspect.getdoc(obj) or ""
-    return doc.split("\n", 1)[0].strip(), doc
+    return doc.split("\n", 1)[0].strip().replace("%", "%%"), doc
