@@ -89,3 +89,15 @@ def test_list_is_reused_for_small_moves(case):
         atoms.positions += 1e-4 * np.random.default_rng(step).normal(size=atoms.positions.shape) * [1, 1, calc.parameters.dim == 3]
         atoms.get_forces()
     assert calc.nlist.builds == 1
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_rejected_set_keeps_the_old_parameters(case):
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    before = atoms.get_potential_energy()
+    name = next(iter(CASES[case]()[2]))
+    with pytest.raises((ValueError, TypeError)):
+        calc.set(**{name: -1.0})
+    assert calc.parameters[name] != -1.0
+    assert atoms.get_potential_energy() == before
