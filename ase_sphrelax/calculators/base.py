@@ -49,8 +49,10 @@ class SPHCalculator(Calculator):
         self._check_keys(kwargs)
         self.nlist = None
         self._evaluations = 0
+        self._valid = False
         Calculator.__init__(self, **kwargs)
         self._validate_parameters()
+        self._valid = True
 
     @property
     def pairs(self):
@@ -76,7 +78,8 @@ class SPHCalculator(Calculator):
                 self._validate_parameters()
             except Exception:
                 self.parameters = before
-                self._validate_parameters()
+                if self._valid:  # derived state (models, kernels) back to the old parameters
+                    self._validate_parameters()
                 raise
             self.reset()  # ASE keeps results on set() unless told otherwise
             self.nlist = None
