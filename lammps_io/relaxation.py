@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ase_sphrelax.calculators.base import periodic_measure
+from ase_sphrelax.checks import resolve_dim
 from ase_sphrelax.models.fan import FanModel, verlet_skin
 
 from ._library import allreduce_sum, check_threads, import_lammps, mpiexec_path, new_lammps
-from .box import infer_dim
 from .data_file import write_data
 from .dump import read_dump
 from .potential import check_pair_style, check_table_points, pair_commands
@@ -58,7 +58,8 @@ def default_timestep(h, v0, dim, kernel="wendland_c2", mass=1.0):
 
 def _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nprocs, style, min_style):
     """The model and skin of a run, parameters checked as by the calculators, then the deck's own checks."""
-    model = FanModel(h, dx, domain, infer_dim(atoms) if dim is None else dim, kernel)
+    model = FanModel(h, dx, domain, getattr(domain, "dim", 2) if dim is None else dim, kernel)  # as the calculators
+    model = model.with_dim(resolve_dim(atoms, dim, domain))
     skin = verlet_skin(skin, model.h)
     check_table_points(n_table)
     if not (isinstance(steps, (int, np.integer)) and steps >= 0):

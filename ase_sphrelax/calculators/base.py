@@ -1,8 +1,9 @@
 """Shared plumbing for the SPH relaxation calculators.
 
 :class:`SPHCalculator` validates parameters (ASE's ``Calculator.set`` would
-store unknown keywords silently), validates Atoms before any work, projects
-positions onto the first ``dim`` axes and keeps one Verlet neighbour list per
+store unknown keywords silently), validates Atoms before any work, resolves
+their dimension by the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`: a
+mismatch is an error, never a silent projection) and keeps one Verlet neighbour list per
 calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
-from ..checks import check_dim
+from ..checks import check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
 
@@ -88,27 +89,41 @@ class SPHCalculator(Calculator):
 
     def _validate_parameters(self):
         p = self.parameters
-        p.dim = check_dim(p.dim)
+        p.dim = None if p.get("dim") is None else check_dim(p.dim)
         if "kernel" in p and p.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {p.kernel!r}")
 
     # -- per-call preparation ---------------------------------------------------
-    def prepare(self, atoms, cutoff, skin):
+    def resolve_dim(self, atoms):
+        """The dimension of ``atoms`` for this calculator: ``parameters.dim`` (None: inferred) checked
+        against the atoms and ``parameters.domain`` by :func:`ase_sphrelax.checks.resolve_dim`.
+
+        Every calculator calls it (directly or through :meth:`prepare`) before any work: 3D atoms
+        with ``dim=2``, 2D atoms with ``dim=3`` and 2D atoms off z = 0 are one-line errors.
+        """
+        if atoms is None or len(atoms) == 0:
+            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        if not np.all(np.isfinite(atoms.positions)):
+            bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
+            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        p = self.parameters
+        return resolve_dim(atoms, p.get("dim"), p.get("domain"))
+
+    def prepare(self, atoms, cutoff, skin, dim=None):
         """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
         ``cutoff`` (a number or one per particle) is taken on every call. The first
         evaluation leaves the list in its one-shot state (pair sums fused into the bin
         scan); the Verlet list is built from the second evaluation on, when it can be
-        reused. Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+        reused. ``dim`` is the result of :meth:`resolve_dim` (None: resolved here); the
+        coordinates beyond it are zero and not periodic, or :meth:`resolve_dim` raised.
         """
-        dim = self.parameters.dim
-        if atoms is None or len(atoms) == 0:
-            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        dim = self.resolve_dim(atoms) if dim is None else dim
         r_pc = np.array(atoms.positions, dtype=float)
         if not np.all(np.isfinite(r_pc)):
             bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
-        r_pc[:, dim:] = 0.0
+        r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None or self.nlist.skin != skin:

@@ -103,11 +103,25 @@ class FanModel:
     @classmethod
     def from_parameters(cls, parameters):
         """The model of a calculator's ``parameters`` (h, dx, domain, dim, kernel), which are
-        normalised in place (``h``, ``dx`` as floats)."""
+        normalised in place (``h``, ``dx`` as floats).
+
+        With ``dim`` None (inferred from the atoms at each evaluation) the model is built for
+        the domain's dimension, or 2 without a domain, to check the parameters; the calculator
+        then uses :meth:`with_dim` for the dimension of the atoms.
+        """
         p = parameters
-        model = cls(p.h, p.dx, p.domain, p.dim, p.kernel)
-        p.h, p.dx, p.dim = model.h, model.dx, model.dim
+        dim = p.dim if p.dim is not None else getattr(p.domain, "dim", 2)
+        model = cls(p.h, p.dx, p.domain, dim, p.kernel)
+        p.h, p.dx = model.h, model.dx
+        if p.dim is not None:
+            p.dim = model.dim
         return model
+
+    def with_dim(self, dim):
+        """The same model in ``dim`` dimensions (self if it already is)."""
+        if dim == self.dim:
+            return self
+        return type(self)(self.h, self.dx, self.domain, dim, self.kernel.name)
 
     def __repr__(self):
         return (f"FanModel(h={self.h!r}, dx={self.dx!r}, domain={self.domain!r}, dim={self.dim}, "
