@@ -212,6 +212,8 @@ class FanLammpsCalculator(SPHCalculator):
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["forces"] = f_pc
+        if "forces" in properties:
+            self.hint_force_scale(f_pc)
         if want_stress:
             v = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
             pressure_cc = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])

@@ -15,7 +15,14 @@ from ..checks import check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
 
-__all__ = ["SPHCalculator", "periodic_measure"]
+__all__ = ["SPHCalculator", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX"]
+
+#: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
+ASE_DEFAULT_FMAX = 0.05
+
+
+class SPHScaleWarning(UserWarning):
+    """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
 
 
 def periodic_measure(cell, pbc, dim):
@@ -131,6 +138,26 @@ class SPHCalculator(Calculator):
         self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
         self._evaluations += 1
         return r_pc, pbc
+
+    def hint_force_scale(self, f_pc):
+        """Warn once per calculator (:class:`SPHScaleWarning`) when 0 < max |F| < ASE's default fmax.
+
+        A user who follows ASE's habits (``FIRE(atoms).run(fmax=0.05)``) would otherwise get an
+        unrelaxed result without a word (issue 10 item 8). The message is constant, so Python
+        shows it once per place; silence it with ``warnings.simplefilter("ignore", SPHScaleWarning)``.
+        """
+        if getattr(self, "_scale_hinted", False):
+            return
+        self._scale_hinted = True
+        f_max = float(np.sqrt((np.asarray(f_pc) ** 2).sum(axis=1)).max()) if len(f_pc) else 0.0
+        if 0.0 < f_max < ASE_DEFAULT_FMAX:
+            import warnings
+
+            warnings.warn(f"{type(self).__name__}: every force is below 0.05, ASE's default fmax (eV/Angstrom): "
+                          "an ASE optimiser run with its defaults, e.g. FIRE(atoms).run(fmax=0.05), stops at "
+                          "step 0 and relaxes nothing. Use ase_sphrelax.drivers.make_optimizer(name, atoms) and "
+                          "run(fmax=...) with fmax relative to the forces (README: 'ASE optimisers at SPH "
+                          "scales')", SPHScaleWarning, stacklevel=4)
 
     def check_state(self, atoms, tol=1e-15):
         """Which of positions, numbers, cell, pbc (and momenta, for velocity-dependent

@@ -108,5 +108,7 @@ class FanCalculator(SPHCalculator):
         self.results["free_energy"] = energy
         self.results["energies"] = energies_p
         self.results["forces"] = f_pc
+        if "forces" in properties:
+            self.hint_force_scale(f_pc)
         if want_stress:
             self.results["stress"] = model.stress(virial, energy, vols, atoms.cell.volume)

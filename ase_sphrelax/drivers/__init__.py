@@ -8,6 +8,9 @@ _WHERE = {
     "FanRelaxation": ".fan_relaxation",
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
+    "KeepInDomain": ".keep_inside",
+    "NothingRelaxedWarning": ".optimizers",
+    "SPHScaleWarning": ".optimizers",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
