@@ -85,14 +85,27 @@ def _read(atoms_or_path):
     if isinstance(atoms_or_path, (str, Path)):
         from ase.io import read  # noqa: PLC0415
 
+        from ase.io.formats import UnknownFileTypeError  # noqa: PLC0415
+
         path = Path(atoms_or_path)
         if not path.exists():
             raise FileNotFoundError(f"input file {str(path)!r} does not exist")
-        return read(path)
-    return atoms_or_path
+        try:
+            atoms = read(path)
+        except (UnknownFileTypeError, ValueError, KeyError, IndexError, StopIteration) as error:
+            detail = " ".join(str(error).split()) or type(error).__name__
+            raise ValueError(f"input file {str(path)!r} is not a particle file ase.io.read understands ({detail}); "
+                             "give e.g. relaxed.extxyz from sphrelax relax") from None
+    else:
+        atoms = atoms_or_path
+    if len(atoms) == 0:
+        raise ValueError("input: need at least one particle, got an empty Atoms")
+    return atoms
 
 
 def _spacing(atoms, dim, dx):
+    if len(atoms) == 0:
+        raise ValueError("atoms: need at least one particle, got an empty Atoms")
     if dx is not None:
         if not (np.isscalar(dx) and dx > 0):
             raise ValueError(f"dx must be a positive float, got {dx!r}")
