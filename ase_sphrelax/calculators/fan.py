@@ -102,6 +102,8 @@ class FanCalculator(SPHCalculator):
             boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
             energies_p += boundary_e_p
             f_pc += boundary_f_pc
+            if self._evaluations == 1:  # the first evaluation of these atoms: say so if some are far outside
+                model.warn_far_outside(r_pc, type(self).__name__)
         f_pc[:, model.dim:] = 0.0
         energy = float(energies_p.sum())
         self.results["energy"] = energy
