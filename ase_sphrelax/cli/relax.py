@@ -336,10 +336,10 @@ def _lattice_optimum(h_over_dx, quality, dx, dim):
     return dict(pattern=pattern, h_over_dp=h_over_dp, v_c=v_c, inverse_v_c=1.0 / v_c)
 
 
-def _progress(opt, atoms, steps, label):
+def _progress(opt, atoms, steps, label, disable=None, file=None):
     from tqdm.auto import tqdm
 
-    bar = tqdm(total=steps, desc=label, unit="step", disable=None, mininterval=0.5)
+    bar = tqdm(total=steps, desc=label, unit="step", disable=disable, mininterval=0.5, file=file)
 
     def update():  # observers run at step 0 too: follow opt.nsteps, not the number of calls
         bar.update(opt.nsteps - bar.n)
