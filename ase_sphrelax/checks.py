@@ -6,7 +6,15 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE"]
+__all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
+           "ASE_DEFAULT_FMAX"]
+
+#: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
+ASE_DEFAULT_FMAX = 0.05
+
+
+class SPHScaleWarning(UserWarning):
+    """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
 
 
 def check_positive(name, value, allow_none=False):

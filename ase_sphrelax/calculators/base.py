@@ -11,18 +11,11 @@ from __future__ import annotations
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
-from ..checks import check_dim, resolve_dim
+from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
 
 __all__ = ["SPHCalculator", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX"]
-
-#: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
-ASE_DEFAULT_FMAX = 0.05
-
-
-class SPHScaleWarning(UserWarning):
-    """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
 
 
 def periodic_measure(cell, pbc, dim):

@@ -14,8 +14,7 @@ import math
 import numbers
 import warnings
 
-from ..calculators.base import ASE_DEFAULT_FMAX, SPHScaleWarning  # noqa: F401 (re-exported)
-from ..checks import check_positive
+from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_positive  # noqa: F401 (SPHScaleWarning re-exported)
 from .keep_inside import attach_keep_inside
 
 __all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer", "check_c", "NothingRelaxedWarning", "SPHScaleWarning",
