@@ -28,7 +28,7 @@ import numba
 import numpy as np
 
 from .checks import check_skin
-from .parallel import PARALLEL_MIN, run_chunks
+from .parallel import PARALLEL_MIN, run_chunks, thread_count, thread_pool
 
 __all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
@@ -225,11 +225,40 @@ def is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
     return False
 
 
-def _half_stencil(m, nbin_c):
-    """Forward half of the (2m+1)^d bin stencil (own bin excluded) as a (K, 3) array,
-    without offsets along axes that have a single bin (2D sheets, 1D chains)."""
-    spans = [range(-m, m + 1) if nb > 1 else range(1) for nb in nbin_c]
-    return np.array([o for o in itertools.product(*spans) if o > (0, 0, 0)], dtype=np.int64).reshape(-1, 3)
+def _half_stencil(m, nbin_c, binsize, reach):
+    """Forward half of the bin stencil as rows of bins, a (K, 6) array.
+
+    Bins of edge ``binsize >= reach / m`` are scanned within ``m`` bins of the own bin.
+    Bins that are consecutive along the *row axis* (the last axis with more than one bin)
+    are consecutive in the sorted order, so each entry is one row of bins, one contiguous
+    range of points: columns 0-2 are the bin offset (x, y, z) of the row's first bin,
+    columns 3-5 that of its last. The rows cover every bin offset that is lexicographically
+    positive (the own bin itself, with b > a, is the scan's entry -1), without offsets
+    along axes that have a single bin, and without the bins that lie entirely beyond
+    ``reach`` of the own bin.
+    """
+    spread = [c for c in range(3) if nbin_c[c] > 1]
+    if not spread:
+        return np.zeros((0, 6), dtype=np.int64)
+    row = spread[-1]
+    others = [range(-m, m + 1) if c in spread and c != row else range(1) for c in range(3)]
+    rows = []
+    for o in itertools.product(*others):
+        across = sum(max(abs(k) - 1, 0) ** 2 for k in o) * binsize**2
+        if across >= reach**2:
+            continue
+        # longest span along the row whose end bins are still within reach
+        span = max(s for s in range(m + 1) if across + max(s - 1, 0) ** 2 * binsize**2 < reach**2)
+        lo, hi = list(o), list(o)
+        lo[row], hi[row] = -span, span
+        if tuple(o) == (0, 0, 0):  # own row: only the bins after the own bin
+            if span == 0:
+                continue
+            lo[row] = 1
+        elif tuple(o) < (0, 0, 0):
+            continue
+        rows.append(lo + hi)
+    return np.array(sorted(rows), dtype=np.int64).reshape(-1, 6)
 
 
 @numba.njit(cache=True, inline="always")
@@ -241,38 +270,44 @@ def bin_coords(a, bin_s, nbin_c):
 
 @numba.njit(cache=True, inline="always")
 def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
-    """Sorted points [lo, hi) of half-stencil entry k of point a in bin (kx, ky, kz).
+    """Sorted points [lo, hi) of half-stencil row k of point a in bin (kx, ky, kz).
 
-    k = -1 is the own bin with b > a; an offset outside the bin grid gives an empty range.
+    k = -1 is the own bin with b > a; a row is clipped to the bin grid (an empty range
+    when it lies outside).
     """
     if k < 0:
         return a + 1, bin_start[bin_s[a] + 1]
-    bx = kx + stencil_kc[k, 0]
-    by = ky + stencil_kc[k, 1]
-    bz = kz + stencil_kc[k, 2]
-    if bx < 0 or bx >= nbin_c[0] or by < 0 or by >= nbin_c[1] or bz < 0 or bz >= nbin_c[2]:
+    x0 = max(kx + stencil_kc[k, 0], 0)
+    x1 = min(kx + stencil_kc[k, 3], nbin_c[0] - 1)
+    y0 = max(ky + stencil_kc[k, 1], 0)
+    y1 = min(ky + stencil_kc[k, 4], nbin_c[1] - 1)
+    z0 = max(kz + stencil_kc[k, 2], 0)
+    z1 = min(kz + stencil_kc[k, 5], nbin_c[2] - 1)
+    if x0 > x1 or y0 > y1 or z0 > z1:
         return 0, 0
-    b_bin = (bx * nbin_c[1] + by) * nbin_c[2] + bz
-    return bin_start[b_bin], bin_start[b_bin + 1]
+    return bin_start[(x0 * nbin_c[1] + y0) * nbin_c[2] + z0], bin_start[(x1 * nbin_c[1] + y1) * nbin_c[2] + z1 + 1]
 
 
 @numba.njit(cache=True, nogil=True)
 def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
-                      pair_start, pair_j, fill, first, last):
-    """Half-stencil bin scan. With fill=False counts the pairs of each point
-    into pair_start[a+1]; with fill=True writes the partners into pair_j.
+                      count_s, pair_j, pos, first, last):
+    """Half-stencil bin scan in one pass: the partners of the points [first, last) are appended
+    to ``pair_j`` from ``pos`` on, and ``count_s[a + 1]`` is set to the number of partners of a.
 
-    A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two
-    is a ghost, and (for original-ghost pairs) it is the canonical orientation.
-    ``stencil_kc`` holds the bin offsets (x, y, z) of the forward half stencil;
-    the own bin is scanned for b > a.
+    A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two is a ghost, and
+    (for original-ghost pairs) it is the canonical orientation. ``stencil_kc`` holds the bin
+    offsets (x, y, z) of the forward half stencil; the own bin is scanned for b > a.
+
+    Returns ``(a_next, pos)``: ``a_next == last`` when done; otherwise ``pair_j`` was full and
+    the scan stopped before point ``a_next`` (``pos`` is where its partners go): the caller
+    grows the buffer and calls again from ``a_next``.
     """
+    cap = pair_j.shape[0]
     for a in range(first, last):
         xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
         ca = cut_s[a]
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
-        count = 0
-        pos = pair_start[a] if fill else 0
+        start = pos
         for k in range(-1, stencil_kc.shape[0]):
             lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
             for b in range(lo, hi):
@@ -284,11 +319,12 @@ def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_
                     continue
                 if not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
                     continue
-                if fill:
-                    pair_j[pos + count] = b
-                count += 1
-        if not fill:
-            pair_start[a + 1] = count
+                if pos >= cap:
+                    return a, start
+                pair_j[pos] = b
+                pos += 1
+        count_s[a + 1] = pos - start
+    return last, pos
 
 
 def _gather(r_pc, src_s, shift_sc, x_sc):
@@ -296,8 +332,55 @@ def _gather(r_pc, src_s, shift_sc, x_sc):
     return x_sc
 
 
-def _scan_pairs(*args):
-    run_chunks(_scan_pairs_chunk, args[0].shape[0], args)
+def _scan_chunk_growing(args, count_s, region, first, last):
+    """One chunk of the one-pass list scan into ``region``, grown (copied) whenever it fills up.
+    Returns (array holding the chunk's partners, number written, grown?)."""
+    a, pos = _scan_pairs_chunk(*args, count_s, region, 0, first, last)
+    grown = False
+    while a < last:
+        bigger = np.empty(int(1.5 * region.shape[0]) + 1024, dtype=region.dtype)
+        bigger[:pos] = region[:pos]
+        region, grown = bigger, True
+        a, pos = _scan_pairs_chunk(*args, count_s, region, pos, a, last)
+    return region, pos, grown
+
+
+def _scan_pairs(args, n_ext, buffer, nthreads):
+    """The half list in CSR form, built by one scan over the bins (no separate count pass).
+
+    Each of the ``nthreads`` chunks of points writes its partners into its own region of
+    ``buffer``; the regions are then moved together. A region that fills up continues in a
+    grown copy of its own. Returns ``(pair_start, pair_j, buffer)``: ``pair_j`` is a view of
+    the returned buffer (a new, larger one when the old was too small).
+    """
+    count_s = np.empty(n_ext + 1, dtype=np.int64)
+    count_s[0] = 0
+    chunk = (n_ext + nthreads - 1) // nthreads
+    bounds = [(t * chunk, min(n_ext, (t + 1) * chunk)) for t in range(nthreads)]
+    cap_t = buffer.shape[0] // nthreads
+    regions = [buffer[t * cap_t:(t + 1) * cap_t] for t in range(nthreads)]
+    if nthreads == 1:
+        results = [_scan_chunk_growing(args, count_s, regions[0], *bounds[0])]
+    else:
+        pool = thread_pool(nthreads)
+        jobs = [pool.submit(_scan_chunk_growing, args, count_s, regions[t], *bounds[t]) for t in range(nthreads)]
+        results = [job.result() for job in jobs]
+    total = sum(pos for _, pos, _ in results)
+    if any(grown for _, _, grown in results):
+        # a region outgrew its share: gather all into a new buffer with a margin for the next build
+        buffer = np.empty(int(1.2 * total) + 1024, dtype=buffer.dtype)
+        dst = 0
+        for region, pos, _ in results:
+            buffer[dst:dst + pos] = region[:pos]
+            dst += pos
+    else:
+        dst = results[0][1]
+        for t in range(1, nthreads):  # move the regions down to close the gaps (dst <= t * cap_t)
+            pos = results[t][1]
+            buffer[dst:dst + pos] = buffer[t * cap_t:t * cap_t + pos]
+            dst += pos
+    np.cumsum(count_s, out=count_s)
+    return count_s, buffer[:total], buffer
 
 
 @numba.njit(cache=True)
@@ -369,7 +452,9 @@ def _max_displacement2(r_pc, r0_pc):
     return best
 
 
-BIN_DIVISIONS = 1  # bins of edge reach / BIN_DIVISIONS (2 checks fewer candidates but costs as much here)
+# bins of edge reach / m, by the number of axes the points spread along (measured in
+# benchmarks/profile_fan.py: m = 2 in 3D checks 0.58x the candidates of m = 1)
+BIN_DIVISIONS = {1: 1, 2: 2, 3: 2}
 
 
 class BinnedPoints:
@@ -400,16 +485,19 @@ class BinnedPoints:
         n_ext = src_e.shape[0]
         lo_c = x_ec.min(axis=0)
         extent_c = x_ec.max(axis=0) - lo_c
-        # bins of edge reach / m scanned with a (2m+1)^d stencil; for sparse sets
-        # (bins > 4 per point) fall back to m = 1 and larger bins
-        m = BIN_DIVISIONS
+        # bins of edge reach / m scanned with a (2m+1)^d stencil (m by the number of axes the
+        # points spread along); for sparse sets (bins > 4 per point) fall back to m = 1 and
+        # larger bins
+        spread = int(np.count_nonzero(extent_c >= reach))
+        m = BIN_DIVISIONS.get(spread, 1)
         binsize = reach / m
         nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
             m = 1
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
-        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, max(binsize, reach / m), nbin_c)
+        binsize = max(binsize, reach / m)
+        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, binsize, nbin_c)
         self.n_particles = n
         self.n_extended = n_ext
         self.order_s = order_s
@@ -421,8 +509,20 @@ class BinnedPoints:
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
-        self.stencil_kc = _half_stencil(m, nbin_c)
+        self.stencil_kc = _half_stencil(m, nbin_c, binsize, reach)
+        self.binsize = binsize
+        self.reach = reach
         self._gather_buffers = {}
+
+    def expected_pairs(self):
+        """Estimated size of the half list (uniform density within the bins' extent)."""
+        spread = self.nbin_c > 1
+        dim = int(np.count_nonzero(spread))
+        if dim == 0:
+            return self.n_extended * (self.n_extended - 1) // 2
+        volume = float(np.prod((self.nbin_c * self.binsize)[spread]))
+        ball = {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[dim] * self.reach**dim
+        return int(0.5 * self.n_extended * min(self.n_extended, self.n_extended / volume * ball))
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``.
@@ -511,6 +611,7 @@ class NeighborList:
         self.pair_start = None
         self.pair_j = None
         self._pair_buffer = np.empty(0, dtype=np.int32)
+        self._pair_count = 0
         self._key = None
         self._r0_pc = None
         self._cut_build = None
@@ -621,17 +722,17 @@ class NeighborList:
         if not store:
             self.pair_start = self.pair_j = None
             return
-        pair_start = np.zeros(pts.n_extended + 1, dtype=np.int64)
         args = (pts.x_sc, pts.cut_s, pts.src_s, pts.img_sc, pts.is_ghost_s, self.skin, pts.bin_s, pts.nbin_c,
                 pts.bin_start, pts.stencil_kc)
-        _scan_pairs(*args, pair_start, self._pair_buffer[:0], False)
-        np.cumsum(pair_start, out=pair_start)
-        if self._pair_buffer.shape[0] < pair_start[-1]:
-            # reuse the buffer between builds: fresh pages are expensive to touch
-            self._pair_buffer = np.empty(int(1.2 * pair_start[-1]) + 16, dtype=np.int32)
-        self.pair_start = pair_start
-        self.pair_j = self._pair_buffer[: pair_start[-1]]
-        _scan_pairs(*args, pair_start, self.pair_j, True)
+        # one scan, no count pass: the buffer is sized from the last build (or the density)
+        # and kept between builds (fresh pages are expensive to touch)
+        expected = self._pair_count if self._pair_count else pts.expected_pairs()
+        want = int(1.15 * expected) + 1024
+        if self._pair_buffer.shape[0] < want:
+            self._pair_buffer = np.empty(want, dtype=np.int32)
+        self.pair_start, self.pair_j, self._pair_buffer = _scan_pairs(args, pts.n_extended, self._pair_buffer,
+                                                                      thread_count(pts.n_extended))
+        self._pair_count = self.pair_j.shape[0]
         self.builds += 1
 
 

@@ -188,9 +188,29 @@ def _loop_source(template, name, outputs, dim, symmetric, indent):
     )
 
 
+def _core_stamp():
+    """Short hash of what the generated loops inline from the core (templates, bin helpers).
+
+    It is part of each loop's name, hence of its numba cache file: numba's cache checks only
+    the time stamp of the file a function is compiled against (the physics file), so without
+    it a change of the core would leave stale loops in the caches of the methods' files.
+    """
+    import hashlib
+
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + "".join(
+        inspect.getsource(f.py_func) for f in (bin_coords, stencil_range, is_canonical_pair))
+    return hashlib.sha1(text.encode()).hexdigest()[:8]
+
+
+_CORE_STAMP = None
+
+
 def _compile(pair, template, kind, outputs, dim, symmetric):
+    global _CORE_STAMP
+    if _CORE_STAMP is None:
+        _CORE_STAMP = _core_stamp()
     base = pair.py_func.__name__
-    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d__{base}"
+    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
     source = _loop_source(template, name, outputs, dim, symmetric, indent)
     namespace = {"pair": pair, "bin_coords": bin_coords, "stencil_range": stencil_range,

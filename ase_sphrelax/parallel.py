@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numba
 
-__all__ = ["PARALLEL_MIN", "thread_count", "run_chunks"]
+__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "run_chunks"]
 
 PARALLEL_MIN = 20000
 
@@ -28,7 +28,8 @@ def thread_count(n_points):
     return numba.get_num_threads() if n_points >= PARALLEL_MIN else 1
 
 
-def _pool(nthreads):
+def thread_pool(nthreads):
+    """The persistent pool of ``nthreads`` worker threads (created on first use)."""
     if nthreads not in _POOLS:
         from concurrent.futures import ThreadPoolExecutor
 
@@ -60,7 +61,7 @@ def run_chunks(loop, n, args, per_thread=None, nthreads=None):
     if nthreads == 1:
         return loop(*args, *extra[0], 0, n)
     chunk = (n + nthreads - 1) // nthreads
-    pool = _pool(nthreads)
+    pool = thread_pool(nthreads)
     jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads)]
     for job in jobs:
         job.result()
