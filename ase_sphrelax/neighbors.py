@@ -109,8 +109,9 @@ def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
     """Particles wrapped into the cell along periodic axes, followed by ghosts:
     periodic images within ``pad`` (fractional units) of the unit cell.
 
-    Returns (src_e, img_ec, x_ec): source particle, integer image vector
-    (including the wrap) and Cartesian position of every extended point.
+    Returns (src_e, img_ec, x_ec, lo_c, hi_c): source particle, integer image vector
+    (including the wrap) and Cartesian position of every extended point, and the
+    bounding box of the positions.
     """
     n = r_pc.shape[0]
     frac_pc = np.empty((n, 3))
@@ -158,26 +159,25 @@ def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
             src_e = np.empty(n_ext, dtype=np.int64)
             img_ec = np.empty((n_ext, 3))
     x_ec = np.empty((n_ext, 3))
+    lo_c = np.full(3, np.inf)
+    hi_c = np.full(3, -np.inf)
     for e in range(n_ext):
         p = src_e[e]
         for c in range(3):
-            x_ec[e, c] = (r_pc[p, c] + img_ec[e, 0] * cell_cc[0, c] + img_ec[e, 1] * cell_cc[1, c]
-                          + img_ec[e, 2] * cell_cc[2, c])
-    return src_e, img_ec, x_ec
+            x = (r_pc[p, c] + img_ec[e, 0] * cell_cc[0, c] + img_ec[e, 1] * cell_cc[1, c]
+                 + img_ec[e, 2] * cell_cc[2, c])
+            x_ec[e, c] = x
+            lo_c[c] = min(lo_c[c], x)
+            hi_c[c] = max(hi_c[c], x)
+    return src_e, img_ec, x_ec, lo_c, hi_c
 
 
-@numba.njit(cache=True)
-def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
-    """Per sorted extended point: source, image, position, shift, ghost flag and cut-off."""
-    n_ext = order_s.shape[0]
+@numba.njit(cache=True, nogil=True)
+def _sorted_arrays_chunk(order_s, src_e, img_ec, x_ec, r_pc, cut_p, src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s,
+                         first, last):
+    """Per sorted extended point s in [first, last): source, image, position, shift, ghost flag and cut-off."""
     n = r_pc.shape[0]
-    src_s = np.empty(n_ext, dtype=np.int64)
-    img_sc = np.empty((n_ext, 3))
-    x_sc = np.empty((n_ext, 3))
-    shift_sc = np.empty((n_ext, 3))
-    is_ghost_s = np.empty(n_ext, dtype=np.bool_)
-    cut_s = np.empty(n_ext)
-    for s in range(n_ext):
+    for s in range(first, last):
         e = order_s[s]
         p = src_e[e]
         src_s[s] = p
@@ -187,7 +187,15 @@ def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
             img_sc[s, c] = img_ec[e, c]
             x_sc[s, c] = x_ec[e, c]
             shift_sc[s, c] = x_ec[e, c] - r_pc[p, c]
-    return src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s
+
+
+def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
+    """(src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s) of the sorted extended points."""
+    n_ext = order_s.shape[0]
+    out = (np.empty(n_ext, dtype=np.int64), np.empty((n_ext, 3)), np.empty((n_ext, 3)), np.empty((n_ext, 3)),
+           np.empty(n_ext, dtype=np.bool_), np.empty(n_ext))
+    run_chunks(_sorted_arrays_chunk, n_ext, (order_s, src_e, img_ec, x_ec, r_pc, cut_p) + out)
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -332,26 +340,30 @@ def _gather(r_pc, src_s, shift_sc, x_sc):
     return x_sc
 
 
-def _scan_chunk_growing(args, count_s, region, first, last):
-    """One chunk of the one-pass list scan into ``region``, grown (copied) whenever it fills up.
+def _scan_chunk_growing(scan, t, count_s, region, first, last):
+    """Chunk ``t`` of a one-pass list scan into ``region``, continued in a grown copy
+    whenever it fills up. ``scan(t, count_s, region, pos, first, last) -> (a_next, pos)``.
     Returns (array holding the chunk's partners, number written, grown?)."""
-    a, pos = _scan_pairs_chunk(*args, count_s, region, 0, first, last)
+    a, pos = scan(t, count_s, region, 0, first, last)
     grown = False
     while a < last:
         bigger = np.empty(int(1.5 * region.shape[0]) + 1024, dtype=region.dtype)
         bigger[:pos] = region[:pos]
         region, grown = bigger, True
-        a, pos = _scan_pairs_chunk(*args, count_s, region, pos, a, last)
+        a, pos = scan(t, count_s, region, pos, a, last)
     return region, pos, grown
 
 
-def _scan_pairs(args, n_ext, buffer, nthreads):
+def _one_pass_list(scan, n_ext, buffer, nthreads):
     """The half list in CSR form, built by one scan over the bins (no separate count pass).
 
-    Each of the ``nthreads`` chunks of points writes its partners into its own region of
-    ``buffer``; the regions are then moved together. A region that fills up continues in a
-    grown copy of its own. Returns ``(pair_start, pair_j, buffer)``: ``pair_j`` is a view of
-    the returned buffer (a new, larger one when the old was too small).
+    ``scan(t, count_s, pair_j, pos, first, last) -> (a_next, pos)`` appends the partners of
+    the points [first, last) to ``pair_j`` from ``pos`` on, sets ``count_s[a + 1]``, and stops
+    early (``a_next < last``) when ``pair_j`` is full. Each of the ``nthreads`` chunks of
+    points writes into its own region of ``buffer``; the regions are then moved together.
+    A region that fills up continues in a grown copy of its own. Returns ``(pair_start,
+    pair_j, buffer)``: ``pair_j`` is a view of the returned buffer (a new, larger one when
+    the old was too small).
     """
     count_s = np.empty(n_ext + 1, dtype=np.int64)
     count_s[0] = 0
@@ -360,10 +372,10 @@ def _scan_pairs(args, n_ext, buffer, nthreads):
     cap_t = buffer.shape[0] // nthreads
     regions = [buffer[t * cap_t:(t + 1) * cap_t] for t in range(nthreads)]
     if nthreads == 1:
-        results = [_scan_chunk_growing(args, count_s, regions[0], *bounds[0])]
+        results = [_scan_chunk_growing(scan, 0, count_s, regions[0], *bounds[0])]
     else:
         pool = thread_pool(nthreads)
-        jobs = [pool.submit(_scan_chunk_growing, args, count_s, regions[t], *bounds[t]) for t in range(nthreads)]
+        jobs = [pool.submit(_scan_chunk_growing, scan, t, count_s, regions[t], *bounds[t]) for t in range(nthreads)]
         results = [job.result() for job in jobs]
     total = sum(pos for _, pos, _ in results)
     if any(grown for _, _, grown in results):
@@ -481,10 +493,9 @@ class BinnedPoints:
         width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
         pad_c = np.where(pbc, reach / width_c, 0.0)
         layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
-        src_e, img_ec, x_ec = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        src_e, img_ec, x_ec, lo_c, hi_c = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
         n_ext = src_e.shape[0]
-        lo_c = x_ec.min(axis=0)
-        extent_c = x_ec.max(axis=0) - lo_c
+        extent_c = hi_c - lo_c
         # bins of edge reach / m scanned with a (2m+1)^d stencil (m by the number of axes the
         # points spread along); for sparse sets (bins > 4 per point) fall back to m = 1 and
         # larger bins
@@ -512,6 +523,9 @@ class BinnedPoints:
         self.stencil_kc = _half_stencil(m, nbin_c, binsize, reach)
         self.binsize = binsize
         self.reach = reach
+        # most candidates of one point: the fullest bin times the bins of the own bin and the stencil
+        span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
+        self.max_candidates = int(np.diff(bin_start).max()) * int(1 + np.prod(span_k, axis=1).sum())
         self._gather_buffers = {}
 
     def expected_pairs(self):
@@ -608,8 +622,9 @@ class NeighborList:
         self.skin = check_skin(skin)
         self.builds = 0
         self.points = None
-        self.pair_start = None
-        self.pair_j = None
+        self._pair_start = None
+        self._pair_j = None
+        self._pending = False
         self._pair_buffer = np.empty(0, dtype=np.int32)
         self._pair_count = 0
         self._key = None
@@ -620,7 +635,25 @@ class NeighborList:
     @property
     def stored(self):
         """True when a Verlet list is stored (False: one-shot bins, or nothing built)."""
-        return self.pair_j is not None
+        return self._pending or self._pair_j is not None
+
+    @property
+    def pair_start(self):
+        """CSR start of each sorted extended point's partners (None in the one-shot state)."""
+        self._complete_pending()
+        return self._pair_start
+
+    @property
+    def pair_j(self):
+        """Partners (sorted extended points) of the half list (None in the one-shot state)."""
+        self._complete_pending()
+        return self._pair_j
+
+    @property
+    def build_pending(self):
+        """True after a (re)build whose list scan waits for the next pair sum to fuse with
+        (:meth:`fused_build`); reading the list or moving the points completes it first."""
+        return self._pending
 
     @property
     def max_cutoff(self):
@@ -669,6 +702,8 @@ class NeighborList:
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``."""
+        if self._pending and not np.array_equal(positions, self._r0_pc):
+            self._complete_pending()  # the list is made from the positions of the build
         return self.points.extend(positions)
 
     def gather(self, values_p, slot=0):
@@ -688,6 +723,27 @@ class NeighborList:
         if self.stored:
             return "list", (self.pair_start, self.pair_j)
         return self.points.loop_arrays()
+
+    def fused_build(self, scan, nthreads):
+        """Complete a pending build with a scan that also does other work (a pair sum).
+
+        ``scan(t, count_s, pair_j, pos, first, last) -> (a_next, pos)`` is the one-pass list
+        scan of :func:`_scan_pairs_chunk` over chunk ``t`` of ``nthreads``, on the bins of
+        :meth:`build_arrays`; see :func:`_one_pass_list`. Used by
+        :meth:`ase_sphrelax.pairs.PairInteraction.compute`: a rebuild then costs one bin
+        scan that lists the pairs and evaluates the interaction, and no list walk.
+        """
+        if not self._pending:
+            raise ValueError("fused_build: no build is pending")
+        self._store_list(scan, nthreads)
+
+    def build_arrays(self):
+        """Arrays of the list scan, after the positions: (src_s, img_sc, is_ghost_s, cut_s,
+        skin, bin_s, nbin_c, bin_start, stencil_kc, room), ``room`` the most candidates a
+        point can have (:attr:`BinnedPoints.max_candidates`)."""
+        pts = self.points
+        return (pts.src_s, pts.img_sc, pts.is_ghost_s, pts.cut_s, self.skin, pts.bin_s, pts.nbin_c,
+                pts.bin_start, pts.stencil_kc, pts.max_candidates)
 
     @property
     def n_particles(self):
@@ -718,22 +774,33 @@ class NeighborList:
         cut_p = np.broadcast_to(self.cutoff, (r_pc.shape[0],)).astype(float)
         self._cut_build = cut_p
         skin = self.skin if store else 0.0
-        pts = self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
-        if not store:
-            self.pair_start = self.pair_j = None
-            return
-        args = (pts.x_sc, pts.cut_s, pts.src_s, pts.img_sc, pts.is_ghost_s, self.skin, pts.bin_s, pts.nbin_c,
-                pts.bin_start, pts.stencil_kc)
+        self._pair_start = self._pair_j = None
+        self._pending = False
+        self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
+        if store:
+            # the list scan waits for the next pair sum, which can fuse with it (fused_build)
+            self._pending = True
+            self.builds += 1
+
+    def _complete_pending(self):
+        if self._pending:
+            x_sc = self.points.x_sc  # the positions of the build (extend() completes the list before moving them)
+            arrays = self.build_arrays()
+            self._store_list(lambda t, count_s, pair_j, pos, first, last: _scan_pairs_chunk(
+                x_sc, arrays[3], *arrays[:3], *arrays[4:9], count_s, pair_j, pos, first, last),
+                thread_count(self.points.n_extended))
+
+    def _store_list(self, scan, nthreads):
         # one scan, no count pass: the buffer is sized from the last build (or the density)
         # and kept between builds (fresh pages are expensive to touch)
-        expected = self._pair_count if self._pair_count else pts.expected_pairs()
+        expected = self._pair_count if self._pair_count else self.points.expected_pairs()
         want = int(1.15 * expected) + 1024
         if self._pair_buffer.shape[0] < want:
             self._pair_buffer = np.empty(want, dtype=np.int32)
-        self.pair_start, self.pair_j, self._pair_buffer = _scan_pairs(args, pts.n_extended, self._pair_buffer,
-                                                                      thread_count(pts.n_extended))
-        self._pair_count = self.pair_j.shape[0]
-        self.builds += 1
+        self._pair_start, self._pair_j, self._pair_buffer = _one_pass_list(scan, self.points.n_extended,
+                                                                           self._pair_buffer, nthreads)
+        self._pair_count = self._pair_j.shape[0]
+        self._pending = False
 
 
 def _check_cutoff(cutoff):

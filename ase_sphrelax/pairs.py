@@ -138,6 +138,42 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc
 """
 
 
+_BUILD_TEMPLATE = """
+def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil_kc, room, count_s, pair_j,
+           pos, reach2, params, inp, out, first, last):
+    {views}
+    {zero_global}
+    cap = pair_j.shape[0]
+    for a in range(first, last):
+        # room for every candidate of a (at most ``room``), or stop before a (nothing of a is added yet)
+        if pos + room > cap:
+            {store_global_early}
+            return a, pos
+        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
+        {load_a}
+        {zero_own}
+        ca = cut_s[a]
+        start = pos
+        for k in range(-1, stencil_kc.shape[0]):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+            for b in range(lo, hi):
+                {diff}
+                r2 = {norm2}
+                rc = max(ca, cut_s[b]) + skin
+                if r2 >= rc * rc or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                    continue
+                pair_j[pos] = b
+                pos += 1
+                if r2 >= reach2:
+                    continue
+                {body}
+        count_s[a + 1] = pos - start
+        {store_own}
+    {store_global}
+    return last, pos
+"""
+
+
 def _targets(outputs, per_point, point):
     """Buffer element of every flattened term of the per-point (or global) outputs:
     "o0[b]", "o1[b, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of output k."""
@@ -179,6 +215,7 @@ def _loop_source(template, name, outputs, dim, symmetric, indent):
         views=pad_t.join(f"o{k} = out[{k}]" for k in range(len(outputs))),
         zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
         store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
+        store_global_early=("\n" + " " * 12).join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
         load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(dim)),
         zero_own=pad_a.join(f"ta{i} = 0.0" for i in range(len(own))) or "pass",
         store_own=pad_a.join(f"{t} += ta{i}" for i, t in enumerate(own)) or "pass",
@@ -197,7 +234,7 @@ def _core_stamp():
     """
     import hashlib
 
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + "".join(
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + "".join(
         inspect.getsource(f.py_func) for f in (bin_coords, stencil_range, is_canonical_pair))
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
@@ -259,9 +296,11 @@ class PairInteraction:
         return f"PairInteraction({self.pair.py_func.__name__}, {kind}, outputs={list(self.outputs)})"
 
     def loop(self, kind):
-        """The generated loop over one chunk of points (``kind`` "list" or "scan"), compiled on first use."""
+        """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
+        (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
+        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`)."""
         if kind not in self._loops:
-            template = _LIST_TEMPLATE if kind == "list" else _SCAN_TEMPLATE
+            template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
             self._loops[kind] = _compile(self.pair, template, kind, list(self.outputs.values()), self.dim,
                                          self.symmetric)
         return self._loops[kind][0]
@@ -313,9 +352,18 @@ class PairInteraction:
         n_ext = x_sc.shape[0]
         nthreads = thread_count(n_ext)
         buffers = self._thread_buffers(nthreads, n_ext)
-        kind, arrays = neighbors.loop_arrays()
-        run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
-                   per_thread=[(tuple(buf[t] for buf in buffers),) for t in range(nthreads)])
+        per_thread = [tuple(buf[t] for buf in buffers) for t in range(nthreads)]
+        if getattr(neighbors, "build_pending", False):
+            # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
+            loop = self.loop("build")
+            pre = (x_sc, *neighbors.build_arrays())
+            post = (reach * reach, tuple(params), inp)
+            neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
+                *pre, count_s, pair_j, pos, *post, per_thread[t], first, last), nthreads)
+        else:
+            kind, arrays = neighbors.loop_arrays()
+            run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
+                       per_thread=[(out,) for out in per_thread])
         return self._fold(neighbors, buffers)
 
     def _fold(self, neighbors, buffers):

@@ -39,11 +39,12 @@ STEPS = [
     ("extended points", "ase_sphrelax.neighbors:_extended_points", 2),
     ("bin sort", "ase_sphrelax.neighbors:_bin_sort", 2),
     ("sorted arrays", "ase_sphrelax.neighbors:_sorted_arrays", 2),
-    ("list scan (count+fill)", "ase_sphrelax.neighbors:_scan_pairs", 2),
+    ("list scan (one pass)", "ase_sphrelax.neighbors:NeighborList._complete_pending", 2),
     ("pair compute", "ase_sphrelax.pairs:PairInteraction.compute", 0),
     ("extend (positions)", "ase_sphrelax.neighbors:BinnedPoints.extend", 1),
     ("zero thread buffers", "ase_sphrelax.pairs:PairInteraction._thread_buffers", 1),
-    ("pair loop", "ase_sphrelax.pairs:run_chunks", 1),
+    ("pair loop (list walk)", "ase_sphrelax.pairs:run_chunks", 1),
+    ("bin scan + list + pairs (fused)", "ase_sphrelax.neighbors:NeighborList.fused_build", 1),
     ("fold threads", "ase_sphrelax.neighbors:fold_thread_buffers", 1),
 ]
 
