@@ -62,13 +62,13 @@ def complete_cell(cell, pbc):
     return cell, np.linalg.inv(cell)
 
 
-def _check_positions(positions):
+def _check_positions(positions, finite=True):
     r_pc = np.asarray(positions, dtype=float)
     if r_pc.ndim != 2 or r_pc.shape[1] != 3:
         raise ValueError(f"positions must have shape (N, 3), got {r_pc.shape}")
     if r_pc.shape[0] == 0:
         raise ValueError("positions: need at least one particle, got none")
-    if not np.all(np.isfinite(r_pc)):
+    if finite and not np.all(np.isfinite(r_pc)):
         bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
         raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
     return r_pc
@@ -371,12 +371,10 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     bounds = [(t * chunk, min(n_ext, (t + 1) * chunk)) for t in range(nthreads)]
     cap_t = buffer.shape[0] // nthreads
     regions = [buffer[t * cap_t:(t + 1) * cap_t] for t in range(nthreads)]
-    if nthreads == 1:
-        results = [_scan_chunk_growing(scan, 0, count_s, regions[0], *bounds[0])]
-    else:
-        pool = thread_pool(nthreads)
-        jobs = [pool.submit(_scan_chunk_growing, scan, t, count_s, regions[t], *bounds[t]) for t in range(nthreads)]
-        results = [job.result() for job in jobs]
+    pool = thread_pool(nthreads) if nthreads > 1 else None
+    jobs = [pool.submit(_scan_chunk_growing, scan, t, count_s, regions[t], *bounds[t]) for t in range(nthreads - 1)]
+    last = _scan_chunk_growing(scan, nthreads - 1, count_s, regions[-1], *bounds[-1])  # on the calling thread
+    results = [job.result() for job in jobs] + [last]
     total = sum(pos for _, pos, _ in results)
     if any(grown for _, _, grown in results):
         # a region outgrew its share: gather all into a new buffer with a margin for the next build
@@ -453,14 +451,15 @@ def fold_thread_buffers(bufs, order_s, ghost_s, src_e, n):
 
 @numba.njit(cache=True)
 def _max_displacement2(r_pc, r0_pc):
+    """Largest squared displacement; inf if a position is NaN or inf (the rebuild then rejects it)."""
     best = 0.0
     for p in range(r_pc.shape[0]):
         d2 = 0.0
         for c in range(3):
             d = r_pc[p, c] - r0_pc[p, c]
             d2 += d * d
-        if d2 > best:
-            best = d2
+        if not d2 <= best:  # also true for NaN
+            best = d2 if d2 == d2 else np.inf
     return best
 
 
@@ -630,6 +629,7 @@ class NeighborList:
         self._key = None
         self._r0_pc = None
         self._cut_build = None
+        self._cut_build_uniform = None
 
     # -- public -----------------------------------------------------------------
     @property
@@ -674,7 +674,7 @@ class NeighborList:
             False asks for a one-shot evaluation: if no valid stored list exists, the points
             are binned (skin 0) and the pair sums scan the bins; no list is built.
         """
-        r_pc = _check_positions(positions)
+        r_pc = _check_positions(positions, finite=False)  # NaN/inf: see _still_valid and _build
         pbc = np.array(pbc, dtype=bool).reshape(3) if np.ndim(pbc) else np.array([bool(pbc)] * 3)
         cell = np.array(cell, dtype=float).reshape(3, 3)
         if cutoff is not None:
@@ -684,13 +684,17 @@ class NeighborList:
         key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes())
         if key == self._key and (self.stored or not store) and self._still_valid(r_pc):
             return False
+        _check_positions(r_pc)
         self._build(r_pc, cell, pbc, store)
         self._key = key
         self._r0_pc = r_pc.copy()
         return True
 
     def _still_valid(self, r_pc):
-        growth = float(np.max(self.cutoff - self._cut_build))
+        if self.cutoff.ndim == 0 and self._cut_build_uniform is not None:
+            growth = float(self.cutoff) - self._cut_build_uniform
+        else:
+            growth = float(np.max(self.cutoff - self._cut_build))
         if not self.stored:  # one-shot bins: only for the positions and cut-offs they were made for
             return growth <= 0.0 and np.array_equal(r_pc, self._r0_pc)
         margin = self.skin - max(growth, 0.0)
@@ -773,6 +777,7 @@ class NeighborList:
     def _build(self, r_pc, cell, pbc, store):
         cut_p = np.broadcast_to(self.cutoff, (r_pc.shape[0],)).astype(float)
         self._cut_build = cut_p
+        self._cut_build_uniform = float(self.cutoff) if self.cutoff.ndim == 0 else None
         skin = self.skin if store else 0.0
         self._pair_start = self._pair_j = None
         self._pending = False

@@ -101,6 +101,7 @@ class PairResult(dict):
 _LIST_TEMPLATE = """
 def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
     {views}
+    {zero_buffers}
     {zero_global}
     for a in range(first, last):
         {load_a}
@@ -120,6 +121,7 @@ _SCAN_TEMPLATE = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc, reach2, params, inp, out,
            first, last):
     {views}
+    {zero_buffers}
     {zero_global}
     for a in range(first, last):
         {load_a}
@@ -142,6 +144,8 @@ _BUILD_TEMPLATE = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil_kc, room, count_s, pair_j,
            pos, reach2, params, inp, out, first, last):
     {views}
+    if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
+        {zero_buffers_nested}
     {zero_global}
     cap = pair_j.shape[0]
     for a in range(first, last):
@@ -213,6 +217,9 @@ def _loop_source(template, name, outputs, dim, symmetric, indent):
     return template.format(
         name=name,
         views=pad_t.join(f"o{k} = out[{k}]" for k in range(len(outputs))),
+        # each thread zeroes its own buffers at the start of its chunk (in parallel)
+        zero_buffers=pad_t.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
+        zero_buffers_nested=pad_a.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
         zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
         store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
         store_global_early=("\n" + " " * 12).join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
@@ -311,17 +318,15 @@ class PairInteraction:
         return self._loops[kind][1]
 
     def _thread_buffers(self, nthreads, n_ext):
-        """Zeroed per-thread accumulators, reused between calls of the same size."""
+        """Per-thread accumulators, reused between calls of the same size (each loop chunk
+        zeroes its own thread's buffers)."""
         key = (nthreads, n_ext)
         if key not in self._buffers:
             self._buffers.clear()
             self._buffers[key] = tuple(
                 np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
                 for o in self.outputs.values())
-        buffers = self._buffers[key]
-        for buf in buffers:
-            buf.fill(0.0)
-        return buffers
+        return self._buffers[key]
 
     def compute(self, neighbors, positions, params=(), inputs=(), reach=None):
         """Run the interaction over every pair within ``reach``; return the folded outputs.

@@ -2,8 +2,8 @@
 
 Every parallel loop of the package (pair loops, neighbour-list passes, gathers and folds)
 is a serial numba function compiled with ``nogil=True`` that works on the points
-``[first, last)``; :func:`run_chunks` runs one chunk per thread of a persistent thread
-pool. Only one threading model is used because mixing them costs: after a numba
+``[first, last)``; :func:`run_chunks` runs one chunk per thread: the calling thread
+takes the last chunk, a persistent thread pool the others. Only one threading model is used because mixing them costs: after a numba
 ``prange`` loop its OpenMP workers spin for a while and take a core from the next
 loop's threads (measured: a pair loop at 2 threads ran at the speed of 1).
 
@@ -62,7 +62,12 @@ def run_chunks(loop, n, args, per_thread=None, nthreads=None):
         return loop(*args, *extra[0], 0, n)
     chunk = (n + nthreads - 1) // nthreads
     pool = thread_pool(nthreads)
-    jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads)]
-    for job in jobs:
-        job.result()
+    # the calling thread runs the last chunk itself: one thread fewer to wake per loop
+    jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads - 1)]
+    t = nthreads - 1
+    try:
+        loop(*args, *extra[t], t * chunk, min(n, (t + 1) * chunk))
+    finally:
+        for job in jobs:
+            job.result()
     return None

@@ -122,3 +122,16 @@ def test_rebuilds_reuse_the_pair_buffer():
         pair_potential_sums(nlist, r_pc + 0.3 * (k + 1), 0.9, 1.0, KERNEL)
     assert nlist.builds == 4
     assert nlist._pair_buffer is buffer
+
+
+@pytest.mark.parametrize("store", [True, False])
+def test_nan_positions_are_rejected_on_the_reuse_path_too(store):
+    """update() checks finiteness only when it rebuilds; a NaN forces that rebuild."""
+    r_pc, cell, pbc = scene(6)
+    nlist = NeighborList(0.9, skin=0.1)
+    nlist.update(r_pc, cell, pbc, store=store)
+    for bad in (np.nan, np.inf):
+        moved = r_pc.copy()
+        moved[7, 1] = bad
+        with pytest.raises(ValueError, match=r"finite.*\[7\]"):
+            nlist.update(moved, cell, pbc, store=store)
