@@ -74,28 +74,99 @@ def _check_positions(positions, finite=True):
     return r_pc
 
 
+@numba.njit(cache=True, inline="always")
+def _image_position(r_pc, p, img0, img1, img2, cell_cc, c):
+    """Coordinate c of particle p's image (integer image vector, wrap included)."""
+    return r_pc[p, c] + img0 * cell_cc[0, c] + img1 * cell_cc[1, c] + img2 * cell_cc[2, c]
+
+
 @numba.njit(cache=True)
-def _bin_sort(x_ec, origin_c, binsize, nbin_c):
-    """Counting sort of points into bins; returns (order_s, bin_start, bin_s)."""
-    n = x_ec.shape[0]
+def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
+    """Particles wrapped into the cell along periodic axes, followed by ghosts:
+    periodic images within ``pad`` (fractional units) of the unit cell.
+
+    Returns (src_e, img_ec, lo_c, hi_c): source particle and integer image vector
+    (including the wrap) of every extended point, and the bounding box of their
+    positions. Positions are not stored: they follow from the images
+    (:func:`_image_position`), as in every later pass.
+    """
+    n = r_pc.shape[0]
+    lx, ly, lz = layers_c[0], layers_c[1], layers_c[2]
+    src_e = np.empty(0, dtype=np.int32)
+    img_ec = np.empty((0, 3), dtype=np.int32)
+    lo_c = np.full(3, np.inf)
+    hi_c = np.full(3, -np.inf)
+    for sweep in range(2):
+        count = n
+        for p in range(n):
+            f0 = r_pc[p, 0] * inv_cc[0, 0] + r_pc[p, 1] * inv_cc[1, 0] + r_pc[p, 2] * inv_cc[2, 0]
+            f1 = r_pc[p, 0] * inv_cc[0, 1] + r_pc[p, 1] * inv_cc[1, 1] + r_pc[p, 2] * inv_cc[2, 1]
+            f2 = r_pc[p, 0] * inv_cc[0, 2] + r_pc[p, 1] * inv_cc[1, 2] + r_pc[p, 2] * inv_cc[2, 2]
+            w0 = -np.floor(f0) if pbc_c[0] else 0.0
+            w1 = -np.floor(f1) if pbc_c[1] else 0.0
+            w2 = -np.floor(f2) if pbc_c[2] else 0.0
+            f0 += w0
+            f1 += w1
+            f2 += w2
+            if sweep == 1:
+                src_e[p] = p
+                img_ec[p, 0], img_ec[p, 1], img_ec[p, 2] = int(w0), int(w1), int(w2)
+                for c in range(3):
+                    x = _image_position(r_pc, p, w0, w1, w2, cell_cc, c)
+                    lo_c[c] = min(lo_c[c], x)
+                    hi_c[c] = max(hi_c[c], x)
+            for sx in range(-lx, lx + 1):
+                fx = f0 + sx
+                if pbc_c[0] and (fx < -pad_c[0] or fx >= 1.0 + pad_c[0]):
+                    continue
+                for sy in range(-ly, ly + 1):
+                    fy = f1 + sy
+                    if pbc_c[1] and (fy < -pad_c[1] or fy >= 1.0 + pad_c[1]):
+                        continue
+                    for sz in range(-lz, lz + 1):
+                        if sx == 0 and sy == 0 and sz == 0:
+                            continue
+                        fz = f2 + sz
+                        if pbc_c[2] and (fz < -pad_c[2] or fz >= 1.0 + pad_c[2]):
+                            continue
+                        if sweep == 1:
+                            src_e[count] = p
+                            i0, i1, i2 = w0 + sx, w1 + sy, w2 + sz
+                            img_ec[count, 0], img_ec[count, 1], img_ec[count, 2] = int(i0), int(i1), int(i2)
+                            for c in range(3):
+                                x = _image_position(r_pc, p, i0, i1, i2, cell_cc, c)
+                                lo_c[c] = min(lo_c[c], x)
+                                hi_c[c] = max(hi_c[c], x)
+                        count += 1
+        if sweep == 0:
+            src_e = np.empty(count, dtype=np.int32)
+            img_ec = np.empty((count, 3), dtype=np.int32)
+    return src_e, img_ec, lo_c, hi_c
+
+
+@numba.njit(cache=True)
+def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c):
+    """Counting sort of the extended points into bins; returns (order_s, bin_start, bin_s)."""
+    n = src_e.shape[0]
     nbins = nbin_c[0] * nbin_c[1] * nbin_c[2]
     inv_bs = 1.0 / binsize
-    bin_e = np.empty(n, dtype=np.int64)
-    for e in range(n):
-        b = 0
-        for c in range(3):
-            k = min(max(int((x_ec[e, c] - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
-            b = b * nbin_c[c] + k
-        bin_e[e] = b
+    bin_e = np.empty(n, dtype=np.int32)
     count = np.zeros(nbins + 1, dtype=np.int64)
     for e in range(n):
-        count[bin_e[e] + 1] += 1
+        p = src_e[e]
+        b = 0
+        for c in range(3):
+            x = _image_position(r_pc, p, img_ec[e, 0], img_ec[e, 1], img_ec[e, 2], cell_cc, c)
+            k = min(max(int((x - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
+            b = b * nbin_c[c] + k
+        bin_e[e] = b
+        count[b + 1] += 1
     for b in range(nbins):
         count[b + 1] += count[b]
     bin_start = count.copy()
-    fill = count[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    bin_s = np.empty(n, dtype=np.int64)
+    fill = count[:-1]
+    order = np.empty(n, dtype=np.int32)
+    bin_s = np.empty(n, dtype=np.int32)
     for e in range(n):
         b = bin_e[e]
         order[fill[b]] = e
@@ -104,78 +175,10 @@ def _bin_sort(x_ec, origin_c, binsize, nbin_c):
     return order, bin_start, bin_s
 
 
-@numba.njit(cache=True)
-def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
-    """Particles wrapped into the cell along periodic axes, followed by ghosts:
-    periodic images within ``pad`` (fractional units) of the unit cell.
-
-    Returns (src_e, img_ec, x_ec, lo_c, hi_c): source particle, integer image vector
-    (including the wrap) and Cartesian position of every extended point, and the
-    bounding box of the positions.
-    """
-    n = r_pc.shape[0]
-    frac_pc = np.empty((n, 3))
-    wrap_pc = np.zeros((n, 3))
-    for p in range(n):
-        for c in range(3):
-            f = r_pc[p, 0] * inv_cc[0, c] + r_pc[p, 1] * inv_cc[1, c] + r_pc[p, 2] * inv_cc[2, c]
-            if pbc_c[c]:
-                wrap_pc[p, c] = -np.floor(f)
-                f += wrap_pc[p, c]
-            frac_pc[p, c] = f
-    lx, ly, lz = layers_c[0], layers_c[1], layers_c[2]
-    n_ext = n
-    src_e = np.empty(0, dtype=np.int64)
-    img_ec = np.empty((0, 3))
-    for sweep in range(2):
-        count = n
-        for p in range(n):
-            if sweep == 1:
-                src_e[p] = p
-                for c in range(3):
-                    img_ec[p, c] = wrap_pc[p, c]
-            for sx in range(-lx, lx + 1):
-                fx = frac_pc[p, 0] + sx
-                if pbc_c[0] and (fx < -pad_c[0] or fx >= 1.0 + pad_c[0]):
-                    continue
-                for sy in range(-ly, ly + 1):
-                    fy = frac_pc[p, 1] + sy
-                    if pbc_c[1] and (fy < -pad_c[1] or fy >= 1.0 + pad_c[1]):
-                        continue
-                    for sz in range(-lz, lz + 1):
-                        if sx == 0 and sy == 0 and sz == 0:
-                            continue
-                        fz = frac_pc[p, 2] + sz
-                        if pbc_c[2] and (fz < -pad_c[2] or fz >= 1.0 + pad_c[2]):
-                            continue
-                        if sweep == 1:
-                            src_e[count] = p
-                            img_ec[count, 0] = wrap_pc[p, 0] + sx
-                            img_ec[count, 1] = wrap_pc[p, 1] + sy
-                            img_ec[count, 2] = wrap_pc[p, 2] + sz
-                        count += 1
-        if sweep == 0:
-            n_ext = count
-            src_e = np.empty(n_ext, dtype=np.int64)
-            img_ec = np.empty((n_ext, 3))
-    x_ec = np.empty((n_ext, 3))
-    lo_c = np.full(3, np.inf)
-    hi_c = np.full(3, -np.inf)
-    for e in range(n_ext):
-        p = src_e[e]
-        for c in range(3):
-            x = (r_pc[p, c] + img_ec[e, 0] * cell_cc[0, c] + img_ec[e, 1] * cell_cc[1, c]
-                 + img_ec[e, 2] * cell_cc[2, c])
-            x_ec[e, c] = x
-            lo_c[c] = min(lo_c[c], x)
-            hi_c[c] = max(hi_c[c], x)
-    return src_e, img_ec, x_ec, lo_c, hi_c
-
-
 @numba.njit(cache=True, nogil=True)
-def _sorted_arrays_chunk(order_s, src_e, img_ec, x_ec, r_pc, cut_p, src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s,
+def _sorted_arrays_chunk(order_s, src_e, img_ec, r_pc, cell_cc, cut_p, src_s, img_sc, x_sc, is_ghost_s, cut_s,
                          first, last):
-    """Per sorted extended point s in [first, last): source, image, position, shift, ghost flag and cut-off."""
+    """Per sorted extended point s in [first, last): source, image, position, ghost flag and cut-off."""
     n = r_pc.shape[0]
     for s in range(first, last):
         e = order_s[s]
@@ -185,26 +188,26 @@ def _sorted_arrays_chunk(order_s, src_e, img_ec, x_ec, r_pc, cut_p, src_s, img_s
         cut_s[s] = cut_p[p]
         for c in range(3):
             img_sc[s, c] = img_ec[e, c]
-            x_sc[s, c] = x_ec[e, c]
-            shift_sc[s, c] = x_ec[e, c] - r_pc[p, c]
+        for c in range(3):
+            x_sc[s, c] = _image_position(r_pc, p, img_sc[s, 0], img_sc[s, 1], img_sc[s, 2], cell_cc, c)
 
 
-def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
-    """(src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s) of the sorted extended points."""
+def _sorted_arrays(order_s, src_e, img_ec, r_pc, cell_cc, cut_p):
+    """(src_s, img_sc, x_sc, is_ghost_s, cut_s) of the sorted extended points."""
     n_ext = order_s.shape[0]
-    out = (np.empty(n_ext, dtype=np.int64), np.empty((n_ext, 3)), np.empty((n_ext, 3)), np.empty((n_ext, 3)),
+    out = (np.empty(n_ext, dtype=np.int32), np.empty((n_ext, 3), dtype=np.int32), np.empty((n_ext, 3)),
            np.empty(n_ext, dtype=np.bool_), np.empty(n_ext))
-    run_chunks(_sorted_arrays_chunk, n_ext, (order_s, src_e, img_ec, x_ec, r_pc, cut_p) + out)
+    run_chunks(_sorted_arrays_chunk, n_ext, (order_s, src_e, img_ec, r_pc, cell_cc, cut_p) + out)
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _gather_chunk(r_pc, src_s, shift_sc, x_sc, first, last):
-    """x_s = r[src_s] + shift_s for s in [first, last), written into x_sc."""
+def _gather_chunk(r_pc, src_s, img_sc, cell_cc, x_sc, first, last):
+    """x_s = position of image img_s of particle src_s, for s in [first, last), written into x_sc."""
     for s in range(first, last):
         p = src_s[s]
         for c in range(3):
-            x_sc[s, c] = r_pc[p, c] + shift_sc[s, c]
+            x_sc[s, c] = _image_position(r_pc, p, img_sc[s, 0], img_sc[s, 1], img_sc[s, 2], cell_cc, c)
 
 
 @numba.njit(cache=True, inline="always")
@@ -335,8 +338,8 @@ def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_
     return last, pos
 
 
-def _gather(r_pc, src_s, shift_sc, x_sc):
-    run_chunks(_gather_chunk, src_s.shape[0], (r_pc, src_s, shift_sc, x_sc))
+def _gather(r_pc, src_s, img_sc, cell_cc, x_sc):
+    run_chunks(_gather_chunk, src_s.shape[0], (r_pc, src_s, img_sc, cell_cc, x_sc))
     return x_sc
 
 
@@ -378,7 +381,7 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     total = sum(pos for _, pos, _ in results)
     if any(grown for _, _, grown in results):
         # a region outgrew its share: gather all into a new buffer with a margin for the next build
-        buffer = np.empty(int(1.2 * total) + 1024, dtype=buffer.dtype)
+        buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
         dst = 0
         for region, pos, _ in results:
             buffer[dst:dst + pos] = region[:pos]
@@ -394,18 +397,18 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
 
 
 @numba.njit(cache=True)
-def _fold(f_sc, order_s, src_e, n):
+def _fold(f_sc, src_s, n):
     """Sum values on sorted extended points back onto their source particles."""
     out = np.zeros((n, f_sc.shape[1]))
     for s in range(f_sc.shape[0]):
-        p = src_e[order_s[s]]
+        p = src_s[s]
         for c in range(f_sc.shape[1]):
             out[p, c] += f_sc[s, c]
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _fold_originals(bufs, order_s, n, outs, first, last):
+def _fold_originals(bufs, src_s, is_ghost_s, outs, first, last):
     """outs[i][p] = sum over threads of bufs[i][:, s], for the originals s in [first, last).
 
     Each original particle appears once among the sorted points, so chunks never write
@@ -416,17 +419,17 @@ def _fold_originals(bufs, order_s, n, outs, first, last):
         out_pk = outs[i]
         n_threads, _, k_max = buf_tsk.shape
         for s in range(first, last):
-            e = order_s[s]
-            if e < n:
+            if not is_ghost_s[s]:
+                p = src_s[s]
                 for k in range(k_max):
                     total = buf_tsk[0, s, k]
                     for t in range(1, n_threads):
                         total += buf_tsk[t, s, k]
-                    out_pk[e, k] = total
+                    out_pk[p, k] = total
 
 
 @numba.njit(cache=True)
-def _fold_ghosts(bufs, order_s, ghost_s, src_e, outs):
+def _fold_ghosts(bufs, ghost_s, src_s, outs):
     """Add the (few) ghosts' values to their source particles."""
     for i in range(len(bufs)):
         buf_tsk = bufs[i]
@@ -434,18 +437,18 @@ def _fold_ghosts(bufs, order_s, ghost_s, src_e, outs):
         n_threads, _, k_max = buf_tsk.shape
         for g in range(ghost_s.shape[0]):
             s = ghost_s[g]
-            p = src_e[order_s[s]]
+            p = src_s[s]
             for t in range(n_threads):
                 for k in range(k_max):
                     out_pk[p, k] += buf_tsk[t, s, k]
 
 
-def fold_thread_buffers(bufs, order_s, ghost_s, src_e, n):
+def fold_thread_buffers(bufs, src_s, is_ghost_s, ghost_s, n):
     """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer."""
     bufs = tuple(bufs)
     outs = tuple(np.empty((n, buf.shape[2])) for buf in bufs)
-    run_chunks(_fold_originals, bufs[0].shape[1], (bufs, order_s, n, outs), nthreads=bufs[0].shape[0])
-    _fold_ghosts(bufs, order_s, ghost_s, src_e, outs)
+    run_chunks(_fold_originals, bufs[0].shape[1], (bufs, src_s, is_ghost_s, outs), nthreads=bufs[0].shape[0])
+    _fold_ghosts(bufs, ghost_s, src_s, outs)
     return outs
 
 
@@ -477,9 +480,12 @@ class BinnedPoints:
 
     Attributes
     ----------
-    x_sc, src_s, img_sc, shift_sc, is_ghost_s, cut_s : ndarray
-        Position (at the build, then at the last :meth:`extend`), source particle,
-        integer image, Cartesian shift, ghost flag and cut-off of each sorted extended point.
+    x_sc, src_s, img_sc, is_ghost_s, cut_s : ndarray
+        Position (at the build, then at the last :meth:`extend`), source particle (int32),
+        integer image (int32, the wrap into the cell included), ghost flag and cut-off of each
+        sorted extended point; ``shift_sc`` (computed) is the Cartesian image shift.
+    cell_cc : ndarray (3, 3)
+        The cell completed to rank 3 (:func:`complete_cell`).
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
     """
@@ -492,7 +498,8 @@ class BinnedPoints:
         width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
         pad_c = np.where(pbc, reach / width_c, 0.0)
         layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
-        src_e, img_ec, x_ec, lo_c, hi_c = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        src_e, img_ec, lo_c, hi_c = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        self.cell_cc = full_cell
         n_ext = src_e.shape[0]
         extent_c = hi_c - lo_c
         # bins of edge reach / m scanned with a (2m+1)^d stencil (m by the number of axes the
@@ -507,13 +514,12 @@ class BinnedPoints:
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         binsize = max(binsize, reach / m)
-        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, binsize, nbin_c)
+        order_s, bin_start, bin_s = _bin_sort(r_pc, full_cell, src_e, img_ec, lo_c, binsize, nbin_c)
         self.n_particles = n
         self.n_extended = n_ext
-        self.order_s = order_s
-        self.src_e = src_e
-        (self.src_s, self.img_sc, self.x_sc, self.shift_sc, self.is_ghost_s,
-         self.cut_s) = _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p)
+        self.src_s, self.img_sc, self.x_sc, self.is_ghost_s, self.cut_s = _sorted_arrays(order_s, src_e, img_ec, r_pc,
+                                                                                     full_cell, cut_p)
+        del img_ec, src_e, order_s  # the sorted arrays say it all
         self._x_buffer = self.x_sc  # extend() writes current positions here
         self.ghost_s = np.nonzero(self.is_ghost_s)[0]
         self.bin_s = bin_s
@@ -542,7 +548,12 @@ class BinnedPoints:
 
         The array is reused by the next call: copy it to keep it.
         """
-        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc, self._x_buffer)
+        return _gather(np.asarray(positions, dtype=float), self.src_s, self.img_sc, self.cell_cc, self._x_buffer)
+
+    @property
+    def shift_sc(self):
+        """Cartesian image shift of each sorted extended point (x_s = r[src_s] + shift_s)."""
+        return self.img_sc @ self.cell_cc
 
     def gather(self, values_p, slot=0):
         """Per-particle values (N, ...) on the sorted extended points, without image shifts.
@@ -566,12 +577,12 @@ class BinnedPoints:
         """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
         values_s = np.asarray(values_s, dtype=float)
         flat = values_s.ndim == 1
-        out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self.src_e, self.n_particles)
+        out = _fold(values_s.reshape(values_s.shape[0], -1), self.src_s, self.n_particles)
         return out[:, 0] if flat else out
 
     def fold_threads(self, bufs):
         """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer."""
-        return fold_thread_buffers(bufs, self.order_s, self.ghost_s, self.src_e, self.n_particles)
+        return fold_thread_buffers(bufs, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
 
     def loop_arrays(self):
         """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
@@ -781,6 +792,7 @@ class NeighborList:
         skin = self.skin if store else 0.0
         self._pair_start = self._pair_j = None
         self._pending = False
+        self.points = None  # free the old bins before the new ones are made
         self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
         if store:
             # the list scan waits for the next pair sum, which can fuse with it (fused_build)
@@ -799,7 +811,7 @@ class NeighborList:
         # one scan, no count pass: the buffer is sized from the last build (or the density)
         # and kept between builds (fresh pages are expensive to touch)
         expected = self._pair_count if self._pair_count else self.points.expected_pairs()
-        want = int(1.15 * expected) + 1024
+        want = int(1.05 * expected) + 1024
         if self._pair_buffer.shape[0] < want:
             self._pair_buffer = np.empty(want, dtype=np.int32)
         self._pair_start, self._pair_j, self._pair_buffer = _one_pass_list(scan, self.points.n_extended,

@@ -88,15 +88,20 @@ class SPHCalculator(Calculator):
         evaluation leaves the list in its one-shot state (pair sums fused into the bin
         scan); the Verlet list is built from the second evaluation on, when it can be
         reused. Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+
+        ``r_pc`` is ``atoms.positions`` itself when no coordinate needs zeroing (2D atoms at
+        z = 0, 3D): do not modify it in place.
         """
         dim = self.parameters.dim
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
-        r_pc = np.array(atoms.positions, dtype=float)
-        if not np.all(np.isfinite(r_pc)):
+        r_pc = atoms.positions
+        if not np.isfinite(r_pc).all():
             bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
-        r_pc[:, dim:] = 0.0
+        if r_pc.dtype != np.float64 or (dim < 3 and r_pc[:, dim:].any()):
+            r_pc = np.array(r_pc, dtype=float)  # a copy: the caller's positions stay as they are
+            r_pc[:, dim:] = 0.0
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None or self.nlist.skin != skin:

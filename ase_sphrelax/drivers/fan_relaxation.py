@@ -69,13 +69,17 @@ class FanRelaxation(Optimizer):
         return description
 
     def step(self, f=None):
-        u_pc = -self._get_gradient(f).reshape(-1, 3)  # U = -dE/dx (Eq. A.1)
-        u_max = float(np.sqrt((u_pc * u_pc).sum(axis=1)).max())
+        # in place on ASE's fresh arrays: no temporaries of size N beyond them (1e6 particles)
+        u = np.negative(self._get_gradient(f), dtype=float)  # U = -dE/dx (Eq. A.1)
+        u_pc = u.reshape(-1, 3)
+        u_max = float(np.sqrt(np.einsum("pc,pc->p", u_pc, u_pc).max()))
         if not np.isfinite(u_max):
             raise FloatingPointError("forces are not finite; cannot take an Eq. 2.4 step")
         if u_max == 0.0:
             self.last_step = 0.0
             return
-        dt = self.c * self.h / u_max  # Eq. 2.4: dT = c h / max |U|
-        self.optimizable.set_x(self.optimizable.get_x() + dt * u_pc.ravel())
+        u *= self.c * self.h / u_max  # Eq. 2.4: dT = c h / max |U|
+        x = self.optimizable.get_x()
+        x += u
+        self.optimizable.set_x(x)
         self.last_step = self.c * self.h
