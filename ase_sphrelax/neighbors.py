@@ -28,7 +28,7 @@ import numba
 import numpy as np
 
 from .checks import check_skin
-from .parallel import PARALLEL_MIN, run_chunks, thread_count, thread_pool
+from .parallel import PARALLEL_MIN, chunk_bounds, run_chunks, thread_count, thread_pool
 
 __all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
@@ -370,8 +370,7 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     """
     count_s = np.empty(n_ext + 1, dtype=np.int64)
     count_s[0] = 0
-    chunk = (n_ext + nthreads - 1) // nthreads
-    bounds = [(t * chunk, min(n_ext, (t + 1) * chunk)) for t in range(nthreads)]
+    bounds = chunk_bounds(n_ext, nthreads)
     cap_t = buffer.shape[0] // nthreads
     regions = [buffer[t * cap_t:(t + 1) * cap_t] for t in range(nthreads)]
     pool = thread_pool(nthreads) if nthreads > 1 else None
@@ -443,6 +442,51 @@ def _fold_ghosts(bufs, ghost_s, src_s, outs):
                     out_pk[p, k] += buf_tsk[t, s, k]
 
 
+@numba.njit(cache=True, nogil=True)
+def _fold_part_originals(parts, bases, src_s, is_ghost_s, outs, first, last):
+    """outs[i][p] = sum over threads t of parts[i][t][s - bases[t]] (rows s >= bases[t]),
+    for the originals s in [first, last)."""
+    for i in range(len(parts)):
+        part_i = parts[i]
+        out_pk = outs[i]
+        k_max = out_pk.shape[1]
+        for s in range(first, last):
+            if not is_ghost_s[s]:
+                p = src_s[s]
+                for k in range(k_max):
+                    total = 0.0
+                    for t in range(len(part_i)):
+                        if s >= bases[t]:
+                            total += part_i[t][s - bases[t], k]
+                    out_pk[p, k] = total
+
+
+@numba.njit(cache=True)
+def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
+    for i in range(len(parts)):
+        part_i = parts[i]
+        out_pk = outs[i]
+        k_max = out_pk.shape[1]
+        for g in range(ghost_s.shape[0]):
+            s = ghost_s[g]
+            p = src_s[s]
+            for t in range(len(part_i)):
+                if s >= bases[t]:
+                    for k in range(k_max):
+                        out_pk[p, k] += part_i[t][s - bases[t], k]
+
+
+def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n):
+    """Per-particle sums (n, k) of per-thread buffers that start at their thread's first
+    point: ``parts[i][t]`` has shape (n_s - bases[t], k), row 0 being point ``bases[t]``."""
+    parts = tuple(tuple(p) for p in parts)
+    outs = tuple(np.empty((n, part[0].shape[1])) for part in parts)
+    run_chunks(_fold_part_originals, src_s.shape[0], (parts, bases, src_s, is_ghost_s, outs),
+               nthreads=len(parts[0]))
+    _fold_part_ghosts(parts, bases, ghost_s, src_s, outs)
+    return outs
+
+
 def fold_thread_buffers(bufs, src_s, is_ghost_s, ghost_s, n):
     """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer."""
     bufs = tuple(bufs)
@@ -488,7 +532,12 @@ class BinnedPoints:
         The cell completed to rank 3 (:func:`complete_cell`).
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
+    forward_pairs : bool
+        True: every pair (a, b) of a scan or list has b > a (forward half stencil), which
+        lets the pair loops give each thread buffers that start at its first point.
     """
+
+    forward_pairs = True
 
     def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
         n = r_pc.shape[0]
@@ -584,6 +633,11 @@ class BinnedPoints:
         """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer."""
         return fold_thread_buffers(bufs, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
 
+    def fold_thread_parts(self, parts, bases):
+        """Per-particle sums (N, k) of per-thread buffers starting at each thread's first
+        point (see :func:`fold_thread_parts`), ghosts included, for each output."""
+        return fold_thread_parts(parts, bases, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
+
     def loop_arrays(self):
         """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
         return "scan", (self.src_s, self.img_sc, self.is_ghost_s, self.bin_s, self.nbin_c, self.bin_start,
@@ -625,7 +679,11 @@ class NeighborList:
         one-shot state.
     builds : int
         How many times the stored list was (re)built.
+    forward_pairs : bool
+        True: every listed or scanned pair (a, b) has b > a (see :class:`BinnedPoints`).
     """
+
+    forward_pairs = True
 
     def __init__(self, cutoff, skin=0.0):
         self.cutoff = _check_cutoff(cutoff)
@@ -732,6 +790,9 @@ class NeighborList:
 
     def fold_threads(self, bufs):
         return self.points.fold_threads(bufs)
+
+    def fold_thread_parts(self, parts, bases):
+        return self.points.fold_thread_parts(parts, bases)
 
     def loop_arrays(self):
         """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""

@@ -59,7 +59,7 @@ import numba
 import numpy as np
 
 from .neighbors import bin_coords, is_canonical_pair, stencil_range
-from .parallel import run_chunks, thread_count
+from .parallel import chunk_bounds, run_chunks, thread_count
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
 
@@ -99,7 +99,7 @@ class PairResult(dict):
 # is shared by all interactions.
 
 _LIST_TEMPLATE = """
-def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
+def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, base, first, last):
     {views}
     {zero_buffers}
     {zero_global}
@@ -119,7 +119,7 @@ def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
 
 _SCAN_TEMPLATE = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc, reach2, params, inp, out,
-           first, last):
+           base, first, last):
     {views}
     {zero_buffers}
     {zero_global}
@@ -142,7 +142,7 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc
 
 _BUILD_TEMPLATE = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil_kc, room, count_s, pair_j,
-           pos, reach2, params, inp, out, first, last):
+           pos, reach2, params, inp, out, base, first, last):
     {views}
     if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
         {zero_buffers_nested}
@@ -180,13 +180,14 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
 
 def _targets(outputs, per_point, point):
     """Buffer element of every flattened term of the per-point (or global) outputs:
-    "o0[b]", "o1[b, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of output k."""
+    "o0[b - base]", "o1[b - base, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of
+    output k, whose row 0 is point ``base`` (see :meth:`PairInteraction._thread_buffers`)."""
     names = []
     for k, output in enumerate(outputs):
         if output.per_point != per_point:
             continue
         for index in itertools.product(*[range(n) for n in output.shape]):
-            parts = ([point] if per_point else []) + [str(i) for i in index]
+            parts = ([f"{point} - base"] if per_point else []) + [str(i) for i in index]
             names.append(f"o{k}[{', '.join(parts or ['0'])}]")
     return names
 
@@ -317,15 +318,30 @@ class PairInteraction:
         self.loop(kind)
         return self._loops[kind][1]
 
-    def _thread_buffers(self, nthreads, n_ext):
-        """Per-thread accumulators, reused between calls of the same size (each loop chunk
-        zeroes its own thread's buffers)."""
-        key = (nthreads, n_ext)
+    def _thread_buffers(self, nthreads, n_ext, forward):
+        """Per-thread accumulators ``(buffers[t][k], bases[t])``, reused between calls of the
+        same size (each loop chunk zeroes its own thread's buffers).
+
+        Row 0 of thread t's per-point buffers is point ``bases[t]``. With ``forward``
+        neighbours (every partner b of a point a has b > a, as in :class:`NeighborList`'s
+        half lists and scans) thread t writes only rows from its chunk's first point on, so
+        its buffers start there: on 2 threads 1.5 instead of 2 rows per point to hold, zero
+        and fold. Otherwise every thread has all rows (views of one stacked array).
+        """
+        key = (nthreads, n_ext, forward)
         if key not in self._buffers:
             self._buffers.clear()
-            self._buffers[key] = tuple(
-                np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
-                for o in self.outputs.values())
+            outputs = list(self.outputs.values())
+            bases = [first for first, _ in chunk_bounds(n_ext, nthreads)] if forward else [0] * nthreads
+            if forward:
+                self._stacked = None
+                buffers = [tuple(np.empty((n_ext - bases[t],) + o.shape if o.per_point else (max(o.size, 1),))
+                                 for o in outputs) for t in range(nthreads)]
+            else:
+                self._stacked = [np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
+                                 for o in outputs]
+                buffers = [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
+            self._buffers[key] = (buffers, bases)
         return self._buffers[key]
 
     def compute(self, neighbors, positions, params=(), inputs=(), reach=None):
@@ -356,29 +372,38 @@ class PairInteraction:
         reach = neighbors.max_cutoff if reach is None else float(reach)
         n_ext = x_sc.shape[0]
         nthreads = thread_count(n_ext)
-        buffers = self._thread_buffers(nthreads, n_ext)
-        per_thread = [tuple(buf[t] for buf in buffers) for t in range(nthreads)]
+        forward = bool(getattr(neighbors, "forward_pairs", False))
+        buffers, bases = self._thread_buffers(nthreads, n_ext, forward)
+        per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
         if getattr(neighbors, "build_pending", False):
             # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
             loop = self.loop("build")
             pre = (x_sc, *neighbors.build_arrays())
             post = (reach * reach, tuple(params), inp)
             neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
-                *pre, count_s, pair_j, pos, *post, per_thread[t], first, last), nthreads)
+                *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
             run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
-                       per_thread=[(out,) for out in per_thread])
-        return self._fold(neighbors, buffers)
+                       per_thread=per_thread)
+        return self._fold(neighbors, buffers, bases, forward)
 
-    def _fold(self, neighbors, buffers):
+    def _fold(self, neighbors, buffers, bases, forward):
         result = PairResult()
-        per_point = [(name, o, buf) for (name, o), buf in zip(self.outputs.items(), buffers) if o.per_point]
-        if per_point:
-            folded = neighbors.fold_threads([buf.reshape(buf.shape[0], buf.shape[1], -1) for _, _, buf in per_point])
-            for (name, output, _), values in zip(per_point, folded):
-                result[name] = values.reshape((values.shape[0],) + output.shape)
-        for (name, output), buf in zip(self.outputs.items(), buffers):
+        outputs = list(self.outputs.items())
+        point_k = [k for k, (_, o) in enumerate(outputs) if o.per_point]
+        if point_k:
+            if forward:  # per-thread buffers of their own lengths
+                parts = [tuple(buffers[t][k].reshape(buffers[t][k].shape[0], -1) for t in range(len(buffers)))
+                         for k in point_k]
+                folded = neighbors.fold_thread_parts(parts, np.asarray(bases, dtype=np.int64))
+            else:
+                stacked = self._stacked
+                folded = neighbors.fold_threads([stacked[k].reshape(stacked[k].shape[0], stacked[k].shape[1], -1)
+                                                 for k in point_k])
+            for k, values in zip(point_k, folded):
+                result[outputs[k][0]] = values.reshape((values.shape[0],) + outputs[k][1].shape)
+        for k, (name, output) in enumerate(outputs):
             if not output.per_point:
-                result[name] = buf.sum(axis=0)
+                result[name] = sum(buffers[t][k] for t in range(len(buffers)))
         return result

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numba
 
-__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "run_chunks"]
+__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "chunk_bounds", "run_chunks"]
 
 PARALLEL_MIN = 20000
 
@@ -35,6 +35,12 @@ def thread_pool(nthreads):
 
         _POOLS[nthreads] = ThreadPoolExecutor(max_workers=nthreads, thread_name_prefix="ase_sphrelax")
     return _POOLS[nthreads]
+
+
+def chunk_bounds(n, nthreads):
+    """The static chunks ``[(first, last), ...]`` of ``range(n)`` on ``nthreads`` threads."""
+    chunk = (n + nthreads - 1) // nthreads
+    return [(min(n, t * chunk), min(n, (t + 1) * chunk)) for t in range(nthreads)]
 
 
 def run_chunks(loop, n, args, per_thread=None, nthreads=None):
@@ -60,13 +66,12 @@ def run_chunks(loop, n, args, per_thread=None, nthreads=None):
     extra = per_thread if per_thread is not None else [()] * nthreads
     if nthreads == 1:
         return loop(*args, *extra[0], 0, n)
-    chunk = (n + nthreads - 1) // nthreads
+    bounds = chunk_bounds(n, nthreads)
     pool = thread_pool(nthreads)
     # the calling thread runs the last chunk itself: one thread fewer to wake per loop
-    jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads - 1)]
-    t = nthreads - 1
+    jobs = [pool.submit(loop, *args, *extra[t], *bounds[t]) for t in range(nthreads - 1)]
     try:
-        loop(*args, *extra[t], t * chunk, min(n, (t + 1) * chunk))
+        loop(*args, *extra[-1], *bounds[-1])
     finally:
         for job in jobs:
             job.result()
