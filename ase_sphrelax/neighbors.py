@@ -19,6 +19,15 @@ The list is built with ``cutoff + skin`` and reused until some particle moved
 more than ``skin / 2`` (or the cell, pbc, particle number or cut-offs change).
 Per-particle cut-offs are supported: a pair is listed if
 ``r < max(cutoff_i, cutoff_j) + skin``.
+
+A (re)build bins the points and leaves the list scan *pending*: the next pair sum of
+:mod:`ase_sphrelax.pairs` runs one bin scan that writes the list and evaluates its pairs
+(:meth:`NeighborList.fused_build`); reading ``pair_start``/``pair_j`` or moving the
+points first completes it alone, from the positions of the build. The scan is one pass
+(no count pass): each thread's chunk of points writes into its own region of a pair
+buffer kept between builds, the regions are then closed up. Bins have an edge of
+``reach / 2`` in 2D and 3D and are scanned as rows of consecutive bins (one contiguous
+range of sorted points each), bins beyond reach left out.
 """
 from __future__ import annotations
 

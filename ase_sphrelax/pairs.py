@@ -17,14 +17,18 @@ The terms are the per-point outputs flattened in their declared order (a scalar 
 takes one term, a ``(3,)`` output three), and the global outputs (e.g. a virial) flattened
 the same way. :class:`PairInteraction` turns the function into the loops:
 
-* the walk over a stored Verlet half list and the bin scan fused with the pair physics
-  (one-shot evaluations, no list stored), from one definition;
+* the walk over a stored Verlet half list, the bin scan fused with the pair physics
+  (one-shot evaluations, no list stored), and the rebuild scan, which writes the Verlet
+  list of a pending build (:attr:`NeighborList.build_pending`) and evaluates the pairs in
+  the same pass, so that a rebuild costs one bin scan and no list walk; all from one
+  definition;
 * a's terms summed in registers over its partners and written once; b's added to b;
   global terms summed per thread;
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
   each thread on a static chunk of points with its own output buffers (kept between calls:
-  fresh pages cost more than the pair loop on these machines), folded afterwards onto the
-  particles, ghosts included.
+  fresh pages cost more than the pair loop on these machines; zeroed by the thread itself;
+  starting at the chunk's first point when the neighbours are ``forward_pairs``), folded
+  afterwards onto the particles, ghosts included.
 
 Two kinds of interaction:
 

@@ -21,7 +21,6 @@ Writes ``benchmarks/results/blas_contention.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -29,7 +28,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 from threadpoolctl import threadpool_info
 
 from ase_sphrelax import FanCalculator
@@ -39,9 +37,9 @@ from ase_sphrelax.drivers import make_optimizer
 from ase_sphrelax.drivers.blas import user_blas_threads
 
 try:
-    from _provenance import git_version
+    from _provenance import git_version, write_json
 except ImportError:
-    from benchmarks._provenance import git_version
+    from benchmarks._provenance import git_version, write_json
 
 CASES = {
     "fan": dict(name="fan"),
@@ -108,8 +106,7 @@ def main(argv=None):
           f"BLAS {blas}, load {load_start[0]:.2f} -> {os.getloadavg()[0]:.2f}")
     for case in cases:
         print(f"{case:16s} {med[case]:8.3f} s  ({1e3 * med[case] / args.steps:.2f} ms/step)")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
+    write_json(args.out, result)
     return result
 
 

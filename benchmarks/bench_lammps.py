@@ -27,7 +27,6 @@ Writes benchmarks/results/bench_lammps.json.
 """
 import argparse
 import gc
-import json
 import os
 import platform
 import statistics
@@ -43,9 +42,9 @@ from ase_sphrelax import FanCalculator
 from ase_sphrelax.build import periodic_box
 
 try:
-    from _provenance import git_version
+    from _provenance import git_version, write_json
 except ImportError:  # run as a module
-    from benchmarks._provenance import git_version
+    from benchmarks._provenance import git_version, write_json
 
 RATIO = 2.6
 DX = 1.0
@@ -185,9 +184,7 @@ def main(argv=None):
                 gc.collect()
     results["load_average_at_end"] = os.getloadavg()
     print(f"load average {os.getloadavg()}")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(results, indent=1))
-    print(f"wrote {args.out}")
+    write_json(args.out, results)
     return results
 
 

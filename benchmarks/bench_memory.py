@@ -32,9 +32,9 @@ import time
 from pathlib import Path
 
 try:
-    from _provenance import git_version
+    from _provenance import git_version, write_json
 except ImportError:
-    from benchmarks._provenance import git_version
+    from benchmarks._provenance import git_version, write_json
 
 WORKER = r"""
 import json, sys, numba, numpy as np
@@ -107,8 +107,7 @@ def main(argv=None):
                       f"{row['builds']} builds", flush=True)
     result = dict(version=git_version(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                   load_average=os.getloadavg(), rows=rows)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
+    write_json(args.out, result)
     return result
 
 

@@ -24,7 +24,6 @@ Writes ``benchmarks/results/relax_lammps.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import statistics
@@ -40,9 +39,9 @@ from ase_sphrelax.domains import Circle
 from ase_sphrelax.drivers import make_optimizer
 
 try:
-    from _provenance import git_version
+    from _provenance import git_version, write_json
 except ImportError:
-    from benchmarks._provenance import git_version
+    from benchmarks._provenance import git_version, write_json
 
 RATIO = 2.6
 
@@ -70,12 +69,10 @@ def run_ours(atoms0, domain, dx, name, target, max_steps):
     atoms.calc = FanCalculator(h=RATIO * dx, dx=dx, domain=domain, dim=2)
     opt = make_optimizer(name, atoms)
     energy = atoms.get_potential_energy()
-    steps = 0
     for _ in opt.irun(fmax=0.0, steps=max_steps):
         energy = atoms.get_potential_energy()
         if energy <= target:
             break
-        steps = opt.nsteps
     wall = time.perf_counter() - t0
     return wall, energy, opt.nsteps, energy <= target
 
@@ -126,8 +123,7 @@ def main(argv=None):
             rows.append(row)
     result = dict(version=git_version(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                   repeats=args.repeats, rows=rows, load_average_end=os.getloadavg())
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
+    write_json(args.out, result)
     return result
 
 

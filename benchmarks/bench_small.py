@@ -22,7 +22,6 @@ Writes ``benchmarks/results/bench_small.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -31,9 +30,9 @@ import time
 from pathlib import Path
 
 try:
-    from _provenance import git_version
+    from _provenance import git_version, write_json
 except ImportError:
-    from benchmarks._provenance import git_version
+    from benchmarks._provenance import git_version, write_json
 
 FIRST_STEP = r"""
 import time
@@ -149,8 +148,7 @@ def main(argv=None):
     print(f"first step on a warm cache: {first['first_step']:.3f} s (target < 1 s); imports {first['imports']:.3f} s, "
           f"scene {first['scene']:.3f} s")
     print(f"load average {load_start[0]:.2f} -> {os.getloadavg()[0]:.2f}")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
+    write_json(args.out, result)
     return result
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib
-import json
 import os
 import time
 from collections import defaultdict
@@ -30,6 +29,11 @@ from pathlib import Path
 import numba
 import numpy as np
 from ase.calculators.calculator import all_changes
+
+try:
+    from _provenance import write_json
+except ImportError:
+    from benchmarks._provenance import write_json
 
 # (label, "module:attribute" or "module:Class.method", nesting depth)
 STEPS = [
@@ -150,8 +154,7 @@ def main(argv=None):
                   f"{1e3 * (out['warm']['total'] - timed_top['warm']):9.2f}", flush=True)
     result["load_average_end"] = os.getloadavg()
     print(f"\nload average {os.getloadavg()}")
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(result, indent=1))
+    write_json(args.out, result)
 
 
 if __name__ == "__main__":
