@@ -7,7 +7,8 @@ import ase_sphrelax.neighbors as neighbors
 import ase_sphrelax.pairs as pairs
 from ase_sphrelax.kernel_sums import pair_potential_sums
 from ase_sphrelax.kernels import get_kernel
-from ase_sphrelax.neighbors import NeighborList, brute_force_pairs, complete_cell
+from ase_sphrelax.neighbors import NeighborList, complete_cell
+from reference import brute_force_pairs
 
 KERNEL = get_kernel("wendland_c2", 3)
 

@@ -1,6 +1,14 @@
-"""Drivers: the papers' own update rules as ASE optimisers, and scale-aware ASE optimisers."""
-from .blas import limit_blas_in_steps
-from .fan_relaxation import FanRelaxation
-from .optimizers import OPTIMIZERS, make_optimizer
+"""Drivers: the papers' own update rules as ASE optimisers, and scale-aware ASE optimisers.
 
-__all__ = ["FanRelaxation", "make_optimizer", "OPTIMIZERS", "limit_blas_in_steps"]
+Names are imported on first use (ASE's optimisers load scipy): add one line to ``_WHERE``.
+"""
+from .._lazy import lazy_exports
+
+_WHERE = {
+    "FanRelaxation": ".fan_relaxation",
+    "make_optimizer": ".optimizers",
+    "OPTIMIZERS": ".optimizers",
+    "limit_blas_in_steps": ".blas",
+}
+__all__ = list(_WHERE)
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)
