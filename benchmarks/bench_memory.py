@@ -64,7 +64,7 @@ calc = FanCalculator(h=2.6, dx=1.0, dim=dim)
 if case == "evaluation":
     for k in range(3):
         if k:
-            atoms.positions[:, 0] += 0.6 * calc.parameters.skin if k == 1 else 1e-3
+            atoms.positions[:, 0] += 0.6 * calc.skin if k == 1 else 1e-3
         calc.reset()  # as ASE's get_property does when the atoms changed: old results are dropped
         calc.calculate(atoms, ["energy", "forces"], all_changes)
     builds = calc.nlist.builds

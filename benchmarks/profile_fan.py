@@ -9,7 +9,9 @@ runs FanCalculator evaluations on the benchmark system of ``bench_lammps.py``
 * ``warm``: moved by 1e-3 dx, list reused.
 
 Each step's median over ``--repeats`` evaluations is printed in ms, with ``other`` the
-evaluation's median wall time minus the timed steps (ASE, calculator Python, numpy).
+evaluation's median time minus the timed steps (ASE, calculator Python, numpy). On one
+thread the clock is the thread's CPU time (robust to the load of other processes on this
+shared machine), on two threads wall time.
 Steps nest (``update`` contains the bin and scan steps): nested steps are indented.
 
     python benchmarks/profile_fan.py [--n 1e5] [--dims 2,3] [--threads 1,2] [--repeats 7]
@@ -46,23 +48,24 @@ STEPS = [
     ("list scan (one pass)", "ase_sphrelax.neighbors:NeighborList._complete_pending", 2),
     ("pair compute", "ase_sphrelax.pairs:PairInteraction.compute", 0),
     ("extend (positions)", "ase_sphrelax.neighbors:BinnedPoints.extend", 1),
-    ("zero thread buffers", "ase_sphrelax.pairs:PairInteraction._thread_buffers", 1),
     ("pair loop (list walk)", "ase_sphrelax.pairs:run_chunks", 1),
     ("bin scan + list + pairs (fused)", "ase_sphrelax.neighbors:NeighborList.fused_build", 1),
-    ("fold threads", "ase_sphrelax.neighbors:fold_thread_buffers", 1),
+    ("fold threads", "ase_sphrelax.neighbors:fold_thread_parts", 1),
+    ("fold threads (stacked buffers)", "ase_sphrelax.neighbors:fold_thread_buffers", 1),
 ]
 
 TIMES: dict = defaultdict(float)
+CLOCK = {"now": time.perf_counter}
 
 
 def _wrap(label, fn):
     @functools.wraps(fn)
     def timed(*args, **kwargs):
-        t0 = time.perf_counter()
+        t0 = CLOCK["now"]()
         try:
             return fn(*args, **kwargs)
         finally:
-            TIMES[label] += time.perf_counter() - t0
+            TIMES[label] += CLOCK["now"]() - t0
     return timed
 
 
@@ -88,6 +91,10 @@ def profile(n, dim, threads, repeats):
     from ase_sphrelax.build import periodic_box
 
     numba.set_num_threads(threads)
+    # one thread: the CPU time of the (only) working thread, robust to other processes' load;
+    # two threads: wall time
+    CLOCK["now"] = time.thread_time if threads == 1 else time.perf_counter
+    clock = CLOCK["now"]
     side = int(round(n ** (1.0 / dim)))
     atoms = periodic_box((side,) * dim, dx=1.0, dim=dim, lattice="square" if dim == 2 else "cubic",
                          jitter=0.25, seed=0)
@@ -103,13 +110,13 @@ def profile(n, dim, threads, repeats):
         builds0 = calc.nlist.builds
         for _ in range(repeats):
             if case == "rebuild":
-                atoms.positions[:, 0] += 0.6 * calc.parameters.skin
+                atoms.positions[:, 0] += 0.6 * calc.skin
             else:
                 atoms.positions[:, :dim] += rng.uniform(-1e-3, 1e-3, (len(atoms), dim))
             TIMES.clear()
-            t0 = time.perf_counter()
+            t0 = clock()
             calc.calculate(atoms, ["energy", "forces"], all_changes)
-            totals.append(time.perf_counter() - t0)
+            totals.append(clock() - t0)
             for label, t in TIMES.items():
                 per_step[label].append(t)
         rebuilt = calc.nlist.builds - builds0
@@ -135,7 +142,8 @@ def main(argv=None):
         for threads in [int(t) for t in args.threads.split(",")]:
             n, out = profile(args.n, dim, threads, args.repeats)
             result["runs"].append(dict(dim=dim, n=n, threads=threads, **out))
-            print(f"\n{dim}D N={n} threads={threads} (median of {args.repeats}, ms)")
+            clock = "CPU" if threads == 1 else "wall"
+            print(f"\n{dim}D N={n} threads={threads} (median of {args.repeats}, ms, {clock} time)")
             print(f"  {'step':34s} {'rebuild':>9s} {'warm':>9s}")
             for case_total in ("total",):
                 print(f"  {'evaluation (calculate)':34s} {1e3 * out['rebuild']['total']:9.2f} "

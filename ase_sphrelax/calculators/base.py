@@ -7,6 +7,7 @@ calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
@@ -24,6 +25,25 @@ def periodic_measure(cell, pbc, dim):
         return None
     vectors = np.asarray(cell, dtype=float)[:dim, :]
     return float(np.sqrt(abs(np.linalg.det(vectors @ vectors.T))))
+
+
+@numba.njit(cache=True)
+def _same_values(a, b):
+    """Exact equality of two arrays of one shape, without the temporary of ``a == b``."""
+    a = a.ravel()
+    b = b.ravel()
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+def _equal(a, b):
+    """``np.array_equal`` for the per-particle arrays of check_state: several calls per
+    optimiser step, where numpy's allocation and dispatch cost more than the compare."""
+    if a.shape != b.shape or a.dtype != b.dtype or not (a.flags.c_contiguous and b.flags.c_contiguous):
+        return np.array_equal(a, b)
+    return _same_values(a, b)
 
 
 class SPHCalculator(Calculator):
@@ -132,15 +152,15 @@ class SPHCalculator(Calculator):
         if self.atoms is None or len(atoms) != len(self.atoms):
             return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
-        if not np.array_equal(atoms.positions, self.atoms.positions):
+        if not _equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
-        if not np.array_equal(atoms.numbers, self.atoms.numbers):
+        if not _equal(atoms.numbers, self.atoms.numbers):
             changes.append("numbers")
         if not np.array_equal(atoms.cell.array, self.atoms.cell.array):
             changes.append("cell")
         if not np.array_equal(atoms.pbc, self.atoms.pbc):
             changes.append("pbc")
-        if self.velocity_dependent and not np.array_equal(atoms.get_momenta(), self.atoms.get_momenta()):
+        if self.velocity_dependent and not _equal(atoms.get_momenta(), self.atoms.get_momenta()):
             changes.append("momenta")
         return changes
 
