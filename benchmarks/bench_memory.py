@@ -84,6 +84,7 @@ def main(argv=None):
     parser.add_argument("--dims", default="2,3")
     parser.add_argument("--threads", default="1,2")
     parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--cases", default="evaluation,relaxation fan,relaxation fire")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "bench_memory.json"))
     args = parser.parse_args(argv)
     env = dict(os.environ)
@@ -92,7 +93,7 @@ def main(argv=None):
     rows = []
     for dim in [int(d) for d in args.dims.split(",")]:
         for threads in [int(t) for t in args.threads.split(",")]:
-            for case in ("evaluation", "relaxation fan", "relaxation fire"):
+            for case in args.cases.split(","):
                 out = subprocess.run([sys.executable, "-c", WORKER, str(args.n), str(dim), str(threads), case,
                                       str(args.steps)], env=env, check=True, capture_output=True, text=True)
                 row = json.loads(out.stdout.strip().splitlines()[-1])

@@ -94,6 +94,7 @@ class FanRelaxation(Optimizer):
         is_converged = self.gradient_converged(gradient)
         yield is_converged
         while not is_converged and self.nsteps < self.max_steps:
+            gradient = None  # not held through the step and the next evaluation (1e6 particles: 24 MB)
             self.step()
             self.nsteps += 1
             gradient = self.optimizable.get_gradient()
@@ -113,7 +114,8 @@ class FanRelaxation(Optimizer):
 
     def step(self, f=None):
         # in place on ASE's fresh arrays: no temporaries of size N beyond them (1e6 particles)
-        u = np.negative(self._get_gradient(f), dtype=float)  # U = -dE/dx (Eq. A.1)
+        u = np.asarray(self._get_gradient(f), dtype=float)
+        np.negative(u, out=u)  # U = -dE/dx (Eq. A.1), in ASE's fresh gradient array
         u_pc = u.reshape(-1, 3)
         u_max = float(np.sqrt(np.einsum("pc,pc->p", u_pc, u_pc).max()))
         if not np.isfinite(u_max):
