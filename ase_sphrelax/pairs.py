@@ -302,6 +302,7 @@ class PairInteraction:
         self.dim = int(dim)
         self._loops = {}
         self._buffers = {}
+        self._stacked = None
 
     def __repr__(self):
         kind = "symmetric" if self.symmetric else "gather"
