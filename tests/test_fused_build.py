@@ -136,3 +136,35 @@ def test_nan_positions_are_rejected_on_the_reuse_path_too(store):
         moved[7, 1] = bad
         with pytest.raises(ValueError, match=r"finite.*\[7\]"):
             nlist.update(moved, cell, pbc, store=store)
+
+
+def _edge_scenes():
+    rng = np.random.default_rng(0)
+    chain_x = np.zeros((50, 3))
+    chain_x[:, 0] = rng.uniform(0, 10, 50)
+    chain_y = np.zeros((50, 3))
+    chain_y[:, 1] = rng.uniform(0, 10, 50)
+    skewed = np.array([[1.0, 0, 0], [0.4, 0.9, 0], [0.1, 0.2, 1.1]])
+    sheet = np.zeros((60, 3))
+    sheet[:, :2] = rng.uniform(-1, 4, (60, 2))
+    return {
+        "periodic chain along x (row axis x)": (chain_x, np.diag([10.0, 0, 0]), [True, False, False], 0.7),
+        "open chain along y": (chain_y, np.zeros((3, 3)), [False] * 3, 0.9),
+        "every point in one bin": (rng.uniform(0, 0.3, (20, 3)), np.zeros((3, 3)), [False] * 3, 1.0),
+        "skewed cell smaller than the cut-off": (rng.uniform(0, 1, (7, 3)) @ skewed, skewed, [True] * 3, 1.6),
+        "2D sheet, points outside the cell": (sheet, np.diag([3.0, 2.0, 0.0]), [True, True, False], 0.8),
+    }
+
+
+@pytest.mark.parametrize("name", list(_edge_scenes()))
+def test_row_stencil_on_degenerate_bin_grids(name, chunks):
+    r_pc, cell, pbc, cut = _edge_scenes()[name]
+    nlist = NeighborList(cut, skin=0.1)
+    nlist.update(r_pc, cell, pbc)
+    e, f, _ = pair_potential_sums(nlist, r_pc, cut, 1.0, KERNEL)  # fused build
+    assert listed(nlist, r_pc, cell, pbc, cut) == set(brute_force_pairs(r_pc, cell, pbc, cut))
+    one_shot = NeighborList(cut)
+    one_shot.update(r_pc, cell, pbc, store=False)
+    e_ref, f_ref, _ = pair_potential_sums(one_shot, r_pc, cut, 1.0, KERNEL)
+    np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * max(np.abs(f_ref).max(), 1e-300))
