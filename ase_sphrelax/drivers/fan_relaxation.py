@@ -103,6 +103,11 @@ class FanRelaxation(Optimizer):
             is_converged = self.gradient_converged(gradient)
             yield is_converged
 
+    def gradient_converged(self, gradient):
+        if self.fmax <= 0.0:  # |F| < fmax <= 0 never holds: skip the norm (runs of a fixed step count)
+            return False
+        return Optimizer.gradient_converged(self, gradient)
+
     def log(self, gradient):
         if self.logfile is not None:  # ASE computes the energy and |F| even without a log file
             Optimizer.log(self, gradient)
