@@ -227,3 +227,25 @@ def test_lean_run_loop_matches_ases_loop():
     assert calls_lean == calls_ase == list(range(8))
     assert lines_lean == lines_ase == 9  # header + steps 0..7
     assert conv_lean == conv_ase and n_lean == n_ase == 7
+
+
+def test_fire_caps_each_particles_move_not_the_whole_step():
+    """ASE's FIRE caps the norm of the 3N step; make_optimizer scales that cap by sqrt(N), so that a
+    large system moves as far per step as a small one (first step: every particle by c h)."""
+    from ase import Atoms
+    from ase.calculators.calculator import Calculator, all_changes
+
+    class Uniform(Calculator):
+        implemented_properties = ["energy", "forces"]
+
+        def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+            Calculator.calculate(self, atoms, properties, system_changes)
+            self.results = dict(energy=-float(self.atoms.positions[:, 0].sum()),
+                                forces=np.tile([1.0, 0.0, 0.0], (len(self.atoms), 1)))
+
+    for n in (10, 10000):
+        atoms = Atoms("X" * n, positions=np.random.default_rng(0).uniform(0, 10, (n, 3)))
+        atoms.calc = Uniform()
+        start = atoms.positions.copy()
+        make_optimizer("fire", atoms, c=0.01, h=1.0).run(fmax=0.0, steps=1)
+        np.testing.assert_allclose(atoms.positions - start, np.tile([0.01, 0, 0], (n, 1)), rtol=1e-12, atol=1e-15)

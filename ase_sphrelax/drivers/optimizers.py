@@ -66,9 +66,11 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, blas_threads=None,
     step = c * h
     f_max = f_max if f_max > 0 else 1.0
     if name == "fire":
-        # FIRE's first move is dt^2 F: pick dt so that it is c h for the largest force
+        # FIRE's first move is dt^2 F: pick dt so that it is c h for the largest force. ASE's FIRE caps
+        # the norm of the whole 3N step, not each particle's move: scaled by sqrt(N), the cap is an RMS
+        # particle move of 10 c h (unscaled, 1e5 particles needed 1522 steps where LAMMPS FIRE took 200)
         dt = np.sqrt(step / f_max)
-        params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step)
+        params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step * np.sqrt(max(len(forces), 1)))
         params.update(kwargs)
         return limit_blas_in_steps(FIRE(atoms, logfile=logfile, **params), blas_threads)
     # quasi-Newton: the first step is F / alpha
