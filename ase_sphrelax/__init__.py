@@ -4,6 +4,7 @@ Methods: Fan et al. (total error, Eq. 3.8) as :class:`FanCalculator` with the
 Eq. 2.4 driver :class:`FanRelaxation`.
 """
 from .calculators import FanCalculator
+from .calculators.alaric import ALARICCalculator
 from .drivers import FanRelaxation
 from .build import fill, periodic_box
 from .domains import Box, Circle, Difference, Intersection, Mesh, Polygon, Sphere, Union
@@ -11,5 +12,5 @@ from .kernels import Kernel, get_kernel
 from .neighbors import NeighborList
 
 __version__ = "0.1.0"
-__all__ = ["FanCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "fill", "periodic_box",
+__all__ = ["FanCalculator", "ALARICCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "fill", "periodic_box",
            "Box", "Circle", "Sphere", "Polygon", "Mesh", "Union", "Intersection", "Difference", "__version__"]

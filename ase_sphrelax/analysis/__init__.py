@@ -24,6 +24,7 @@ _WHERE = {
     "write_table": "patterns",
     "classify_bounded_pattern": "bounded",
     "relax_circle": "bounded",
+    "alaric_min_error": "alaric",
 }
 __all__ = sorted(_WHERE)
 

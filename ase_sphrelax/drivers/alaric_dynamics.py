@@ -1,0 +1,318 @@
+"""ALARIC's modified SPH dynamics (Vela Vela et al. Sec. 2) as an ASE MolecularDynamics.
+
+Per step, kick-drift-kick leapfrog (2nd-order symplectic for the conservative part)::
+
+    v <- v + dt/2 a(x, v);  x <- x + dt v;  v <- v + dt/2 a(x, v*)
+
+with ``a = F_calc / m`` (the calculator's force: the ALARIC potential or the paper's Eq. 29 form)
+``+ (dv/dt)_visc`` (Eq. 35, switch alpha by Eq. 19-20, ``alpha_min = 0``) ``- chi v`` (Eq. 36, chi = 2);
+``v*`` is the half-step velocity (the dissipative terms are evaluated with it). Ingredients, each
+on or off: **S** velocity stops, **F** friction, **V** viscosity, and splitting.
+
+* Time step: CFL, ``dt = C min_a H_a / (v_sig + ...)`` with ``v_sig = max(c_s, max |v|)`` and the
+  force condition ``dt <= C sqrt(H_a / |a_a|)``; a given ``timestep`` that exceeds the CFL limit
+  raises :class:`TimeStepError` naming the step (never silent NaN).
+* Velocity stops (Eq. 37-41): the first interval ends at ``tau_cross = L / c_s`` or when the kinetic
+  energy first decreases (``tau_NE``, Eq. 38), whichever comes first; that interval is ``tau``; then
+  velocities are set to zero every ``tau``, with ``tau <- (1 + theta) tau`` after each stop (Eq. 41).
+* At each stop (or interval end when S is off) the mass is reset (Eq. 44), ``epsilon`` (Eq. 45) and
+  ``eps_dot`` (its rate since the previous check) are recorded and compared with ``eps_min`` and
+  ``eps_dot_min`` (paper: 1e-8). Converged at the coarse level, the particles are split (Fig. 2,
+  Eq. 42) if splits remain, else the run stops with ``stop_reason`` "epsilon" or "epsilon_dot";
+  "max_steps" when the step cap is reached first.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from ase.md.md import MolecularDynamics
+
+from .. import sph
+from ..checks import check_positive
+from ..splitting import split_particles
+
+__all__ = ["ALARICDynamics", "TimeStepError"]
+
+
+class TimeStepError(FloatingPointError):
+    """The time step is above the CFL limit or the state became non-finite; the message names the step."""
+
+
+class ALARICDynamics(MolecularDynamics):
+    """ALARIC relaxation: isothermal SPH + friction + viscosity + velocity stops + splitting.
+
+    Parameters
+    ----------
+    atoms : Atoms
+        With an :class:`~ase_sphrelax.ALARICCalculator` attached. Masses are set to the calculator's
+        particle mass (and reset with it, Eq. 44).
+    timestep : float or None
+        Fixed step (checked against the CFL limit at every step), or None for the CFL step.
+    friction : float
+        chi of Eq. 36 (paper: 2); 0 switches F off.
+    viscosity : bool
+        Eq. 35 with the alpha switch (V).
+    velocity_stop : bool
+        Velocity nullification (S, Eq. 37-41).
+    splits : int
+        Number of splitting stages (each multiplies N by p = 3, 4, 5).
+    mass_reset : bool
+        Eq. 44 at each check.
+    eps_min, eps_dot_min : float
+        Convergence thresholds (paper: 1e-8 both).
+    cfl : float
+        Courant number C.
+    length : float or None
+        L of Eq. 37 (default: the largest extent of the particles, or the cell length along periodic axes).
+    theta : float
+        tau growth of Eq. 41 (paper: 0.1).
+    alpha0, alpha_max : float
+        Initial and largest viscosity switch (alpha_min = 0, Sec. 2.2).
+    seed : int
+        Seed of the split patterns' orientations.
+    logfile, loginterval, trajectory
+        As in ASE; the log prints step, time, epsilon, kinetic energy and N.
+
+    Attributes
+    ----------
+    trace : list of dict
+        One entry per check: step, time, epsilon, eps_dot, kinetic energy, N, stage, wall time.
+    stop_reason : str or None
+        "epsilon", "epsilon_dot", "max_steps" (after :meth:`run`), None while running.
+    force_calls : int
+        Calculator force evaluations (one per step, plus the first).
+    """
+
+    def __init__(self, atoms, timestep=None, friction=2.0, viscosity=True, velocity_stop=True, splits=0,
+                 mass_reset=True, eps_min=1e-8, eps_dot_min=1e-8, cfl=0.25, length=None, theta=0.1, alpha0=1.0,
+                 alpha_max=1.0, seed=0, logfile=None, loginterval=1, trajectory=None, progress=None):
+        calc = atoms.calc
+        if calc is None or not hasattr(calc, "target"):
+            raise TypeError("ALARICDynamics needs atoms with an ALARICCalculator attached")
+        self.fixed_dt = check_positive("timestep", timestep, allow_none=True)
+        if not (np.isfinite(friction) and friction >= 0):
+            raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        self.friction = float(friction)
+        self.viscosity = bool(viscosity)
+        self.velocity_stop = bool(velocity_stop)
+        if int(splits) != splits or splits < 0:
+            raise ValueError(f"splits must be an integer >= 0, got {splits!r}")
+        self.splits_left = int(splits)
+        self.mass_reset = bool(mass_reset)
+        self.eps_min = float(eps_min)
+        self.eps_dot_min = float(eps_dot_min)
+        self.cfl = check_positive("cfl", cfl)
+        self.theta = float(theta)
+        self.alpha0 = float(alpha0)
+        self.alpha_max = float(alpha_max)
+        self.seed = int(seed)
+        self.progress = progress
+        self.calc = calc
+        self.dim = calc.parameters.dim
+        self.cs = float(np.sqrt(calc.parameters.cs2))
+        self.length = check_positive("length", length, allow_none=True)
+        self._logfile_arg = logfile
+        MolecularDynamics.__init__(self, atoms, timestep=timestep or 0.0, trajectory=trajectory,
+                                   logfile=None, loginterval=loginterval)
+        self.trace = []
+        self.stop_reason = None
+        self.stage = 0
+        self.force_calls = 0
+        self.time = 0.0
+        self._log_stream = None
+        if logfile is not None:
+            self._log_stream = open(logfile, "a") if isinstance(logfile, str) and logfile != "-" else None
+            self._log_to_stdout = logfile == "-"
+        self._start_stage()
+
+    # -- set-up -----------------------------------------------------------------------------
+    def _start_stage(self):
+        atoms = self.atoms
+        self.calc.results.clear()
+        atoms.get_forces()  # solves H, sets the mass (Eq. 44) at the first call
+        self.force_calls += 1
+        self._sync_masses()
+        self.alpha_p = np.full(len(atoms), self.alpha0)
+        if self.length is None:
+            d = self.dim
+            ext = np.ptp(atoms.positions[:, :d], axis=0)
+            for c in range(d):
+                if atoms.pbc[c]:
+                    ext[c] = np.linalg.norm(atoms.cell[c])
+            self.length = float(ext.max())
+        self.tau = self.length / self.cs  # tau_cross (Eq. 37, isothermal: c_s^2 = P/rho)
+        self.tau_measured = False
+        self.since_stop = 0.0
+        self.ek_prev = 0.0
+        self._last_check = None
+        self._accel = self._accelerations(atoms.get_velocities())
+
+    def _sync_masses(self):
+        self.atoms.set_masses(np.full(len(self.atoms), self.calc.mass))
+        self.masses = self.atoms.get_masses().reshape(-1, 1)
+
+    # -- physics ------------------------------------------------------------------------------
+    def _accelerations(self, v_pc):
+        atoms = self.atoms
+        f_pc = atoms.get_forces().copy()
+        m = self.calc.mass
+        if self.viscosity:
+            res = self.calc.results
+            v_sig = max(self.cs, float(np.sqrt((v_pc**2).sum(axis=1)).max()))
+            f_visc, div_p = sph.viscosity_forces(self.calc.nlist, atoms.positions, v_pc, m, res["smoothing_lengths"],
+                                                 res["density"], self.alpha_p, v_sig, self.calc.kernel)
+            f_pc += f_visc
+            self.div_p = div_p
+        a_pc = f_pc / m
+        if self.friction > 0:
+            a_pc -= self.friction * v_pc
+        a_pc[:, self.dim:] = 0.0
+        return a_pc
+
+    def cfl_timestep(self, v_pc=None, a_pc=None):
+        """``C min(H / v_sig, sqrt(H / |a|))`` for the current state."""
+        h_p = self.calc.results["smoothing_lengths"]
+        v_pc = self.atoms.get_velocities() if v_pc is None else v_pc
+        a_pc = self._accel if a_pc is None else a_pc
+        speed = float(np.sqrt((v_pc**2).sum(axis=1)).max())
+        v_sig = max(self.cs, speed)
+        dt = float((h_p / (v_sig + speed)).min())
+        acc = np.sqrt((a_pc**2).sum(axis=1))
+        with np.errstate(divide="ignore"):
+            dt_force = float(np.sqrt(h_p / np.where(acc > 0, acc, np.inf)).min())
+        return self.cfl * min(dt, dt_force)
+
+    def step(self, forces=None):
+        atoms = self.atoms
+        limit = self.cfl_timestep()
+        if self.fixed_dt is not None:
+            if self.fixed_dt > limit * 1.0000001:
+                raise TimeStepError(f"step {self.nsteps}: timestep {self.fixed_dt:.4g} exceeds the CFL limit "
+                                    f"{limit:.4g} (C = {self.cfl}); use a smaller timestep or timestep=None")
+            dt = self.fixed_dt
+        else:
+            dt = limit
+        self.dt = dt
+        v = atoms.get_velocities() + 0.5 * dt * self._accel
+        atoms.set_positions(atoms.positions + dt * v)
+        if not np.all(np.isfinite(atoms.positions)):
+            raise TimeStepError(f"step {self.nsteps}: positions became non-finite (dt = {dt:.4g})")
+        self.force_calls += 1
+        a_new = self._accelerations(v)  # dissipative terms with the half-step velocity
+        v = v + 0.5 * dt * a_new
+        self._accel = a_new
+        if self.viscosity:
+            self.alpha_p = sph.update_alpha(self.alpha_p, self.div_p, self.cs, self.calc.results["smoothing_lengths"],
+                                            dt, alpha_min=0.0, alpha_max=self.alpha_max)
+        atoms.set_velocities(v)
+        self.time += dt
+        self.since_stop += dt
+        ek = 0.5 * float((self.masses * v * v).sum())
+        decreasing = ek < self.ek_prev
+        self.ek_prev = ek
+        # end of an interval: tau reached, or (first interval) the kinetic energy peaked (Eq. 38)
+        if self.since_stop >= self.tau or (not self.tau_measured and decreasing and self.since_stop > 0):
+            if not self.tau_measured:
+                self.tau = min(self.tau, self.since_stop)
+                self.tau_measured = True
+            else:
+                self.tau *= 1.0 + self.theta  # Eq. 41
+            self._interval_end(ek)
+
+    def _interval_end(self, ek):
+        atoms = self.atoms
+        self.since_stop = 0.0
+        if self.velocity_stop:
+            atoms.set_velocities(np.zeros((len(atoms), 3)))
+            self.ek_prev = 0.0
+        res = self.calc.results
+        if self.mass_reset:
+            from ..models.alaric import reset_mass
+
+            self.calc.set_mass(reset_mass(res["target"], res["number_density"]))  # Eq. 44
+            self._sync_masses()
+            atoms.get_forces()
+            self._accel = self._accelerations(atoms.get_velocities())
+            res = self.calc.results
+        eps = float(res["epsilon"])
+        eps_dot = None
+        if self._last_check is not None:
+            t0, e0 = self._last_check
+            eps_dot = (eps - e0) / (self.time - t0) if self.time > t0 else 0.0
+        self._last_check = (self.time, eps)
+        self.trace.append(dict(step=self.nsteps + 1, time=self.time, epsilon=eps, eps_dot=eps_dot, ek=ek,
+                               n=len(atoms), stage=self.stage, tau=self.tau, wall=time.perf_counter() - self._wall0))
+        self._write_log()
+        if self.progress is not None:
+            self.progress.set_postfix(eps=f"{eps:.2e}", N=len(atoms))
+        converged = None
+        if eps <= self.eps_min:
+            converged = "epsilon"
+        elif eps_dot is not None and abs(eps_dot) <= self.eps_dot_min:
+            converged = "epsilon_dot"
+        if converged is None:
+            return
+        if self.splits_left > 0:
+            self._split()
+            return
+        self.stop_reason = converged
+
+    def _split(self):
+        atoms = self.atoms
+        res = self.calc.results
+        new_h = split_particles(atoms, res["smoothing_lengths"], res["number_density"], self.dim,
+                                seed=self.seed + self.stage)
+        self.splits_left -= 1
+        self.stage += 1
+        self.calc.h_p = new_h
+        self.calc.nlist = None
+        self.calc.mass = None  # Eq. 44 at the first evaluation of the new stage
+        self.calc._evaluations = 0
+        self.calc.reset()
+        length = self.length
+        self._start_stage()
+        self.length = length
+
+    # -- running ------------------------------------------------------------------------------
+    def _write_log(self):
+        if self._logfile_arg is None:
+            return
+        e = self.trace[-1]
+        line = (f"{e['step']:8d} t={e['time']:.5g} eps={e['epsilon']:.4e} Ek={e['ek']:.4e} N={e['n']} "
+                f"stage={e['stage']}\n")
+        if self._log_stream is not None:
+            self._log_stream.write(line)
+            self._log_stream.flush()
+        else:
+            print(line, end="")
+
+    def converged(self, gradient=None):
+        return self.stop_reason is not None or self.nsteps >= self.max_steps
+
+    def irun(self, steps=100000):
+        self.max_steps = self.nsteps + steps
+        self._wall0 = getattr(self, "_wall0", time.perf_counter())
+        yield self.converged()
+        while not self.converged():
+            self.step()
+            self.nsteps += 1
+            if self.progress is not None:
+                self.progress.update(1)
+            self.call_observers()
+            yield self.converged()
+        if self.stop_reason is None:
+            self.stop_reason = "max_steps"
+
+    def run(self, steps=100000):
+        """Run until converged (see the module docstring) or ``steps`` steps; return True if converged."""
+        for _ in self.irun(steps):
+            pass
+        return self.stop_reason in ("epsilon", "epsilon_dot")
+
+    def get_time(self):
+        return self.time
+
+    def todict(self):
+        return {"type": "molecular-dynamics", "md-type": "ALARICDynamics", "timestep": self.fixed_dt,
+                "friction": self.friction, "viscosity": self.viscosity, "velocity_stop": self.velocity_stop}
