@@ -334,8 +334,9 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). The function
     ``g(H) = eta^d - (sigma / m_a) sum_b m_b f(r_ab / H)`` decreases monotonically in ``H``, so each
     particle has at most one root; it is found by Newton steps on ``g`` (``g' = sigma sum_b m_b q f'(q)
-    / (m_a H)``) kept inside a bisection bracket (a step that leaves the bracket is replaced by
-    bisection, or by doubling/halving while one side is open). Converged when ``|dH|/H < tol``.
+    / (m_a H)``), limited to a factor 2 per iteration and kept inside a bisection bracket (a step that
+    leaves the bracket is replaced by bisection, or by doubling/halving while one side is open).
+    Converged when ``|dH|/H < tol``.
 
     Parameters
     ----------
@@ -413,7 +414,8 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
         with np.errstate(divide="ignore", invalid="ignore"):
             step = -g / dg
         newton_ok = np.isfinite(step) & (dg < 0.0)
-        newton = h + np.where(newton_ok, step, 0.0)
+        # Newton moves H by at most a factor 2 (a particle with few neighbours has a tiny slope)
+        newton = np.clip(h + np.where(newton_ok, step, 0.0), 0.5 * h, 2.0 * h)
         bad = ~newton_ok | (newton < lo) | (newton > hi)
         bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
         h_new = np.where(bad, bisect, newton)

@@ -40,13 +40,17 @@ class ALARICCalculator(SPHCalculator):
     eta : float or None
         ``n_a H_a^d = eta^d`` (Eq. 31) for support ``H``; default :func:`ase_sphrelax.sph.default_eta`
         (Phantom's 1.5 for support 2h, i.e. 3.0 for C4).
-    form : {"log", "paper"}
-        ``"log"``: the conservative potential above. ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))``
-        in the pressure term, no body force; non-conservative (``energy`` is then the log potential, a monitor).
+    form : {"log", "squares", "paper"}
+        ``"log"``: the conservative potential above. ``"squares"``: the conservative least-squares
+        potential ``U = sum_a m c_s^2 (rho_a - rho*(x_a))^2 / (2 rho_ref)`` (``rho_ref`` the mean target at
+        the first evaluation), whose minimum is the paper's fixed point ``rho_a = rho*(x_a)``.
+        ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
+        non-conservative (``energy`` is then the log potential, a monitor).
     domain : Domain or None
         Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
     wall_length : float or None
-        Default: one mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation.
+        Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
+        (stiff enough to beat the outward pressure on a particle alone outside).
     density_floor : float or None
         ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-12 max rho*`` over the particles of the first evaluation.
     h_tol : float
@@ -74,12 +78,13 @@ class ALARICCalculator(SPHCalculator):
         self.state = None
         self._floor = None
         self._wall = None
+        self._rho_ref = None
         super().__init__(target_density=target_density, dim=dim, **kwargs)
 
     @property
     def conservative(self):
         """True when the forces are the exact negative gradient of ``energy``."""
-        return self.parameters.form == "log"
+        return self.parameters.form in ("log", "squares")
 
     def _validate_parameters(self):
         super()._validate_parameters()
@@ -106,6 +111,7 @@ class ALARICCalculator(SPHCalculator):
         self.h_p = None
         self._floor = p.density_floor
         self._wall = p.wall_length
+        self._rho_ref = None
 
     def set_mass(self, mass):
         """Change the equal particle mass (Eq. 44 reset) keeping H and the neighbour list."""
@@ -165,12 +171,17 @@ class ALARICCalculator(SPHCalculator):
         m = self.mass
         rho_p = m * n_p
         cs2 = p.cs2
-        log_target = np.log(np.maximum(target_p, self._floor))
-        energies_p = m * cs2 * (np.log(rho_p) - log_target)
+        if p.form == "squares":
+            if self._rho_ref is None:
+                self._rho_ref = float(np.mean(target_p))
+            energies_p = m * cs2 * (rho_p - target_p) ** 2 / (2.0 * self._rho_ref)
+        else:
+            log_target = np.log(np.maximum(target_p, self._floor))
+            energies_p = m * cs2 * (np.log(rho_p) - log_target)
         wall_p = None
         if p.domain is not None:
             if self._wall is None:
-                self._wall = (float(p.domain.volume) / n) ** (1.0 / d)
+                self._wall = 0.1 * (float(p.domain.volume) / n) ** (1.0 / d)
             phi_p, normal_pc = p.domain.phi_and_normal(r_pc)
             phi_p = np.asarray(phi_p, dtype=float)
             energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
@@ -193,6 +204,8 @@ class ALARICCalculator(SPHCalculator):
         rho_p = m * state.n_p
         if p.form == "log":
             pr_p = cs2 / (state.omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
+        elif p.form == "squares":  # de/drho / Omega, e = c_s^2 (rho - rho*)^2 / (2 rho_ref)
+            pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * state.omega_p)
         else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
             pr_p = cs2 * (rho_p - target_p) / (state.omega_p * rho_p**2)
         f_pc, _ = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel)
@@ -201,6 +214,9 @@ class ALARICCalculator(SPHCalculator):
             if np.any(above):
                 grad_pd = self.target.gradients(x_pd[above])
                 f_pc[above, : p.dim] += (m * cs2 / target_p[above])[:, None] * grad_pd
+        elif p.form == "squares":
+            grad_pd = self.target.gradients(x_pd)
+            f_pc[:, : p.dim] += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
             phi_p, normal_pc = wall_p
             outside = phi_p > 0.0

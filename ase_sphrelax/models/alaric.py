@@ -25,7 +25,7 @@ Where ``rho* = 0``
 no pull from the target, only the pressure of its neighbours (no NaN, no infinite force). Give a
 :class:`~ase_sphrelax.domains.Domain` (e.g. the target's support) to confine the particles:
 outside it (``phi > 0``) the potential rises linearly, ``m c_s^2 phi / l`` (a constant inward force
-``m c_s^2 / l``, with ``l`` one mean particle spacing by default), so no particle escapes and those
+``m c_s^2 / l``, with ``l`` a tenth of the mean particle spacing by default), so no particle escapes and those
 that start outside are pulled in.
 
 Errors and built-in profiles
@@ -40,7 +40,7 @@ import numpy as np
 
 __all__ = ["FORMS", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass"]
 
-FORMS = ("log", "paper")
+FORMS = ("log", "squares", "paper")
 
 
 class Target:
