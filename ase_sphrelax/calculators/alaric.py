@@ -59,6 +59,10 @@ class ALARICCalculator(SPHCalculator):
         Verlet skin (default ``0.2`` times the mean H at the first evaluation).
     fd_step : float
         Step of the target's finite-difference gradient.
+    origin : sequence of dim floats or None
+        The target (and the domain) see ``origin + x``, with ``x`` wrapped into the cell along periodic
+        axes (ASE cells start at zero: a periodic interval ``[-1, 1)`` is the cell ``[0, 2)`` with
+        origin ``-1``).
 
     Results
     -------
@@ -70,7 +74,7 @@ class ALARICCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces"]
     default_parameters = dict(target_density=None, dim=1, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
-                              density_floor=None, h_tol=1e-10, skin=None, fd_step=1e-6)
+                              density_floor=None, h_tol=1e-10, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=1, **kwargs):
         self.mass = None
@@ -112,6 +116,9 @@ class ALARICCalculator(SPHCalculator):
         self._floor = p.density_floor
         self._wall = p.wall_length
         self._rho_ref = None
+        self.origin = np.zeros(p.dim) if p.origin is None else np.asarray(p.origin, dtype=float).reshape(-1)
+        if self.origin.shape != (p.dim,) or not np.all(np.isfinite(self.origin)):
+            raise ValueError(f"origin must be {p.dim} finite numbers or None, got {p.origin!r}")
 
     def set_mass(self, mass):
         """Change the equal particle mass (Eq. 44 reset) keeping H and the neighbour list."""
@@ -137,8 +144,8 @@ class ALARICCalculator(SPHCalculator):
         if np.any(atoms.pbc[:d]):
             frac = np.linalg.solve(atoms.cell.complete().T, r_pc.T).T
             frac[:, :d] = np.where(atoms.pbc[:d], frac[:, :d] % 1.0, frac[:, :d])
-            return np.ascontiguousarray((frac @ atoms.cell.complete())[:, :d])
-        return np.ascontiguousarray(r_pc[:, :d])
+            return np.ascontiguousarray((frac @ atoms.cell.complete())[:, :d] + self.origin)
+        return np.ascontiguousarray(r_pc[:, :d] + self.origin)
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
@@ -182,7 +189,7 @@ class ALARICCalculator(SPHCalculator):
         if p.domain is not None:
             if self._wall is None:
                 self._wall = 0.1 * (float(p.domain.volume) / n) ** (1.0 / d)
-            phi_p, normal_pc = p.domain.phi_and_normal(r_pc)
+            phi_p, normal_pc = p.domain.phi_and_normal(x_pd)
             phi_p = np.asarray(phi_p, dtype=float)
             energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
             wall_p = (phi_p, np.asarray(normal_pc, dtype=float))

@@ -71,6 +71,8 @@ class ALARICDynamics(MolecularDynamics):
         Initial and largest viscosity switch (alpha_min = 0, Sec. 2.2).
     seed : int
         Seed of the split patterns' orientations.
+    stage_steps : int or None
+        Split (while splits remain) after this many steps in a stage even if it has not converged.
     logfile, loginterval, trajectory
         As in ASE; the log prints step, time, epsilon, kinetic energy and N.
 
@@ -86,7 +88,8 @@ class ALARICDynamics(MolecularDynamics):
 
     def __init__(self, atoms, timestep=None, friction=2.0, viscosity=True, velocity_stop=True, splits=0,
                  mass_reset=True, eps_min=1e-8, eps_dot_min=1e-8, cfl=0.25, length=None, theta=0.1, alpha0=1.0,
-                 alpha_max=1.0, seed=0, logfile=None, loginterval=1, trajectory=None, progress=None):
+                 alpha_max=1.0, seed=0, stage_steps=None, logfile=None, loginterval=1, trajectory=None,
+                 progress=None):
         calc = atoms.calc
         if calc is None or not hasattr(calc, "target"):
             raise TypeError("ALARICDynamics needs atoms with an ALARICCalculator attached")
@@ -107,6 +110,8 @@ class ALARICDynamics(MolecularDynamics):
         self.alpha0 = float(alpha0)
         self.alpha_max = float(alpha_max)
         self.seed = int(seed)
+        self.stage_steps = None if stage_steps is None else int(stage_steps)
+        self._stage_start = 0
         self.progress = progress
         self.calc = calc
         self.dim = calc.parameters.dim
@@ -219,6 +224,9 @@ class ALARICDynamics(MolecularDynamics):
             else:
                 self.tau *= 1.0 + self.theta  # Eq. 41
             self._interval_end(ek)
+        if (self.splits_left > 0 and self.stage_steps is not None and self.stop_reason is None
+                and self.nsteps + 1 - self._stage_start >= self.stage_steps):
+            self._split()
 
     def _interval_end(self, ek):
         atoms = self.atoms
@@ -265,6 +273,7 @@ class ALARICDynamics(MolecularDynamics):
                                 seed=self.seed + self.stage)
         self.splits_left -= 1
         self.stage += 1
+        self._stage_start = self.nsteps + 1
         self.calc.h_p = new_h
         self.calc.nlist = None
         self.calc.mass = None  # Eq. 44 at the first evaluation of the new stage
@@ -316,3 +325,126 @@ class ALARICDynamics(MolecularDynamics):
     def todict(self):
         return {"type": "molecular-dynamics", "md-type": "ALARICDynamics", "timestep": self.fixed_dt,
                 "friction": self.friction, "viscosity": self.viscosity, "velocity_stop": self.velocity_stop}
+
+
+# -- the whole recipe --------------------------------------------------------------------------
+def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
+    """Equal particles to start from: ``n`` equispaced on the periodic interval ``[-1, 1)`` in 1D
+    (cell ``[0, 2)``, origin -1: the paper's Sec. 4.1 set-up), or a jittered lattice filling
+    ``domain`` (default the unit disc / ball, Sec. 4.3-4.4) thinned at random to exactly ``n`` in 2D/3D.
+
+    Returns ``(atoms, origin, domain)``.
+    """
+    from ase import Atoms
+
+    from ..build import fill
+    from ..domains import Circle, Sphere
+
+    if dim == 1:
+        pos = np.zeros((n, 3))
+        pos[:, 0] = (np.arange(n) + 0.5) * 2.0 / n
+        atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[2.0, 0.0, 0.0], pbc=[True, False, False])
+        return atoms, np.array([-1.0]), None
+    if domain is None:
+        domain = Circle((0.0, 0.0), 1.0) if dim == 2 else Sphere((0.0, 0.0, 0.0), 1.0)
+    dx = (float(domain.volume) / n) ** (1.0 / dim)
+    atoms = fill(domain, dx, jitter=jitter, seed=seed)
+    while len(atoms) < n:  # a lattice fill holds about V / dx^d: refine until there are enough
+        dx *= 0.98
+        atoms = fill(domain, dx, jitter=jitter, seed=seed)
+    if len(atoms) > n:  # then drop random ones: exactly n
+        keep = np.sort(np.random.default_rng(seed).choice(len(atoms), n, replace=False))
+        atoms = atoms[keep]
+    atoms.set_cell(np.zeros((3, 3)))
+    atoms.pbc = False
+    return atoms, np.zeros(dim), domain
+
+
+def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
+                  form="log", polish=True, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
+                  progress=False, seed=0, **dynamics):
+    """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
+    least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
+
+    The dynamics runs the conservative log potential by default (its pressure ``c_s^2 rho`` stays
+    positive; the paper's Eq. 29 form and the least-squares form, whose pressures change sign, were
+    measured noisy in the dynamics here); the polish removes the log potential's smoothing bias.
+
+    Returns
+    -------
+    dict
+        ``atoms`` (relaxed, masses = the Eq. 44 mass), ``calculator``, ``dynamics``, ``epsilon``
+        (final), ``epsilon_dynamics`` (before the polish), ``trace`` (list of dicts: step, epsilon,
+        N, stage, phase), ``steps``, ``force_calls``, ``stop_reason``, ``wall_time``.
+    """
+    from ase.optimize import LBFGS
+
+    from ..calculators.alaric import ALARICCalculator
+    from ..models.alaric import epsilon as eq45, reset_mass
+
+    t0 = time.perf_counter()
+    calc = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim, form=form,
+                            domain=domain, origin=origin)
+    atoms.calc = calc
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=max_steps, desc="ALARIC", unit="step", leave=False, disable=None, mininterval=0.5)
+    dynamics.setdefault("stage_steps", max_steps // (splits + 1) if splits else None)
+    dyn = ALARICDynamics(atoms, splits=splits, eps_min=eps_min, eps_dot_min=eps_dot_min, seed=seed, progress=bar,
+                         **dynamics)
+    dyn.run(max_steps)
+    trace = [dict(e, phase="dynamics") for e in dyn.trace]
+    res = calc.results
+    eps_dyn = float(res["epsilon"])
+    force_calls = dyn.force_calls
+    eps_final = eps_dyn
+    if polish and eps_dyn > eps_min:
+        mass = reset_mass(res["target"], res["number_density"])
+        squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
+                                   form="squares", domain=domain, origin=origin, mass=mass)
+        atoms.calc = squares
+        atoms.set_velocities(np.zeros((len(atoms), 3)))
+        spacing = float(np.mean(res["smoothing_lengths"])) / squares.eta
+        atoms.get_forces()
+        rho_ref = float(np.mean(squares.results["target"]))
+        # diagonal Hessian scale of the least-squares potential: 10 m c_s^2 rho^2 / (rho_ref dx^2)
+        alpha = 10.0 * mass * squares.parameters.cs2 * rho_ref / spacing**2
+        opt = LBFGS(atoms, logfile=None, maxstep=min(0.15 * spacing, 1.0), alpha=alpha, memory=20)
+        opt.maxstep = 0.15 * spacing
+        chunk = 250
+        done = 0
+        while done < polish_steps:
+            opt.run(fmax=1e-14, steps=chunk)
+            done += chunk
+            r = squares.results
+            m = reset_mass(r["target"], r["number_density"])
+            eps = eq45(m * r["number_density"], r["target"], r["number_density"])
+            force_calls += chunk
+            trace.append(dict(step=dyn.nsteps + done, epsilon=eps, n=len(atoms), stage=dyn.stage, phase="polish",
+                              wall=time.perf_counter() - t0))
+            if bar is not None:
+                bar.set_postfix(eps=f"{eps:.2e}", phase="polish")
+            if eps < eps_final:
+                eps_final = eps
+                best = atoms.positions.copy()
+            if eps <= eps_min:
+                break
+        if eps_final < eps_dyn:
+            atoms.positions = best
+        atoms.calc = calc
+        calc.set_mass(reset_mass(*_target_and_n(calc, atoms)))
+        atoms.get_forces()
+        eps_final = float(calc.results["epsilon"])
+    if bar is not None:
+        bar.close()
+    atoms.set_masses(np.full(len(atoms), calc.mass))
+    return dict(atoms=atoms, calculator=calc, dynamics=dyn, epsilon=eps_final, epsilon_dynamics=eps_dyn, trace=trace,
+                steps=dyn.nsteps, force_calls=force_calls, stop_reason=dyn.stop_reason,
+                wall_time=time.perf_counter() - t0)
+
+
+def _target_and_n(calc, atoms):
+    atoms.get_potential_energy()
+    return calc.results["target"], calc.results["number_density"]
