@@ -79,13 +79,18 @@ def table1(quick):
             atoms = line_atoms(300, 0.0, form)
             dyn = ALARICDynamics(atoms, velocity_stop=s, friction=2.0 if f else 0.0, viscosity=v)
             t0 = time.process_time()
-            dyn.run(cap)
+            try:
+                dyn.run(cap)
+                stop = dyn.stop_reason
+            except (FloatingPointError, ValueError) as exc:  # an unstable run is a result, reported as such
+                stop = f"failed at step {dyn.nsteps}: {type(exc).__name__}"
+                print(f"(a) {form} {name}: {exc}", flush=True)
             cpu = time.process_time() - t0
-            rows[f"{form}:{name}"] = dict(form=form, run=name, steps=dyn.nsteps, cpu_s=cpu, stop=dyn.stop_reason,
+            rows[f"{form}:{name}"] = dict(form=form, run=name, steps=dyn.nsteps, cpu_s=cpu, stop=stop,
                                           epsilon=dyn.trace[-1]["epsilon"] if dyn.trace else None,
                                           trace=[(e["step"], e["epsilon"]) for e in dyn.trace])
             print(f"(a) {form:5s} {name:9s} steps {dyn.nsteps:6d} cpu {cpu:6.1f} s eps {rows[f'{form}:{name}']['epsilon']:.2e} "
-                  f"({dyn.stop_reason})", flush=True)
+                  f"({stop})", flush=True)
     lines = ["# Table 1: 1D Eq. 46, 300 particles, Delta = 0", "",
              f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps.",
              "", "| run | paper steps | paper CPU [s] | paper eps | log: steps | log: CPU [s] | log: eps | log: stop "

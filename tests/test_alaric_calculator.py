@@ -152,3 +152,16 @@ def test_coincident_particles_and_zero_target_region():
     f = atoms.get_forces()
     e = atoms.get_potential_energy()
     assert np.all(np.isfinite(f)) and np.isfinite(e)
+
+
+@pytest.mark.parametrize("dim,n_side", [(1, 40), (2, 9), (3, 5)])
+def test_least_squares_form_forces_are_the_negative_gradient(dim, n_side):
+    atoms = _periodic(dim, n_side, seed=10 + dim)
+    density, gradient = _gauss(dim)
+    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form="squares", h_tol=1e-13)
+    atoms.calc = calc
+    f = atoms.get_forces()
+    idx = np.arange(0, len(atoms), max(1, len(atoms) // 5))
+    fd = calculate_numerical_forces(atoms, eps=1e-6, iatoms=idx, icarts=list(range(dim)))
+    np.testing.assert_allclose(f[idx][:, :dim], fd[:, :dim], atol=1e-7 * np.abs(f).max())
+    assert calc.conservative

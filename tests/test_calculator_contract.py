@@ -37,7 +37,17 @@ def toy_soft_spheres():
     return SoftSphereCalculator(k=1.5, gamma=0.5), atoms, dict(k=2.5)
 
 
-CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres}
+def alaric_2d():
+    from ase_sphrelax import ALARICCalculator
+
+    def target(x):
+        return 1.0 + 0.5 * np.sin(x[:, 0] / 3.0)
+
+    return ALARICCalculator(target_density=target, dim=2), periodic_box(12, dx=1.0, jitter=0.25, seed=4), dict(cs2=2.0)
+
+
+CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
+         "alaric 2D": alaric_2d}
 
 
 def _evaluate(calc, atoms):

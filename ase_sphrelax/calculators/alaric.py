@@ -74,7 +74,7 @@ class ALARICCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces"]
     default_parameters = dict(target_density=None, dim=1, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
-                              density_floor=None, h_tol=1e-10, skin=None, fd_step=1e-6, origin=None)
+                              density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=1, **kwargs):
         self.mass = None
