@@ -35,6 +35,8 @@ def add_arguments(parser):
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
     parser.add_argument("--no-polish", action="store_true", help="skip the LBFGS polish on the least-squares potential")
+    parser.add_argument("--polish-steps", type=non_negative_int, default=4000,
+                        help="LBFGS steps of the least-squares polish (4000)")
     parser.add_argument("--max-steps", type=positive(int), default=50000, help="step cap of the dynamics (50000)")
     parser.add_argument("--eps-min", type=positive(float), default=1e-8, help="stop at epsilon below this (1e-8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the start jitter and split orientations (0)")
@@ -111,7 +113,8 @@ def run(args):
     print(f"ALARIC: profile {args.profile} ({dim}D), {len(atoms)} particles x {p}^{args.split} -> {args.n}, "
           f"form {args.form}{'' if args.no_polish else ' + least-squares polish'}")
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
-                           origin=origin, form=args.form, polish=not args.no_polish, max_steps=args.max_steps,
+                           origin=origin, form=args.form, polish=not args.no_polish and args.polish_steps > 0,
+                           polish_steps=args.polish_steps, max_steps=args.max_steps,
                            eps_min=args.eps_min, progress=True, seed=args.seed)
     atoms = result["atoms"]
     calc = result["calculator"]
