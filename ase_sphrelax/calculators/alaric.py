@@ -16,7 +16,10 @@ from ..kernels import get_kernel
 from ..models import alaric as model
 from .base import SPHCalculator
 
-__all__ = ["ALARICCalculator"]
+__all__ = ["ALARICCalculator", "FLOOR", "OMEGA_MIN"]
+
+OMEGA_MIN = 0.05  # Omega (Eq. 13) is floored here in the forces (degenerate H only; ~1 otherwise)
+FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
 
 
 class ALARICCalculator(SPHCalculator):
@@ -52,7 +55,9 @@ class ALARICCalculator(SPHCalculator):
         Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
         (stiff enough to beat the outward pressure on a particle alone outside).
     density_floor : float or None
-        ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-12 max rho*`` over the particles of the first evaluation.
+        ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-4 max rho*`` over the particles of the first
+        evaluation (``grad ln rho*`` diverges like ``2/r`` at a quadratic zero of the target, Eq. 46 with
+        Delta = 0: with a floor of 1e-12 the CFL step collapsed near the well, measured).
     h_tol : float
         Relative tolerance of the smoothing-length iteration.
     skin : float or None
@@ -163,7 +168,7 @@ class ALARICCalculator(SPHCalculator):
             top = float(target_p.max())
             if top <= 0.0:
                 raise ValueError("target_density is zero at every particle")
-            self._floor = 1e-12 * top
+            self._floor = FLOOR * top
         if self.h_p is None or len(self.h_p) != n:
             h0 = sph.initial_smoothing_length(atoms.positions, atoms.cell.array, atoms.pbc, d, self.eta)
             self.h_p = np.full(n, h0)
@@ -209,12 +214,15 @@ class ALARICCalculator(SPHCalculator):
         p = self.parameters
         m, cs2 = self.mass, p.cs2
         rho_p = m * state.n_p
+        # Omega -> 0 when H is undetermined (in 1D, two coincident particles alone hold eta^d = sigma f(0) 2
+        # neighbours for any H): floored, which leaves the exact gradient everywhere Omega >= OMEGA_MIN
+        omega_p = np.maximum(state.omega_p, OMEGA_MIN)
         if p.form == "log":
-            pr_p = cs2 / (state.omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
+            pr_p = cs2 / (omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
         elif p.form == "squares":  # de/drho / Omega, e = c_s^2 (rho - rho*)^2 / (2 rho_ref)
-            pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * state.omega_p)
+            pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
         else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
-            pr_p = cs2 * (rho_p - target_p) / (state.omega_p * rho_p**2)
+            pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
         f_pc, _ = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel)
         if p.form == "log":
             above = target_p > self._floor

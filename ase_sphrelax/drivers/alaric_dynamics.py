@@ -184,8 +184,8 @@ class ALARICDynamics(MolecularDynamics):
         v_sig = max(self.cs, speed)
         dt = float((h_p / (v_sig + speed)).min())
         acc = np.sqrt((a_pc**2).sum(axis=1))
-        with np.errstate(divide="ignore"):
-            dt_force = float(np.sqrt(h_p / np.where(acc > 0, acc, np.inf)).min())
+        moving = acc > 0  # a particle at rest with no force sets no limit
+        dt_force = float(np.sqrt(h_p[moving] / acc[moving]).min()) if np.any(moving) else np.inf
         return self.cfl * min(dt, dt_force)
 
     def step(self, forces=None):
@@ -198,6 +198,10 @@ class ALARICDynamics(MolecularDynamics):
             dt = self.fixed_dt
         else:
             dt = limit
+        h_min = float(self.calc.results["smoothing_lengths"].min())
+        if not np.isfinite(dt) or dt <= 1e-9 * h_min / self.cs:
+            raise TimeStepError(f"step {self.nsteps}: the CFL step collapsed to {dt:.3g} (accelerations "
+                                f"{float(np.abs(self._accel).max()):.3g}); the particle state is degenerate")
         self.dt = dt
         v = atoms.get_velocities() + 0.5 * dt * self._accel
         atoms.set_positions(atoms.positions + dt * v)
@@ -300,6 +304,8 @@ class ALARICDynamics(MolecularDynamics):
         return self.stop_reason is not None or self.nsteps >= self.max_steps
 
     def irun(self, steps=100000):
+        if self.stop_reason == "max_steps":  # a new run continues where the step cap stopped the last one
+            self.stop_reason = None
         self.max_steps = self.nsteps + steps
         self._wall0 = getattr(self, "_wall0", time.perf_counter())
         yield self.converged()
@@ -377,10 +383,8 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         (final), ``epsilon_dynamics`` (before the polish), ``trace`` (list of dicts: step, epsilon,
         N, stage, phase), ``steps``, ``force_calls``, ``stop_reason``, ``wall_time``.
     """
-    from ase.optimize import LBFGS
-
     from ..calculators.alaric import ALARICCalculator
-    from ..models.alaric import epsilon as eq45, reset_mass
+    from ..models.alaric import reset_mass
 
     t0 = time.perf_counter()
     calc = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim, form=form,
@@ -401,38 +405,13 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     force_calls = dyn.force_calls
     eps_final = eps_dyn
     if polish and eps_dyn > eps_min:
-        mass = reset_mass(res["target"], res["number_density"])
-        squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
-                                   form="squares", domain=domain, origin=origin, mass=mass)
-        atoms.calc = squares
-        atoms.set_velocities(np.zeros((len(atoms), 3)))
-        spacing = float(np.mean(res["smoothing_lengths"])) / squares.eta
-        atoms.get_forces()
-        rho_ref = float(np.mean(squares.results["target"]))
-        # diagonal Hessian scale of the least-squares potential: 10 m c_s^2 rho^2 / (rho_ref dx^2)
-        alpha = 10.0 * mass * squares.parameters.cs2 * rho_ref / spacing**2
-        opt = LBFGS(atoms, logfile=None, maxstep=min(0.15 * spacing, 1.0), alpha=alpha, memory=20)
-        opt.maxstep = 0.15 * spacing
-        chunk = 250
-        done = 0
-        while done < polish_steps:
-            opt.run(fmax=1e-14, steps=chunk)
-            done += chunk
-            r = squares.results
-            m = reset_mass(r["target"], r["number_density"])
-            eps = eq45(m * r["number_density"], r["target"], r["number_density"])
-            force_calls += chunk
-            trace.append(dict(step=dyn.nsteps + done, epsilon=eps, n=len(atoms), stage=dyn.stage, phase="polish",
-                              wall=time.perf_counter() - t0))
-            if bar is not None:
-                bar.set_postfix(eps=f"{eps:.2e}", phase="polish")
-            if eps < eps_final:
-                eps_final = eps
-                best = atoms.positions.copy()
-            if eps <= eps_min:
-                break
-        if eps_final < eps_dyn:
-            atoms.positions = best
+        eps_final, polish_trace, calls = polish_least_squares(
+            atoms, target_density, dim, reset_mass(res["target"], res["number_density"]), target_gradient,
+            domain=domain, origin=origin, steps=polish_steps, eps_min=eps_min, spacing=float(np.mean(
+                res["smoothing_lengths"])) / calc.eta, bar=bar)
+        force_calls += calls
+        trace += [dict(e, step=dyn.nsteps + e["step"], stage=dyn.stage, wall=time.perf_counter() - t0)
+                  for e in polish_trace]
         atoms.calc = calc
         calc.set_mass(reset_mass(*_target_and_n(calc, atoms)))
         atoms.get_forces()
@@ -448,3 +427,53 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
 def _target_and_n(calc, atoms):
     atoms.get_potential_energy()
     return calc.results["target"], calc.results["number_density"]
+
+
+def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None, domain=None, origin=None, steps=4000,
+                         eps_min=0.0, spacing=None, bar=None, chunk=250):
+    """LBFGS on the least-squares potential (``form="squares"``) from the current positions; keeps the best.
+
+    Returns ``(epsilon, trace, force_calls)``; ``epsilon`` (Eq. 45 with the Eq. 44 mass) of the best
+    positions, which ``atoms`` ends with (the calculator attached is the least-squares one).
+    """
+    from ase.optimize import LBFGS
+
+    from ..calculators.alaric import ALARICCalculator
+    from ..models.alaric import epsilon as eq45, reset_mass
+
+    squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
+                               form="squares", domain=domain, origin=origin, mass=mass)
+    atoms.calc = squares
+    atoms.set_velocities(np.zeros((len(atoms), 3)))
+    atoms.get_forces()
+    r = squares.results
+    if spacing is None:
+        spacing = float(np.mean(r["smoothing_lengths"])) / squares.eta
+    rho_ref = float(np.mean(r["target"]))
+    # diagonal Hessian scale of the least-squares potential: 10 m c_s^2 rho_ref / dx^2
+    alpha = 10.0 * mass * squares.parameters.cs2 * rho_ref / spacing**2
+    opt = LBFGS(atoms, logfile=None, maxstep=min(0.15 * spacing, 1.0), alpha=alpha, memory=20)
+    opt.maxstep = 0.15 * spacing
+
+    def current():
+        r = squares.results
+        m = reset_mass(r["target"], r["number_density"])
+        return eq45(m * r["number_density"], r["target"], r["number_density"])
+
+    best_eps = current()
+    best = atoms.positions.copy()
+    trace = []
+    done = 0
+    while done < steps:
+        opt.run(fmax=1e-14, steps=min(chunk, steps - done))
+        done += min(chunk, steps - done)
+        eps = current()
+        trace.append(dict(step=done, epsilon=eps, n=len(atoms), phase="polish"))
+        if bar is not None:
+            bar.set_postfix(eps=f"{eps:.2e}", phase="polish")
+        if eps < best_eps:
+            best_eps, best = eps, atoms.positions.copy()
+        if eps <= eps_min:
+            break
+    atoms.positions = best
+    return best_eps, trace, done

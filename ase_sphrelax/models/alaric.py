@@ -21,7 +21,9 @@ Eq. 44 drives to zero.
 
 Where ``rho* = 0``
 ------------------
-``ln rho*`` is replaced by ``ln max(rho*, floor)``: flat at the floor, so a particle there feels
+``ln rho*`` is replaced by ``ln max(rho*, floor)`` (``floor`` 1e-4 of the largest target value by
+default: near a zero of ``rho*`` the force ``m c_s^2 grad ln rho*`` grows like ``2/r``, and a smaller
+floor let the CFL step collapse at Eq. 46's well with Delta = 0): flat at the floor, so a particle there feels
 no pull from the target, only the pressure of its neighbours (no NaN, no infinite force). Give a
 :class:`~ase_sphrelax.domains.Domain` (e.g. the target's support) to confine the particles:
 outside it (``phi > 0``) the potential rises linearly, ``m c_s^2 phi / l`` (a constant inward force
