@@ -164,3 +164,47 @@ def test_wvt_spreads_a_random_start_in_a_circle():
         assert end < 0.3 * start
     with pytest.raises(ValueError, match="weight must be one of"):
         WVTRelaxation(Atoms(), uniform, 2, weight="gauss")
+
+
+def test_a_particle_at_rest_without_force_sets_no_cfl_limit():
+    """Regression: the symmetric line's middle particle (zero force, zero velocity) once gave dt = 0."""
+    atoms = _line(61, 0.0, form="log")
+    dyn = ALARICDynamics(atoms)
+    dyn._accel[:] = 0.0
+    dyn._accel[0, 0] = 1.0
+    assert dyn.cfl_timestep() > 0.0
+    dyn.run(200)
+    assert dyn.time > 0.1
+
+
+def test_friction_alone_converges():
+    atoms = _line(101, 0.5)
+    dyn = ALARICDynamics(atoms, velocity_stop=False, viscosity=False, eps_dot_min=1e-6)
+    dyn.run(4000)
+    assert dyn.stop_reason in ("epsilon", "epsilon_dot")
+
+
+def test_run_continues_after_a_step_cap():
+    atoms = _line(61, 0.5)
+    dyn = ALARICDynamics(atoms)
+    dyn.run(20)
+    assert dyn.stop_reason == "max_steps"
+    dyn.run(20)
+    assert dyn.nsteps == 40
+
+
+def test_start_atoms_and_polish():
+    from ase_sphrelax.drivers.alaric_dynamics import polish_least_squares, start_atoms
+
+    for dim, n in ((1, 50), (2, 120), (3, 200)):
+        atoms, origin, domain = start_atoms(n, dim)
+        assert len(atoms) == n and origin.shape == (dim,)
+        assert np.all(atoms.positions[:, dim:] == 0.0)
+    atoms = _line(101, 0.5, form="log")
+    ALARICDynamics(atoms, eps_dot_min=1e-6).run(2000)
+    res = atoms.calc.results
+    before = res["epsilon"]
+    density, gradient = model.eq46(0.5)
+    eps, trace, calls = polish_least_squares(atoms, density, 1, model.reset_mass(res["target"], res["number_density"]),
+                                             gradient, origin=[-1.0], steps=500)
+    assert eps < 0.1 * before and calls == 500 and trace[-1]["epsilon"] >= eps
