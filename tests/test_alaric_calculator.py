@@ -165,3 +165,45 @@ def test_least_squares_form_forces_are_the_negative_gradient(dim, n_side):
     fd = calculate_numerical_forces(atoms, eps=1e-6, iatoms=idx, icarts=list(range(dim)))
     np.testing.assert_allclose(f[idx][:, :dim], fd[:, :dim], atol=1e-7 * np.abs(f).max())
     assert calc.conservative
+
+
+@pytest.mark.parametrize("dim,n_side,form", [(2, 9, "log"), (3, 5, "log"), (2, 9, "squares")])
+def test_stress_is_the_strain_derivative(dim, n_side, form):
+    from ase.calculators.fd import calculate_numerical_stress
+
+    atoms = _periodic(dim, n_side, seed=20 + dim)
+    if dim == 2:
+        atoms.cell[2, 2] = 1.0  # rank-3 cell for ASE's stress
+    density, gradient = _gauss(dim)
+    atoms.calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form=form, h_tol=1e-13)
+    stress = atoms.get_stress()
+    if dim == 3:
+        fd = calculate_numerical_stress(atoms, eps=1e-6)
+        np.testing.assert_allclose(stress, fd, atol=1e-6 * np.abs(stress).max())
+        return
+    # 2D: in-plane strains only (ASE's helper also shears z, which a 2D calculator rejects)
+    cell0, pos0, vol = atoms.cell.array.copy(), atoms.positions.copy(), atoms.get_volume()
+    eps = 1e-6
+    for voigt, (i, j) in ((0, (0, 0)), (1, (1, 1)), (5, (0, 1))):
+        e = []
+        for sign in (1, -1):
+            strain = np.eye(3)
+            strain[i, j] += sign * eps / (1 if i == j else 2)
+            strain[j, i] += 0 if i == j else sign * eps / 2
+            atoms.set_cell(cell0 @ strain, scale_atoms=False)
+            atoms.positions = pos0 @ strain
+            e.append(atoms.get_potential_energy())
+        atoms.set_cell(cell0, scale_atoms=False)
+        atoms.positions = pos0
+        fd = (e[0] - e[1]) / (2 * eps * vol)
+        assert abs(stress[voigt] - fd) < 1e-6 * np.abs(stress).max(), (voigt, stress[voigt], fd)
+
+
+def test_stress_needs_a_periodic_cell_and_a_conservative_form():
+    from ase.calculators.calculator import PropertyNotImplementedError
+
+    density, _ = _gauss(1)
+    atoms = _periodic(1, 30, seed=0)
+    atoms.calc = ALARICCalculator(target_density=density, dim=1, form="paper")
+    with pytest.raises(PropertyNotImplementedError, match="stress needs"):
+        atoms.get_stress()

@@ -76,7 +76,7 @@ class ALARICCalculator(SPHCalculator):
     (rho*(x_a)) and ``epsilon`` (Eq. 45 with the current mass).
     """
 
-    implemented_properties = ["energy", "free_energy", "energies", "forces"]
+    implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=1, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
                               density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
@@ -156,8 +156,10 @@ class ALARICCalculator(SPHCalculator):
         super().calculate(atoms, properties, system_changes)
         p = self.parameters
         atoms = self.atoms
-        if "stress" in properties:
-            raise PropertyNotImplementedError("ALARICCalculator does not implement stress")
+        want_stress = "stress" in properties
+        if want_stress and not (np.all(atoms.pbc[: p.dim]) and atoms.cell.rank == 3 and self.conservative):
+            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes (rank 3: give a 2D cell "
+                                              "a c vector) and a conservative form (log or squares)")
         self._check_atoms(atoms)
         n = len(atoms)
         d = p.dim
@@ -207,10 +209,21 @@ class ALARICCalculator(SPHCalculator):
         self.results["target"] = target_p
         self.results["epsilon"] = model.epsilon(rho_p, target_p, n_p)
         self.state = state
-        if "forces" in properties:
-            self.results["forces"] = self._forces(r_pc, x_pd, state, target_p, wall_p)
+        if "forces" in properties or want_stress:
+            f_pc, f_ext_pc, virial = self._forces(r_pc, x_pd, state, target_p, wall_p, want_stress)
+            self.results["forces"] = f_pc
+            if want_stress:
+                # dU/d(strain): the pair virial plus -sum F_ext (x) x for the position-dependent terms, with x
+                # the wrapped position that the strain scales (the target sees origin + x)
+                x_w = np.zeros((n, 3))
+                x_w[:, :d] = x_pd - self.origin
+                d_e = virial - f_ext_pc.T @ x_w
+                d_e = 0.5 * (d_e + d_e.T)
+                stress_cc = d_e / atoms.get_volume()
+                self.results["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
 
-    def _forces(self, r_pc, x_pd, state, target_p, wall_p):
+    def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False):
+        """(forces, the position-dependent (target and wall) part of them, pair virial)."""
         p = self.parameters
         m, cs2 = self.mass, p.cs2
         rho_p = m * state.n_p
@@ -223,18 +236,21 @@ class ALARICCalculator(SPHCalculator):
             pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
         else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
             pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
-        f_pc, _ = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel)
+        f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel, want_virial=want_virial)
+        f_ext_pc = np.zeros_like(f_pc)
         if p.form == "log":
             above = target_p > self._floor
             if np.any(above):
                 grad_pd = self.target.gradients(x_pd[above])
-                f_pc[above, : p.dim] += (m * cs2 / target_p[above])[:, None] * grad_pd
+                f_ext_pc[above, : p.dim] = (m * cs2 / target_p[above])[:, None] * grad_pd
         elif p.form == "squares":
             grad_pd = self.target.gradients(x_pd)
-            f_pc[:, : p.dim] += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
+            f_ext_pc[:, : p.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
             phi_p, normal_pc = wall_p
             outside = phi_p > 0.0
-            f_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
+            f_ext_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
+        f_pc += f_ext_pc
         f_pc[:, p.dim:] = 0.0
-        return f_pc
+        f_ext_pc[:, p.dim:] = 0.0
+        return f_pc, f_ext_pc, virial
