@@ -421,12 +421,13 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
         with np.errstate(divide="ignore", invalid="ignore"):
             step = -g / dg
         newton_ok = np.isfinite(step) & (dg < 0.0)
-        # Newton moves H by at most a factor 2 (a particle with few neighbours has a tiny slope)
-        newton = np.clip(h + np.where(newton_ok, step, 0.0), 0.5 * h, 2.0 * h)
-        # Newton inside the bracket for the first iterations, then plain bisection (always converges)
-        bad = ~newton_ok | (newton < lo) | (newton > hi) | (iteration > NEWTON_ITERATIONS)
+        newton = h + np.where(newton_ok, step, 0.0)
+        # a Newton step by more than a factor 2 (a first neighbour just outside H gives dg ~ 0 and a huge
+        # step, past the growth cap) is replaced by doubling/halving or bisection
+        bad = ~newton_ok | (newton < lo) | (newton > hi) | (newton > 2.0 * h) | (newton < 0.5 * h)
         bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
-        h_new = np.where(bad, bisect, newton)
+        # Newton inside the bracket for the first iterations, then plain bisection (always converges)
+        h_new = np.where(bad | (iteration > NEWTON_ITERATIONS), bisect, newton)
         # converged: the Newton correction (or the bracket) is below tol; keep h, whose sums are known
         done = (g == 0.0) | (newton_ok & (np.abs(step) <= tol * h)) | (hi - lo <= tol * h)
         h_p[idx] = np.where(done, h, h_new)
