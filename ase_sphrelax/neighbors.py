@@ -386,6 +386,10 @@ class BinnedPoints:
         integer image, Cartesian shift, ghost flag and cut-off of each sorted extended point.
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
+    origin_c, bin_size : ndarray, float
+        Corner of bin (0, 0, 0) and the bin edge: point x is in bin ``floor((x - origin_c) / bin_size)``
+        (clamped to the grid), at the positions of the build. Other searches on the same bins
+        (particle-boundary queries, :mod:`ase_sphrelax.boundary`) use them.
     """
 
     def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
@@ -410,6 +414,8 @@ class BinnedPoints:
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, max(binsize, reach / m), nbin_c)
+        self.origin_c = lo_c  # bin (0, 0, 0) starts here; bins are cubes of edge bin_size
+        self.bin_size = float(max(binsize, reach / m))
         self.n_particles = n
         self.n_extended = n_ext
         self.order_s = order_s

