@@ -37,7 +37,7 @@ def test_density_eq46_delta_01_reaches_1e5(tmp_path):
 def test_density_small_2d_run(tmp_path):
     out = tmp_path / "disc"
     proc = _run("density", "--profile", "eq49", "--p", "2", "--dim", "2", "--n", "400", "--split", "1",
-                "--max-steps", "100", "--polish-steps", "100", "--out", str(out))
+                "--max-steps", "100", "--polish", "--polish-steps", "100", "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n"] == 400 and np.isfinite(summary["epsilon"]) and summary["epsilon_teo_min"] is None

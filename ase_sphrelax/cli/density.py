@@ -3,7 +3,8 @@
 Runs ALARIC's dynamics (isothermal SPH in the potential of the target, friction, viscosity,
 velocity stops) from N / p^K particles with K splitting stages (p = 3, 4, 5 in 1D, 2D, 3D; e.g.
 --n 303 --split 1 starts from 101 in 1D), then polishes with LBFGS on the least-squares
-potential. 1D runs on the periodic interval [-1, 1); 2D/3D in the unit disc/ball (or --domain).
+potential (1D; opt-in with --polish in 2D/3D, where it pairs particles). 1D runs on the periodic
+interval [-1, 1); 2D/3D in the unit disc/ball (or --domain).
 Writes relaxed.extxyz (masses, H and rho per particle), density.png, trace.json and summary.json
 (final epsilon of Eq. 45 under "epsilon", the Eq. 48 minimum where known, wall time) to --out.
 """
@@ -34,7 +35,11 @@ def add_arguments(parser):
                              "(circle, box, sphere, an edge file, an .stl mesh)")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
-    parser.add_argument("--no-polish", action="store_true", help="skip the LBFGS polish on the least-squares potential")
+    polish = parser.add_mutually_exclusive_group()
+    polish.add_argument("--polish", dest="polish", action="store_true", default=None,
+                        help="LBFGS polish on the least-squares potential after the dynamics (default in 1D only: "
+                             "in 2D/3D it lowers epsilon by pairing particles)")
+    polish.add_argument("--no-polish", dest="polish", action="store_false", help="no polish")
     parser.add_argument("--polish-steps", type=non_negative_int, default=4000,
                         help="LBFGS steps of the least-squares polish (4000)")
     parser.add_argument("--max-steps", type=positive(int), default=50000, help="step cap of the dynamics (50000)")
@@ -110,10 +115,11 @@ def run(args):
 
     from ..drivers.alaric_dynamics import relax_density
 
+    do_polish = (dim == 1 if args.polish is None else args.polish) and args.polish_steps > 0
     print(f"ALARIC: profile {args.profile} ({dim}D), {len(atoms)} particles x {p}^{args.split} -> {args.n}, "
-          f"form {args.form}{'' if args.no_polish else ' + least-squares polish'}")
+          f"form {args.form}{' + least-squares polish' if do_polish else ''}")
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
-                           origin=origin, form=args.form, polish=not args.no_polish and args.polish_steps > 0,
+                           origin=origin, form=args.form, polish=do_polish,
                            polish_steps=args.polish_steps, max_steps=args.max_steps,
                            eps_min=args.eps_min, progress=True, seed=args.seed)
     atoms = result["atoms"]
@@ -138,7 +144,7 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(result["trace"], indent=1))
     summary = dict(profile=args.profile, delta=args.delta if args.profile == "eq46" else None,
                    p=args.p if args.profile == "eq49" else None, dim=dim, n=len(atoms), splits=args.split,
-                   form=args.form, polish=not args.no_polish, epsilon=eps,
+                   form=args.form, polish=do_polish, epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),
                    stop_reason=result["stop_reason"], mass=float(calc.mass), wall_time_s=wall)
