@@ -204,3 +204,26 @@ def test_quasi_newton_optimisers_accept_steps_longer_than_one_length_unit():
     e0 = atoms.get_potential_energy()
     opt.run(fmax=0.0, steps=20)
     assert atoms.get_potential_energy() < e0
+
+
+def test_lean_run_loop_matches_ases_loop():
+    """FanRelaxation's own loop (one force request per step) gives ASE's trajectory, observer
+    calls and log lines."""
+    import io
+
+    from ase.optimize.optimize import Optimizer
+
+    runs = []
+    for lean in (True, False):
+        atoms = jittered_box()
+        log = io.StringIO()
+        opt = FanRelaxation(atoms, c=0.01, logfile=log)
+        calls = []
+        opt.attach(lambda: calls.append(opt.nsteps))
+        converged = opt.run(fmax=0.0, steps=7) if lean else Optimizer.run(opt, fmax=0.0, steps=7)
+        runs.append((atoms.positions.copy(), calls, len(log.getvalue().splitlines()), converged, opt.nsteps))
+    (r_lean, calls_lean, lines_lean, conv_lean, n_lean), (r_ase, calls_ase, lines_ase, conv_ase, n_ase) = runs
+    np.testing.assert_array_equal(r_lean, r_ase)
+    assert calls_lean == calls_ase == list(range(8))
+    assert lines_lean == lines_ase == 9  # header + steps 0..7
+    assert conv_lean == conv_ase and n_lean == n_ase == 7

@@ -10,6 +10,7 @@ _WHERE = {
     "OPTIMIZERS": ".optimizers",
     "ALARICDynamics": ".alaric_dynamics",
     "WVTRelaxation": ".wvt",
+    "limit_blas_in_steps": ".blas",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
