@@ -8,6 +8,7 @@ calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
@@ -25,6 +26,25 @@ def periodic_measure(cell, pbc, dim):
         return None
     vectors = np.asarray(cell, dtype=float)[:dim, :]
     return float(np.sqrt(abs(np.linalg.det(vectors @ vectors.T))))
+
+
+@numba.njit(cache=True)
+def _same_values(a, b):
+    """Exact equality of two arrays of one shape, without the temporary of ``a == b``."""
+    a = a.ravel()
+    b = b.ravel()
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+def _equal(a, b):
+    """``np.array_equal`` for the per-particle arrays of check_state: several calls per
+    optimiser step, where numpy's allocation and dispatch cost more than the compare."""
+    if a.shape != b.shape or a.dtype != b.dtype or not (a.flags.c_contiguous and b.flags.c_contiguous):
+        return np.array_equal(a, b)
+    return _same_values(a, b)
 
 
 class SPHCalculator(Calculator):
@@ -117,13 +137,15 @@ class SPHCalculator(Calculator):
         scan); the Verlet list is built from the second evaluation on, when it can be
         reused. ``dim`` is the result of :meth:`resolve_dim` (None: resolved here); the
         coordinates beyond it are zero and not periodic, or :meth:`resolve_dim` raised.
+
+        ``r_pc`` is ``atoms.positions`` itself when no coordinate needs zeroing (2D atoms at
+        z = 0, 3D): do not modify it in place.
         """
-        dim = self.resolve_dim(atoms) if dim is None else dim
-        r_pc = np.array(atoms.positions, dtype=float)
-        if not np.all(np.isfinite(r_pc)):
-            bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
-            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
-        r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
+        dim = self.resolve_dim(atoms) if dim is None else dim  # also: not empty, finite
+        r_pc = atoms.positions
+        if r_pc.dtype != np.float64 or (dim < 3 and r_pc[:, dim:].any()):
+            r_pc = np.array(r_pc, dtype=float)  # a copy: the caller's positions stay as they are
+            r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None or self.nlist.skin != skin:
@@ -162,15 +184,15 @@ class SPHCalculator(Calculator):
         if self.atoms is None or len(atoms) != len(self.atoms):
             return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
-        if not np.array_equal(atoms.positions, self.atoms.positions):
+        if not _equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
-        if not np.array_equal(atoms.numbers, self.atoms.numbers):
+        if not _equal(atoms.numbers, self.atoms.numbers):
             changes.append("numbers")
         if not np.array_equal(atoms.cell.array, self.atoms.cell.array):
             changes.append("cell")
         if not np.array_equal(atoms.pbc, self.atoms.pbc):
             changes.append("pbc")
-        if self.velocity_dependent and not np.array_equal(atoms.get_momenta(), self.atoms.get_momenta()):
+        if self.velocity_dependent and not _equal(atoms.get_momenta(), self.atoms.get_momenta()):
             changes.append("momenta")
         return changes
 

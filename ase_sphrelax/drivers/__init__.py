@@ -11,6 +11,9 @@ _WHERE = {
     "KeepInDomain": ".keep_inside",
     "NothingRelaxedWarning": ".optimizers",
     "SPHScaleWarning": ".optimizers",
+    "ALARICDynamics": ".alaric_dynamics",
+    "WVTRelaxation": ".wvt",
+    "limit_blas_in_steps": ".blas",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
