@@ -56,9 +56,15 @@ DIM_RULE = ("2D particles live at z = 0 with pbc (True, True, False) (1D: on the
             "or z that varies, is 3D")
 
 
-def _flat(values, scale):
-    """True when every value is 0 (to round-off of the coordinates' size ``scale``)."""
-    return not len(values) or float(np.abs(values).max()) <= 1e-12 * scale
+def _flat(values, r_pc):
+    """True when every value is 0, to round-off of the size of the coordinates ``r_pc``.
+
+    The common case (exact zeros) costs one pass over ``values`` and allocates nothing large.
+    """
+    if not len(values) or not np.count_nonzero(values):  # the fastest pass over a strided column
+        return True
+    scale = max(1.0, float(np.abs(r_pc).max()))
+    return float(np.abs(values).max()) <= 1e-12 * scale
 
 
 def resolve_dim(atoms, dim=None, domain=None, name="dim"):
@@ -114,18 +120,17 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
     r_pc = np.asarray(atoms.positions, dtype=float)
     pbc = np.asarray(atoms.pbc, dtype=bool)
     n = len(r_pc)
-    scale = max(1.0, float(np.abs(r_pc).max())) if n and np.all(np.isfinite(r_pc)) else 1.0
-    z_flat = _flat(r_pc[:, 2], scale) if n else True
     target = dim if dim is not None else domain_dim if domain_dim is not None else declared
+    z_flat = _flat(r_pc[:, 2], r_pc) if target != 3 or (n >= 2 and not pbc[2]) else False
     if target is None:  # infer from the geometry
-        z_equal = n == 0 or float(np.ptp(r_pc[:, 2])) <= 1e-12 * scale
+        z_equal = z_flat or float(np.ptp(r_pc[:, 2])) <= 1e-12 * max(1.0, float(np.abs(r_pc).max()))
         if pbc[2] or not z_equal:
             return 3
         if not z_flat:
             raise ValueError(f"atoms: every particle has z = {r_pc[0, 2]:.6g} and the cell is not periodic in z, "
                              f"so the dimension is ambiguous: 2D particles must lie at z = 0 (shift them: "
                              f"atoms.positions[:, 2] = 0), a flat 3D set needs {name}=3")
-        if pbc[1] or not _flat(r_pc[:, 1], scale):
+        if pbc[1] or not _flat(r_pc[:, 1], r_pc):
             return 2
         return 1
     if target < 3:
@@ -134,8 +139,8 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
             raise ValueError(f"a {target}D system cannot be periodic along {unused} (atoms.pbc = {pbc.tolist()}): "
                              f"set atoms.pbc[{target}:] = False, or pass {name}=3 for 3D atoms ({DIM_RULE})")
         for k in range(target, 3):
-            if not _flat(r_pc[:, k], scale):
-                bad = np.nonzero(np.abs(r_pc[:, k]) > 1e-12 * scale)[0]
+            if not (z_flat if k == 2 else _flat(r_pc[:, k], r_pc)):
+                bad = np.nonzero(np.abs(r_pc[:, k]) > 1e-12 * max(1.0, float(np.abs(r_pc).max())))[0]
                 raise ValueError(f"a {target}D system needs every particle at {'xyz'[k]} = 0, but {len(bad)} have "
                                  f"{'xyz'[k]} != 0 (e.g. particle {int(bad[0])} at {'xyz'[k]} = "
                                  f"{r_pc[bad[0], k]:.6g}): pass {name}=3 for 3D atoms, or put 2D particles at "

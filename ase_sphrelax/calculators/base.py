@@ -123,7 +123,7 @@ class SPHCalculator(Calculator):
         """
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
-        if not np.all(np.isfinite(atoms.positions)):
+        if not np.isfinite(atoms.positions).all():
             bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
         p = self.parameters
