@@ -51,6 +51,12 @@ def test_builders_declare_their_dimension():
     assert np.ptp(layer.positions[:, 2]) == 0 and resolve_dim(layer) == 3
 
 
+def test_fill_refuses_a_2d_origin_off_the_plane():
+    with pytest.raises(ValueError, match="origin: a 2D mesh lies at z = 0"):
+        fill(Circle((0, 0), 0.5), 0.1, origin=(0.0, 0.0, 0.3))
+    assert len(fill(Circle((0, 0), 0.5), 0.1, origin=(0.0, 0.0, 0.0))) == len(fill(Circle((0, 0), 0.5), 0.1))
+
+
 def test_fan_calculator_infers_the_dimension():
     """3D periodic atoms with the default: E as with dim=3 (was 4070 with F_z = 0); 2D as with dim=2."""
     a3 = periodic_box(6, dx=1.0, dim=3, jitter=0.2, seed=1)

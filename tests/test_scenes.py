@@ -44,7 +44,7 @@ def test_relaxing_each_builtin_scene_lowers_e_and_the_kernel_sum_errors(tmp_path
     args = ["relax", "--domain", name, "--dim", str(dim), "--optimizer", "lbfgs", "--steps", "100",
             "--out", str(tmp_path)] + ([] if dx is None else ["--dx", str(dx)])
     assert main(args) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((tmp_path / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"JSON has {c}"))
     before, after = summary["quality_before"], summary["quality_after"]
     assert summary["energy_after"] < summary["energy_before"]
     for key in ("kernel_sum_error_mean", "kernel_sum_error_max", "gradient_error_mean"):
