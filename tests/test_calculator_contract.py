@@ -110,3 +110,15 @@ def test_rejected_set_keeps_the_old_parameters(case):
         calc.set(**{name: -1.0})
     assert calc.parameters[name] != -1.0
     assert atoms.get_potential_energy() == before
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_results_can_be_written_to_an_ase_trajectory(case, tmp_path):
+    """Domains and callables among the parameters are written as their repr, not refused."""
+    from ase.io import read, write
+
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    energy = atoms.get_potential_energy()
+    write(tmp_path / "run.traj", atoms)
+    assert read(tmp_path / "run.traj").get_potential_energy() == pytest.approx(energy, rel=1e-15)

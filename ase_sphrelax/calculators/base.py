@@ -80,6 +80,25 @@ class SPHCalculator(Calculator):
         """The neighbour list of the last :meth:`prepare` (an alias of ``nlist``)."""
         return self.nlist
 
+    def todict(self, skip_default=True):
+        """Parameters for ASE's trajectory and JSON writers.
+
+        Values that are not plain data (a domain, a target density as a Python callable) are
+        written as their ``repr``: writing a ``.traj`` must not fail because of them.
+        """
+        import json
+
+        from ase.io.jsonio import MyEncoder
+
+        out = {}
+        for key, value in Calculator.todict(self, skip_default=skip_default).items():
+            try:
+                json.dumps(value, cls=MyEncoder)
+            except TypeError:
+                value = repr(value)
+            out[key] = value
+        return out
+
     def _check_keys(self, kwargs):
         unknown = set(kwargs) - set(self.default_parameters)
         if unknown:
