@@ -104,7 +104,9 @@ class CountingTarget:
                              f"{x_pc[np.argmax(bad)].tolist()}")
         return out
 
-    def _fd_score(self, x_pc):
+    def fd_score_or_nan(self, x_pc):
+        """Central differences of the log-density (2 d evaluations per point); NaN rows where
+        log p is -inf at a stencil point (zero density)."""
         m, d = x_pc.shape
         step_pc = self.fd_step * np.maximum(1.0, np.abs(x_pc))
         g_pc = np.empty_like(x_pc)
@@ -115,6 +117,11 @@ class CountingTarget:
             lp, lm = self.log_density(xp), self.log_density(xm)
             with np.errstate(invalid="ignore"):
                 g_pc[:, c] = (lp - lm) / (2.0 * step_pc[:, c])
+        g_pc[~np.all(np.isfinite(g_pc), axis=1)] = np.nan
+        return g_pc
+
+    def _fd_score(self, x_pc):
+        g_pc = self.fd_score_or_nan(x_pc)
         bad = ~np.all(np.isfinite(g_pc), axis=1)
         if np.any(bad):
             raise ValueError(f"score by finite differences of log_density is not finite at {int(bad.sum())} points "

@@ -1,0 +1,1 @@
+"""Array-level physics of the methods (any dimension), used by their calculators and drivers."""
