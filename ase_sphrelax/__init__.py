@@ -9,7 +9,8 @@ from .build import fill, periodic_box
 from .domains import Box, Circle, Difference, Intersection, Mesh, Polygon, Sphere, Union
 from .kernels import Kernel, get_kernel
 from .neighbors import NeighborList
+from .calculators.parvi import ParVICalculator; from .sampling.sampler import sample  # noqa: E702
 
 __version__ = "0.1.0"
 __all__ = ["FanCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "fill", "periodic_box",
-           "Box", "Circle", "Sphere", "Polygon", "Mesh", "Union", "Intersection", "Difference", "__version__"]
+           "ParVICalculator", "sample", "Box", "Circle", "Sphere", "Polygon", "Mesh", "Union", "Intersection", "Difference", "__version__"]

@@ -342,8 +342,10 @@ class ParVIModel:
         if self.adaptive:
             if self._h_p is None or self._h_p.shape[0] != m:
                 spread = np.sqrt(np.mean(np.var(r_pc, axis=0))) or 1.0
-                self._h_p = np.full(m, self.eta * spread * (unit_ball_volume(self.dim) * 4 ** (self.dim / 2) / m)
-                                    ** (1.0 / self.dim))
+                # twice the spacing of a uniform ball of radius 2 spread: a guess from above, where the
+                # Newton steps on H are safe (below, a first particle just outside H gives dg ~ 0 and a huge step)
+                self._h_p = np.full(m, 2.0 * self.eta * spread
+                                    * (unit_ball_volume(self.dim) * 2.0 ** self.dim / m) ** (1.0 / self.dim))
             nlist = self._neighbours(float(np.median(self._h_p)))
             try:
                 sums = sph.solve_smoothing_lengths(nlist, x, self._cell, self._pbc, mass, self.kernel, eta=self.eta,
