@@ -22,8 +22,7 @@ import numpy as np
 from ase.calculators.calculator import PropertyNotImplementedError, all_changes
 
 from ..checks import check_positive
-from ..models.parvi import ParVIModel
-from ..sampling.result import CountingTarget
+from ..models.parvi import CountingTarget, ParVIModel
 from .base import SPHCalculator
 
 __all__ = ["ParVICalculator"]
