@@ -437,7 +437,9 @@ class ParVIModel:
                                     * (unit_ball_volume(self.dim) * 2.0 ** self.dim / m) ** (1.0 / self.dim))
             nlist = self._neighbours(float(np.median(self._h_p)))
             try:
-                sums = sph.solve_smoothing_lengths(nlist, x, self._cell, self._pbc, mass, self.kernel, eta=self.eta,
+                # at most half the particles per support (a small M in many dimensions)
+                eta = self.eta if self.n_neighbours <= 0.5 * m else eta_for_neighbours(0.5 * m, self.dim)
+                sums = sph.solve_smoothing_lengths(nlist, x, self._cell, self._pbc, mass, self.kernel, eta=eta,
                                                    h0=self._h_p, tol=self.h_tol)
             except sph.SmoothingLengthError as exc:
                 raise ValueError(f"n_neighbours: {exc}") from None

@@ -114,7 +114,7 @@ def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record
     t0 = time.perf_counter()
     ell = median_length_scale(x, median_points, seed) if length_scale is None else float(length_scale)
     opt = Adam(lr)
-    trace = dict(step=[], samples=[])
+    trace = dict(step=[], samples=[], wall=[])
     for k in range(steps):
         phi = svgd_direction(x, target.score(x), ell)
         x = x + opt.update(-phi)
@@ -122,6 +122,7 @@ def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record
         if record_every and (k + 1) % record_every == 0:
             trace["step"].append(k + 1)
             trace["samples"].append(x.copy())
+            trace["wall"].append(time.perf_counter() - t0)
     return SampleResult(x, n_score=target.n_score, wall_time=time.perf_counter() - t0,
                         trace={k: np.array(v) for k, v in trace.items()},
                         info=dict(method="svgd", lr=lr, steps=steps, length_scale=ell))
@@ -134,12 +135,13 @@ def ula(score, x0, steps, step_size, seed=0, record_every=0):
     steps = _check_steps(steps)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    trace = dict(step=[], samples=[])
+    trace = dict(step=[], samples=[], wall=[])
     for k in range(steps):
         x = x + step_size * target.score(x) + np.sqrt(2.0 * step_size) * rng.standard_normal(x.shape)
         if record_every and (k + 1) % record_every == 0:
             trace["step"].append(k + 1)
             trace["samples"].append(x.copy())
+            trace["wall"].append(time.perf_counter() - t0)
     return SampleResult(x, n_score=target.n_score, wall_time=time.perf_counter() - t0,
                         trace={k: np.array(v) for k, v in trace.items()},
                         info=dict(method="ula", step_size=step_size, steps=steps))
@@ -154,7 +156,7 @@ def mala(log_density, score, x0, steps, step_size, seed=0, record_every=0):
     t0 = time.perf_counter()
     lp, g = target.log_density(x), target.score(x)
     accepted = 0
-    trace = dict(step=[], samples=[])
+    trace = dict(step=[], samples=[], wall=[])
     for k in range(steps):
         y = x + step_size * g + np.sqrt(2.0 * step_size) * rng.standard_normal(x.shape)
         lp_y, g_y = target.log_density(y), target.score(y)
@@ -170,6 +172,7 @@ def mala(log_density, score, x0, steps, step_size, seed=0, record_every=0):
         if record_every and (k + 1) % record_every == 0:
             trace["step"].append(k + 1)
             trace["samples"].append(x.copy())
+            trace["wall"].append(time.perf_counter() - t0)
     rate = accepted / max(steps * x.shape[0], 1)
     return SampleResult(x, n_density=target.n_density, n_score=target.n_score, wall_time=time.perf_counter() - t0,
                         trace={k: np.array(v) for k, v in trace.items()},
