@@ -35,7 +35,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .checks import check_skin
-from .neighbors import fold_thread_buffers
+from .neighbors import _check_cutoff, fold_thread_buffers
 
 __all__ = ["TreeNeighborList", "brute_force_pairs_nd"]
 
@@ -50,13 +50,6 @@ def _check_points(positions):
         bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
         raise ValueError(f"positions must be finite; points {bad[:10].tolist()} are NaN or inf")
     return r_pc
-
-
-def _check_cutoff(cutoff):
-    cutoff_arr = np.asarray(cutoff, dtype=float)
-    if cutoff_arr.ndim > 1 or cutoff_arr.size == 0 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
-        raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
-    return cutoff_arr
 
 
 @numba.njit(cache=True)

@@ -28,15 +28,15 @@ OUT = Path(__file__).resolve().parent.parent / "examples" / "results" / "parvi"
 
 # (label, formulation, eos, sampler options by dimension); rho0 given explicitly where it matters
 CASES = [
-    ("isothermal, alpha = c0^2 (default)", "force", "isothermal", {1: dict(steps=2000), 2: dict(steps=1500)}, {}),
-    ("isothermal, alpha = 2 c0^2", "force", "isothermal", {1: dict(steps=2000), 2: dict(steps=1500)},
+    ("isothermal, alpha = c0^2 (default)", "force", "isothermal", {1: dict(steps=3000), 2: dict(steps=1500)}, {}),
+    ("isothermal, alpha = 2 c0^2", "force", "isothermal", {1: dict(steps=3000), 2: dict(steps=1500)},
      dict(alpha=2.0, c0=1.0)),
     ("Tait gamma 7, rho0 = 1 (1D) / 0.5 (2D)", "force", "tait",
      {1: dict(h=0.05, friction=2.0, steps=6000), 2: dict(h=0.25, friction=2.0, steps=6000)}, dict(rho0=None)),
     ("pressure -alpha log(p + eps), isothermal", "pressure-log", "isothermal",
-     {1: dict(steps=2000), 2: dict(steps=1500)}, {}),
+     {1: dict(steps=3000), 2: dict(steps=1500)}, {}),
     ("pressure 1/(alpha (p + eps)), isothermal", "pressure-inverse", "isothermal",
-     {1: dict(steps=2000), 2: dict(steps=1500)}, {}),
+     {1: dict(steps=3000), 2: dict(steps=1500)}, {}),
 ]
 
 

@@ -86,6 +86,25 @@ def _check_x0(x0):
     return x0
 
 
+class _Recorder:
+    """Every ``every`` steps: the particles and the wall time since the start (``every`` 0: never)."""
+
+    def __init__(self, every):
+        self.every = every
+        self.t0 = time.perf_counter()
+        self.trace = dict(step=[], samples=[], wall=[])
+
+    def __call__(self, k, x):
+        if self.every and (k + 1) % self.every == 0:
+            self.trace["step"].append(k + 1)
+            self.trace["samples"].append(x.copy())
+            self.trace["wall"].append(time.perf_counter() - self.t0)
+
+    def result(self, x, info, **counts):
+        return SampleResult(x, wall_time=time.perf_counter() - self.t0, info=info,
+                            trace={k: np.array(v) for k, v in self.trace.items()}, **counts)
+
+
 def _check_steps(steps):
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
         raise ValueError(f"steps must be an integer >= 0, got {steps!r}")
@@ -111,21 +130,15 @@ def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record
     target = CountingTarget(score=score)
     x = _check_x0(x0)
     steps = _check_steps(steps)
-    t0 = time.perf_counter()
+    record = _Recorder(record_every)
     ell = median_length_scale(x, median_points, seed) if length_scale is None else float(length_scale)
     opt = Adam(lr)
-    trace = dict(step=[], samples=[], wall=[])
     for k in range(steps):
         phi = svgd_direction(x, target.score(x), ell)
         x = x + opt.update(-phi)
         ell = median_length_scale(x, median_points, seed)
-        if record_every and (k + 1) % record_every == 0:
-            trace["step"].append(k + 1)
-            trace["samples"].append(x.copy())
-            trace["wall"].append(time.perf_counter() - t0)
-    return SampleResult(x, n_score=target.n_score, wall_time=time.perf_counter() - t0,
-                        trace={k: np.array(v) for k, v in trace.items()},
-                        info=dict(method="svgd", lr=lr, steps=steps, length_scale=ell))
+        record(k, x)
+    return record.result(x, dict(method="svgd", lr=lr, steps=steps, length_scale=ell), n_score=target.n_score)
 
 
 def ula(score, x0, steps, step_size, seed=0, record_every=0):
@@ -134,17 +147,11 @@ def ula(score, x0, steps, step_size, seed=0, record_every=0):
     x = _check_x0(x0)
     steps = _check_steps(steps)
     rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
-    trace = dict(step=[], samples=[], wall=[])
+    record = _Recorder(record_every)
     for k in range(steps):
         x = x + step_size * target.score(x) + np.sqrt(2.0 * step_size) * rng.standard_normal(x.shape)
-        if record_every and (k + 1) % record_every == 0:
-            trace["step"].append(k + 1)
-            trace["samples"].append(x.copy())
-            trace["wall"].append(time.perf_counter() - t0)
-    return SampleResult(x, n_score=target.n_score, wall_time=time.perf_counter() - t0,
-                        trace={k: np.array(v) for k, v in trace.items()},
-                        info=dict(method="ula", step_size=step_size, steps=steps))
+        record(k, x)
+    return record.result(x, dict(method="ula", step_size=step_size, steps=steps), n_score=target.n_score)
 
 
 def mala(log_density, score, x0, steps, step_size, seed=0, record_every=0):
@@ -153,10 +160,9 @@ def mala(log_density, score, x0, steps, step_size, seed=0, record_every=0):
     x = _check_x0(x0)
     steps = _check_steps(steps)
     rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
+    record = _Recorder(record_every)
     lp, g = target.log_density(x), target.score(x)
     accepted = 0
-    trace = dict(step=[], samples=[], wall=[])
     for k in range(steps):
         y = x + step_size * g + np.sqrt(2.0 * step_size) * rng.standard_normal(x.shape)
         lp_y, g_y = target.log_density(y), target.score(y)
@@ -169,14 +175,10 @@ def mala(log_density, score, x0, steps, step_size, seed=0, record_every=0):
         lp = np.where(accept, lp_y, lp)
         g = np.where(accept[:, None], g_y, g)
         accepted += int(accept.sum())
-        if record_every and (k + 1) % record_every == 0:
-            trace["step"].append(k + 1)
-            trace["samples"].append(x.copy())
-            trace["wall"].append(time.perf_counter() - t0)
+        record(k, x)
     rate = accepted / max(steps * x.shape[0], 1)
-    return SampleResult(x, n_density=target.n_density, n_score=target.n_score, wall_time=time.perf_counter() - t0,
-                        trace={k: np.array(v) for k, v in trace.items()},
-                        info=dict(method="mala", step_size=step_size, steps=steps, acceptance=rate))
+    return record.result(x, dict(method="mala", step_size=step_size, steps=steps, acceptance=rate),
+                         n_density=target.n_density, n_score=target.n_score)
 
 
 def emcee_ensemble(log_density, x0, steps, seed=0):
