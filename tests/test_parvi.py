@@ -201,13 +201,17 @@ def test_bad_input_is_named_before_work():
     with pytest.raises(ValueError, match="give at least one"):
         ParVISampler()
     with pytest.raises(ValueError, match="score must return shape"):
-        ParVISampler(score=lambda x: x[:, :1], n=10, steps=1).run()
+        ParVISampler(score=lambda x: x[:, :1], n=40, steps=1).run()
     with pytest.raises(ValueError, match="score returned NaN"):
-        ParVISampler(score=lambda x: np.full_like(x, np.nan), n=10, steps=1).run()
+        ParVISampler(score=lambda x: np.full_like(x, np.nan), n=40, steps=1).run()
     with pytest.raises(ValueError, match="log_density returned NaN"):
-        ParVISampler(log_density=lambda x: np.full(len(x), np.nan), n=10, steps=1).run()
+        ParVISampler(log_density=lambda x: np.full(len(x), np.nan), n=40, steps=1).run()
     with pytest.raises(ValueError, match="x0 must have shape"):
-        ParVISampler(score=target.score, n=10, x0=np.zeros((9, 2)))
+        ParVISampler(score=target.score, n=40, x0=np.zeros((39, 2)))
+    with pytest.raises(ValueError, match="use at least 17 particles"):
+        ParVISampler(score=target.score, n=10, steps=1).run()  # 2D adaptive h needs > 8.4 neighbours
+    with pytest.raises(ValueError, match="10-D with 500 particles"):
+        ParVISampler(score=gaussian_target(np.zeros(10), np.eye(10)).score, dim=10, n=500, steps=1).run()
 
 
 def test_a_diverging_time_step_is_reported_with_the_step():

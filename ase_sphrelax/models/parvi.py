@@ -370,9 +370,8 @@ class ParVIModel:
         self.kernel = kernel_in_dim(kernel, self.dim)
         self.adaptive = isinstance(h, str)
         self.h = None if self.adaptive else float(h)
-        n_neighbours = (2.0 * 4.0**self.dim if self.dim <= 2 else 8.0 * self.dim + 20.0) if n_neighbours is None \
-            else check_positive("n_neighbours", n_neighbours)
-        self.n_neighbours = float(n_neighbours)
+        self.n_neighbours_given = check_positive("n_neighbours", n_neighbours, allow_none=True)
+        self.n_neighbours = self.n_neighbours_given or self.default_neighbours()
         self.eta = eta_for_neighbours(self.n_neighbours, self.dim)
         self.viscosity = viscosity
         self.viscosity_alpha = float(viscosity_alpha)
@@ -398,6 +397,31 @@ class ParVIModel:
         """True when the forces are minus the gradient of :attr:`ParVIEvaluation.energy`
         (score force, barotropic EOS, summation density, no viscosity at rest, no Eq. 8)."""
         return self.formulation == "force" and self.density == "summation" and self.regularisation == 0.0
+
+    def minimum_neighbours(self):
+        """The fewest neighbours an adaptive support can hold: ``eta^d > sigma f(0)`` (the particle's own
+        kernel weight), with a 20 % margin. In d dimensions a compact kernel puts its weight near the
+        centre of a ball whose volume sits near the rim: the bound grows fast (Wendland C2: 1.5 in 2D,
+        about 330 in 10-D, about 1e4 in 32-D)."""
+        return 1.2 * self.kernel.sigma * self.kernel.f0 * unit_ball_volume(self.dim)
+
+    def default_neighbours(self):
+        """Default ``n_neighbours``: 8 (1D), 32 (2D), 44 (3D); beyond, 8 d + 20 or twice the self-weight bound."""
+        if self.dim <= 3:
+            return {1: 8.0, 2: 32.0, 3: 44.0}[self.dim]
+        return max(8.0 * self.dim + 20.0, 2.0 * self.minimum_neighbours() / 1.2)
+
+    def _eta_for(self, m):
+        """eta for M particles: the default neighbour number is capped at M / 2 (small M); a number of
+        neighbours that M cannot hold, or below the self-weight bound, is an error."""
+        need = self.minimum_neighbours()
+        n = self.n_neighbours_given if self.n_neighbours_given is not None else min(self.n_neighbours, 0.5 * m)
+        if n > m - 1 or n < need:
+            raise ValueError(
+                f"n: adaptive h in {self.dim}-D with {m} particles cannot hold {n:.4g} neighbours per support "
+                f"(needs at least {need:.4g}, the kernel's self weight, and at most M - 1); use at least "
+                f"{int(2 * need) + 1} particles, a fixed h, or another n_neighbours")
+        return eta_for_neighbours(n, self.dim)
 
     def set_h(self, h):
         """Change the fixed support (annealing)."""
@@ -433,12 +457,11 @@ class ParVIModel:
                 spread = np.sqrt(np.mean(np.var(r_pc, axis=0))) or 1.0
                 # twice the spacing of a uniform ball of radius 2 spread: a guess from above, where the
                 # Newton steps on H are safe (below, a first particle just outside H gives dg ~ 0 and a huge step)
-                self._h_p = np.full(m, 2.0 * self.eta * spread
+                self._h_p = np.full(m, 2.0 * self._eta_for(m) * spread
                                     * (unit_ball_volume(self.dim) * 2.0 ** self.dim / m) ** (1.0 / self.dim))
             nlist = self._neighbours(float(np.median(self._h_p)))
             try:
-                # at most half the particles per support (a small M in many dimensions)
-                eta = self.eta if self.n_neighbours <= 0.5 * m else eta_for_neighbours(0.5 * m, self.dim)
+                eta = self._eta_for(m)
                 sums = sph.solve_smoothing_lengths(nlist, x, self._cell, self._pbc, mass, self.kernel, eta=eta,
                                                    h0=self._h_p, tol=self.h_tol)
             except sph.SmoothingLengthError as exc:
