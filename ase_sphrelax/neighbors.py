@@ -30,7 +30,7 @@ import numpy as np
 from .checks import check_skin
 from .parallel import PARALLEL_MIN, run_chunks
 
-__all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
+__all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
 
 
@@ -386,6 +386,10 @@ class BinnedPoints:
         integer image, Cartesian shift, ghost flag and cut-off of each sorted extended point.
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
+    origin_c, bin_size : ndarray, float
+        Corner of bin (0, 0, 0) and the bin edge: point x is in bin ``floor((x - origin_c) / bin_size)``
+        (clamped to the grid), at the positions of the build. Other searches on the same bins
+        (particle-boundary queries, :mod:`ase_sphrelax.boundary`) use them.
     """
 
     def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
@@ -410,6 +414,8 @@ class BinnedPoints:
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, max(binsize, reach / m), nbin_c)
+        self.origin_c = lo_c  # bin (0, 0, 0) starts here; bins are cubes of edge bin_size
+        self.bin_size = float(max(binsize, reach / m))
         self.n_particles = n
         self.n_extended = n_ext
         self.order_s = order_s
@@ -640,26 +646,3 @@ def _check_cutoff(cutoff):
     if cutoff_arr.ndim > 1 or cutoff_arr.size == 0 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
         raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
     return cutoff_arr
-
-
-def brute_force_pairs(positions, cell, pbc, cutoff):
-    """Reference O(N^2 * images) search for tests: set of (i, j, image) with r < cutoff.
-
-    Each unordered physical pair appears once, oriented so that i < j, or for
-    i == j with a lexicographically positive image.
-    """
-    r_pc = _check_positions(positions)
-    full_cell, inv_cell = complete_cell(cell, pbc)
-    pbc = np.asarray(pbc, dtype=bool)
-    width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
-    span = np.ptp(r_pc @ inv_cell, axis=0)
-    layers = [int(np.ceil(cutoff / width_c[c] + span[c])) + 1 if pbc[c] else 0 for c in range(3)]
-    pairs = {}
-    for shift in itertools.product(*[range(-l, l + 1) for l in layers]):
-        t_c = np.array(shift) @ full_cell
-        d_ppc = r_pc[None, :, :] + t_c - r_pc[:, None, :]
-        r_pp = np.linalg.norm(d_ppc, axis=2)
-        for i, j in zip(*np.nonzero(r_pp < cutoff)):
-            if i < j or (i == j and tuple(shift) > (0, 0, 0)):
-                pairs[(int(i), int(j), tuple(shift))] = r_pp[i, j]
-    return pairs

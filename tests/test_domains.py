@@ -381,3 +381,66 @@ def test_non_finite_positions_give_nan(stl_files):
         phi, n = dom.phi_and_normal([[np.nan, 0.0, 0.0], [0.1, 0.1, 0.1]])
         assert np.isnan(phi[0]) and np.all(np.isnan(n[0, : dom.dim]))
         assert np.all(np.isfinite(phi[1:])) and np.all(np.isfinite(n[1:]))
+
+
+# ---------------------------------------------------------------- public boundary elements
+def check_segments(seg, domain, dim_scale=1.0):
+    """Inward unit normals, closed loops, lengths and centroids consistent."""
+    assert np.allclose(np.linalg.norm(seg.normal_sc, axis=1), 1.0)
+    assert np.array_equal(seg.end_sc, seg.start_sc[seg.next_s])
+    np.testing.assert_allclose(seg.length_s, np.linalg.norm(seg.end_sc - seg.start_sc, axis=1))
+    np.testing.assert_allclose(seg.centroid_sc, 0.5 * (seg.start_sc + seg.end_sc))
+    eps = 1e-6 * dim_scale
+    assert np.all(domain.contains(seg.centroid_sc + eps * seg.normal_sc))
+    assert not np.any(domain.contains(seg.centroid_sc - eps * seg.normal_sc))
+    assert seg.area == pytest.approx(domain.volume, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["TrapezoidalTank", "Standford2DBunny", "AirFoilFluid"])
+def test_polygon_segments_public(name):
+    p = Polygon.from_edges(edges(name))
+    seg = p.segments
+    assert len(seg) == p.n_segments
+    check_segments(seg, p, dim_scale=float(np.ptp(np.concatenate(p.loops), axis=0).max()))
+
+
+def test_box_and_csg_segments():
+    box = Box([0, 0], [2, 1])
+    check_segments(box.segments, box)
+    wedge_hole = Polygon([np.array([[0.5, 0.2], [1.5, 0.2], [1.0, 0.8]])])
+    d = box - wedge_hole
+    seg = d.segments
+    assert len(seg.loops) == 2 and len(seg) == 7
+    check_segments(seg, d)
+    u = Box([0, 0], [1, 1]) | Box([0.5, 0.5], [2, 2])
+    check_segments(u.segments, u)
+
+
+def test_circle_has_no_segments_and_says_how():
+    c = Circle((0, 0), 1.0)
+    with pytest.raises(ValueError, match="to_polygon"):
+        c.segments
+    assert not hasattr(c, "segments")
+    with pytest.raises(ValueError, match="to_polygon"):
+        (Box([-2, -2], [2, 2]) - c).segments
+    p = c.to_polygon(64)
+    assert p.volume == pytest.approx(0.5 * 64 * math.sin(2 * math.pi / 64))
+    check_segments(p.segments, p)
+    with pytest.raises(ValueError, match="icosphere|to_mesh"):
+        Sphere((0, 0, 0), 1.0).triangles
+
+
+def test_mesh_triangles_public(stl_files):
+    d, ico = stl_files
+    for path in (d / "box.stl", d / "ico.stl"):
+        m = Mesh(path)
+        tri = m.triangles
+        assert tri.area_t.sum() == pytest.approx(m.trimesh.area)
+        np.testing.assert_allclose(np.linalg.norm(tri.normal_tc, axis=1), 1.0)
+        eps = 1e-7
+        assert np.all(m.contains(tri.centroid_tc + eps * tri.normal_tc))
+        assert not np.any(m.contains(tri.centroid_tc - eps * tri.normal_tc))
+    box3 = Box([0, 0, 0], [1, 2, 3]).triangles
+    assert len(box3) == 12 and box3.volume == pytest.approx(6.0)
+    s = Sphere((1, 0, 0), 0.5).to_mesh(2)
+    assert s.triangles.volume == pytest.approx(s.volume) and len(s.triangles) == 320

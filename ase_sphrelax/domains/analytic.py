@@ -12,6 +12,12 @@ from ..checks import check_positive
 from .base import Domain, check_vector
 
 
+def _check_count(name, value, minimum):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 class Ball(Domain):
     """Disc (2D) or ball (3D): ``phi = |r - center| - radius``.
 
@@ -38,6 +44,43 @@ class Ball(Domain):
     @property
     def bounds(self):
         return self.center - self.radius, self.center + self.radius
+
+    @property
+    def segments(self):
+        """Not available: a curved analytic domain has no segments (raises, saying how to get them)."""
+        from ..boundary.segments import NoSegmentsError, _no_segments_message
+
+        raise NoSegmentsError(_no_segments_message(self))
+
+    @property
+    def triangles(self):
+        """Not available: a curved analytic domain has no triangles (raises, saying how to get them)."""
+        from ..boundary import BoundaryTriangles
+
+        return BoundaryTriangles.from_domain(self)
+
+    def to_polygon(self, n_segments):
+        """The inscribed regular ``n_segments``-gon as a :class:`~ase_sphrelax.domains.Polygon` (2D only)."""
+        from .polygon import Polygon
+
+        if self.dim != 2:
+            raise ValueError(f"to_polygon is for 2D discs; this ball is {self.dim}D (use to_mesh)")
+        n = _check_count("n_segments", n_segments, 3)
+        angle = 2.0 * math.pi * np.arange(n) / n
+        return Polygon([self.center + self.radius * np.stack([np.cos(angle), np.sin(angle)], axis=1)])
+
+    def to_mesh(self, subdivisions=3):
+        """The inscribed icosphere (trimesh) as a :class:`~ase_sphrelax.domains.Mesh` (3D only)."""
+        import trimesh
+
+        from .mesh import Mesh
+
+        if self.dim != 3:
+            raise ValueError(f"to_mesh is for 3D balls; this one is {self.dim}D (use to_polygon)")
+        n = _check_count("subdivisions", subdivisions, 0)
+        ico = trimesh.creation.icosphere(subdivisions=n, radius=self.radius)
+        ico.apply_translation(self.center)
+        return Mesh(ico)
 
     @property
     def volume(self):
@@ -100,6 +143,20 @@ class Box(Domain):
     @property
     def bounds(self):
         return self.lo.copy(), self.hi.copy()
+
+    @property
+    def segments(self):
+        """2D: the four sides as :class:`~ase_sphrelax.boundary.BoundarySegments` (inward normals)."""
+        from ..boundary import BoundarySegments
+
+        return BoundarySegments.from_domain(self)
+
+    @property
+    def triangles(self):
+        """3D: the twelve triangles of the faces as :class:`~ase_sphrelax.boundary.BoundaryTriangles`."""
+        from ..boundary import BoundaryTriangles
+
+        return BoundaryTriangles.from_domain(self)
 
     @property
     def volume(self):

@@ -71,6 +71,14 @@ class _Binary(Domain):
             self._volume = float(geom.area) if geom is not None else smoothed_volume(self)
         return self._volume
 
+    @property
+    def segments(self):
+        """2D polygonal operands (Polygon, Box, CSG of those): the boundary of the result as
+        :class:`~ase_sphrelax.boundary.BoundarySegments` (shapely does the boolean)."""
+        from ..boundary import BoundarySegments
+
+        return BoundarySegments.from_domain(self)
+
     def __repr__(self):
         return f"{type(self).__name__}({self.a!r}, {self.b!r})"
 

@@ -279,6 +279,18 @@ class Mesh(SearchedDomain):
         b = np.asarray(self.trimesh.bounds, dtype=float)
         return b[0].copy(), b[1].copy()
 
+    _triangles = None
+
+    @property
+    def triangles(self):
+        """The surface as :class:`~ase_sphrelax.boundary.BoundaryTriangles`: vertices, unit inward
+        normals, areas and centroids of the triangles."""
+        if self._triangles is None:
+            from ..boundary import BoundaryTriangles
+
+            self._triangles = BoundaryTriangles.from_mesh(self)
+        return self._triangles
+
     @property
     def volume(self):
         """Enclosed volume (trimesh, exact for the triangulated surface)."""

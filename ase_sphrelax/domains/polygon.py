@@ -175,7 +175,8 @@ def _signed_area(v):
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
-def _clean_loop(loop, name, tol):
+def vertex_array(loop, name):
+    """``loop`` as a finite float array of shape (k, 2); errors name ``name``."""
     try:
         v = np.array(loop, dtype=float)
     except (TypeError, ValueError):
@@ -184,6 +185,11 @@ def _clean_loop(loop, name, tol):
         raise ValueError(f"{name} must have shape (k, 2), got {v.shape}")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{name} has non-finite vertices")
+    return v
+
+
+def _clean_loop(loop, name, tol):
+    v = vertex_array(loop, name)
     # drop repeated consecutive vertices and an explicit closing vertex
     keep = np.ones(len(v), bool)
     if len(v) > 1:
@@ -232,8 +238,35 @@ def _validate_loops(loops, names):
     return depth
 
 
-def _read_edges(path, tol):
-    """Read ``x1 y1 x2 y2`` lines and chain the segments into closed loops."""
+class EdgeLoop:
+    """One closed loop chained from an edge file.
+
+    Attributes
+    ----------
+    vertices : ndarray (k, 2)
+        Vertices in the order of the walk (the direction of the loop's first segment in the file).
+    segment_k : ndarray of int (k,)
+        File index (0-based line of data) of the segment from ``vertices[i]`` to ``vertices[i + 1]``.
+    forward_k : ndarray of bool (k,)
+        Whether that segment is written in the walk's direction in the file.
+    """
+
+    def __init__(self, vertices, segment_k, forward_k):
+        self.vertices = vertices
+        self.segment_k = segment_k
+        self.forward_k = forward_k
+
+
+def _segment_name(path, s):
+    return f"{path}: segment {s} (line {s + 1} of data)"
+
+
+def _read_edge_loops(path, tol, strict=False):
+    """Read ``x1 y1 x2 y2`` lines and chain the segments into closed loops (list of :class:`EdgeLoop`).
+
+    Errors name the file and the segment index. Zero-length segments are skipped, or with
+    ``strict`` rejected.
+    """
     from scipy.spatial import cKDTree
 
     try:
@@ -242,6 +275,9 @@ def _read_edges(path, tol):
         raise ValueError(f"path: cannot read edges from {path!r}: {err}") from None
     if e.ndim != 2 or e.shape[1] != 4 or len(e) < 3:
         raise ValueError(f"path: {path!r} must have >= 3 lines 'x1 y1 x2 y2', got shape {e.shape}")
+    if not np.all(np.isfinite(e)):
+        s = int(np.nonzero(~np.all(np.isfinite(e), axis=1))[0][0])
+        raise ValueError(f"path: {_segment_name(path, s)} has non-finite coordinates")
     a, b = e[:, :2], e[:, 2:]
     if tol is None:
         tol = 1e-9 * max(1.0, float(np.ptp(e.reshape(-1, 2), axis=0).max()))
@@ -256,6 +292,11 @@ def _read_edges(path, tol):
             vid[near] = n_v
             n_v += 1
     va, vb = vid[: len(e)], vid[len(e):]
+    zero = np.nonzero(va == vb)[0]
+    if strict and len(zero):
+        s = int(zero[0])
+        raise ValueError(f"path: {_segment_name(path, s)} has zero length (its end points coincide within "
+                         f"{tol:g}); {len(zero)} such segment(s)")
     adj = [[] for _ in range(n_v)]
     for s in range(len(e)):
         if va[s] == vb[s]:
@@ -267,23 +308,64 @@ def _read_edges(path, tol):
             idx = np.nonzero(vid == v)[0][0]
             x, y = pts[idx]
             what = "is not closed" if len(adj[v]) == 1 else "branches"
-            raise ValueError(f"path: the boundary {what} at ({x:.10g}, {y:.10g}): "
-                             f"{len(adj[v])} segment end(s) meet there (tolerance {tol:g})")
+            segs = ", ".join(str(s) for s in adj[v])
+            raise ValueError(f"path: the boundary {what} at ({x:.10g}, {y:.10g}): {len(adj[v])} segment end(s) "
+                             f"meet there (tolerance {tol:g}); {path}: segment(s) {segs} (0-based data lines)")
     used = np.zeros(len(e), bool)
     used[va == vb] = True
     loops = []
     for s0 in range(len(e)):
         if used[s0]:
             continue
-        verts = []
+        verts, segs, fwd = [], [], []
         s, v = s0, va[s0]  # walk in the direction of the first segment
         while not used[s]:
             used[s] = True
             verts.append(a[s] if va[s] == v else b[s])
+            segs.append(s)
+            fwd.append(va[s] == v)
             v = vb[s] if va[s] == v else va[s]
             s = adj[v][0] if adj[v][1] == s else adj[v][1]
-        loops.append(np.array(verts))
+        loops.append(EdgeLoop(np.array(verts), np.array(segs), np.array(fwd)))
     return loops
+
+
+def _read_edges(path, tol):
+    """Vertex loops of an edge file (see :func:`_read_edge_loops`)."""
+    return [loop.vertices for loop in _read_edge_loops(path, tol)]
+
+
+def first_crossing(loops):
+    """First pair of segments that cross or overlap, as ``((loop, k), (loop, k))``, or None.
+
+    ``loops`` are closed vertex loops; segment ``k`` of a loop runs from vertex k to k + 1.
+    Segments that only share their common end point (neighbours along a loop) do not count.
+    """
+    import shapely
+
+    lines, owner = [], []
+    for i, v in enumerate(loops):
+        w = np.roll(v, -1, axis=0)
+        lines += [shapely.LineString([p, q]) for p, q in zip(v, w)]
+        owner += [(i, k) for k in range(len(v))]
+    tree = shapely.STRtree(lines)
+    left, right = tree.query(lines, predicate="intersects")
+    hits = []
+    for x, y in zip(left, right):
+        if x >= y:
+            continue
+        (li, ki), (lj, kj) = owner[x], owner[y]
+        n = len(loops[li])
+        if li == lj and (kj - ki) % n in (1, n - 1):
+            # neighbours: fine if they meet only at the shared vertex
+            shared = loops[li][kj] if (kj - ki) % n == 1 else loops[li][ki]
+            inter = lines[x].intersection(lines[y])
+            if inter.geom_type == "Point" and np.allclose(inter.coords[0], shared, rtol=0, atol=0):
+                continue
+            if inter.geom_type == "Point" and inter.equals(shapely.Point(shared)):
+                continue
+        hits.append((owner[x], owner[y]))
+    return min(hits) if hits else None
 
 
 class Polygon(SearchedDomain):
@@ -413,6 +495,18 @@ class Polygon(SearchedDomain):
     @property
     def n_segments(self):
         return len(self._seg)
+
+    _segments = None
+
+    @property
+    def segments(self):
+        """The boundary as :class:`~ase_sphrelax.boundary.BoundarySegments`: end points, unit inward
+        normals, lengths and centroids of every loop's segments (holes included, inside on the left)."""
+        if self._segments is None:
+            from ..boundary import BoundarySegments
+
+            self._segments = BoundarySegments.from_polygon(self)
+        return self._segments
 
     @property
     def bounds(self):
