@@ -414,7 +414,9 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             step = -g / dg
         newton_ok = np.isfinite(step) & (dg < 0.0)
         newton = h + np.where(newton_ok, step, 0.0)
-        bad = ~newton_ok | (newton < lo) | (newton > hi)
+        # a Newton step by more than a factor 2 (a first neighbour just outside H gives dg ~ 0 and a huge
+        # step, past the growth cap) is replaced by doubling/halving or bisection
+        bad = ~newton_ok | (newton < lo) | (newton > hi) | (newton > 2.0 * h) | (newton < 0.5 * h)
         bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
         h_new = np.where(bad, bisect, newton)
         # converged: the Newton correction (or the bracket) is below tol; keep h, whose sums are known

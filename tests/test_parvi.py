@@ -238,6 +238,25 @@ def test_zero_density_far_away_keeps_particles_finite():
     assert np.mean(np.linalg.norm(res.samples, axis=1) < 3.0) > 0.95
 
 
+def test_adaptive_h_from_a_start_with_the_first_neighbour_just_outside():
+    """The H solve of ase_sphrelax.sph from a guess whose first neighbour sits at q = 1 - 1e-3: the Newton
+    slope is ~0 there and an unlimited step overshot the growth cap (fixed: steps beyond 2x are doubled)."""
+    from ase_sphrelax import sph
+    from ase_sphrelax.kernels import get_kernel
+    from ase_sphrelax.neighbors import NeighborList
+
+    rng = np.random.default_rng(0)
+    x = np.zeros((201, 3))
+    x[:200, :2] = 0.3 * rng.normal(size=(200, 2))
+    x[200, :2] = [3.0, 0.0]
+    h0 = np.full(201, 0.3)
+    h0[200] = 1.001 * np.linalg.norm(x[:200] - x[200], axis=1).min()
+    eta = np.sqrt(32 / np.pi)
+    sums = sph.solve_smoothing_lengths(NeighborList(0.3, skin=0.05), x, np.zeros((3, 3)), np.zeros(3, bool),
+                                       1 / 201, get_kernel("wendland_c2", 2), eta=eta, h0=h0)
+    np.testing.assert_allclose(sums.rho_p * sums.h_p**2 * 201, eta**2, rtol=1e-6)
+
+
 def test_all_particles_in_one_point():
     target = get_target("gaussian")
     res = ParVISampler(target.log_density, target.score, n=100, x0=np.zeros((100, 2)), h=0.5, steps=50).run()

@@ -118,6 +118,8 @@ class ParVISampler:
                                 viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
                                 regularisation=regularisation, density=density, diffusion=diffusion, eps=eps)
         self.dim, self.n, self.steps = int(dim), int(n), int(steps)
+        if self.model.adaptive:
+            self.model._eta_for(self.n)  # M too small for an adaptive support: an error before any work
         self.h_schedule = h_schedule
         self.h_start = None if isinstance(h, str) else float(h)
         self.h_end = check_positive("h_end", h_end, allow_none=True)
