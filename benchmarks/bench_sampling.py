@@ -65,8 +65,9 @@ def reference_samples(target, n, seed, out):
     if target.sample is not None:
         return target.sample(n, np.random.default_rng(10_000 + seed))
     path = out / f"reference_{target.name}.npy"
-    if path.exists():
-        return np.load(path)
+    for candidate in (path, OUT / path.name):  # one stored reference serves every output folder
+        if candidate.exists():
+            return np.load(candidate)
     x = nuts_reference(target, n)
     np.save(path, x)
     return x

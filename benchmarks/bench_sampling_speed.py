@@ -1,6 +1,6 @@
 """Time per step of SPH-ParVI (cell lists, O(M)) against SVGD (all pairs, O(M^2)) in 2D (issue 8, item 6).
 
-    .venv/bin/python benchmarks/bench_sampling_speed.py [--sizes 1e3 3e3 1e4 3e4 1e5] [--svgd-max 3e4]
+    .venv/bin/python benchmarks/bench_sampling_speed.py [--sizes 1e2 3e2 1e3 3e3 1e4 3e4 1e5] [--svgd-max 3e4]
 
 One step of each on M points of the 2D standard normal: SPH-ParVI's default (adaptive-h density solve,
 pressure and viscosity passes, score; the Verlet list reused as in a run) and SVGD's Stein direction
@@ -66,7 +66,7 @@ def fit(ms, ts):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", nargs="+", type=float, default=[1e3, 3e3, 1e4, 3e4, 1e5])
+    parser.add_argument("--sizes", nargs="+", type=float, default=[1e2, 3e2, 1e3, 3e3, 1e4, 3e4, 1e5])
     parser.add_argument("--svgd-max", type=float, default=3e4)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--out", type=Path, default=OUT)
@@ -90,9 +90,20 @@ def main(argv=None):
             r["svgd_extrapolated"] = float(np.exp(svgd_c) * r["m"] ** svgd_exp)
     # crossover: exp(svgd_c) M^a = exp(sph_c) M^b
     crossover = float(np.exp((sph_c - svgd_c) / (svgd_exp - sph_exp))) if svgd_exp != sph_exp else None
+    measured_crossover = None
+    for a, b in zip(measured, measured[1:]):
+        ra, rb = np.log(a["svgd"] / a["sph"]), np.log(b["svgd"] / b["sph"])
+        if ra <= 0 < rb:  # SVGD cheaper at a, dearer at b: interpolate log(ratio) linearly in log M
+            measured_crossover = float(np.exp(np.log(a["m"]) + (0 - ra) / (rb - ra) * np.log(b["m"] / a["m"])))
+    big = [r for r in rows if r["m"] >= 1000]
+    sph_exp_large = fit([r["m"] for r in big], [r["sph"] for r in big])[0] if len(big) > 1 else None
+    big_svgd = [r for r in measured if r["m"] >= 1000]
+    svgd_exp_large = fit([r["m"] for r in big_svgd], [r["svgd"] for r in big_svgd])[0] if len(big_svgd) > 1 else None
     result = dict(git=git_version(), load_average=load, rows=rows, sph_exponent=sph_exp, svgd_exponent=svgd_exp,
-                  crossover_m=crossover)
-    print(f"exponents: SPH-ParVI {sph_exp:.2f}, SVGD {svgd_exp:.2f}; crossover M = {crossover:.3g}")
+                  sph_exponent_m_ge_1000=sph_exp_large, svgd_exponent_m_ge_1000=svgd_exp_large,
+                  crossover_m_fit=crossover, crossover_m_measured=measured_crossover)
+    print(f"exponents (all M): SPH-ParVI {sph_exp:.2f}, SVGD {svgd_exp:.2f}; (M >= 1000): {sph_exp_large}, "
+          f"{svgd_exp_large}; crossover M from the fits {crossover:.3g}, from the measured ratios {measured_crossover}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1))
     print(f"wrote {args.out}")
