@@ -61,6 +61,18 @@ class ParVICalculator(SPHCalculator):
                                 nu=p.nu, regularisation=p.regularisation, eps=p.eps, mass=p.mass)
 
     @property
+    def nlist(self):
+        """The model's neighbour list (a cell list for d <= 3)."""
+        model = self.__dict__.get("model")
+        return None if model is None else model.nlist
+
+    @nlist.setter
+    def nlist(self, value):  # the base class resets it; the model owns the list
+        model = self.__dict__.get("model")
+        if model is not None:
+            model.nlist = value
+
+    @property
     def conservative(self):
         """True when the forces are minus the gradient of the reported energy."""
         return self.model.conservative
