@@ -169,6 +169,8 @@ def test_deterministic_for_a_seed_and_optimal_rule():
     c = ase_sphrelax.sample(seed=5, rule="optimal", **kwargs)
     k = int(np.argmax(c.trace["mean_density"]))
     assert c.info["chosen_step"] == c.trace["step"][k]
+    np.testing.assert_array_equal(c.samples, a.alternatives["optimal"])  # the same run, the other rule
+    np.testing.assert_array_equal(a.samples, c.alternatives["final"])
 
 
 def test_annealed_h_and_continuity_density_run():

@@ -28,6 +28,9 @@ class SampleResult:
         Per recorded step (``step``, and method-specific columns).
     info : dict
         Method, parameters and anything else worth reporting (e.g. the chosen step).
+    alternatives : dict of str to ndarray
+        The samples another selection rule would have returned from the same run (SPH-ParVI:
+        ``"final"`` and ``"optimal"``).
     """
 
     samples: np.ndarray
@@ -36,6 +39,7 @@ class SampleResult:
     wall_time: float = 0.0
     trace: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
+    alternatives: dict = field(default_factory=dict)
 
     @property
     def evaluations(self):

@@ -232,7 +232,7 @@ class ParVISampler:
                     optimal_step=best["step"], final_h_median=float(np.median(ev.h)))
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
-                            info=info)
+                            info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"])))
 
 
 def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
