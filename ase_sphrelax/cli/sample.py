@@ -16,7 +16,6 @@ over the target's contours; 1D: histogram and density; d > 2: pair marginals of 
 """
 from __future__ import annotations
 
-import argparse
 
 from .usage import UsageError, positive, usage_errors
 

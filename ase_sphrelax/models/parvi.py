@@ -30,7 +30,7 @@ a barotropic EOS the dynamics is damped motion in the energy
 
     ``E = sum_a m u(rho_a) - alpha sum_a m log p(x_a)``,  ``u'(rho) = P/rho^2``,
 
-whose continuum minimiser has ``h(rho) = alpha log p + const`` (``h`` the enthalpy): isothermal
+whose continuum minimiser has ``w(rho) = alpha log p + const`` (``w = int dP / rho`` the enthalpy): isothermal
 ``rho ∝ p^(alpha/c0^2)``, i.e. exactly p when ``alpha = c0^2``: that is the default.
 The pressure formulations are not gradient systems (and depend on the unknown normalising
 constant of p through P_ext); they are reported as non-conservative.
@@ -47,7 +47,6 @@ import math
 
 import numba
 import numpy as np
-
 from numba.extending import overload
 
 from .. import sph
@@ -57,7 +56,7 @@ from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 from ..tree_neighbors import TreeNeighborList
 
-__all__ = ["CountingTarget", "ParVIModel", "ParVIState", "kernel_in_dim", "FORMULATIONS", "EOS_NAMES", "VISCOSITIES",
+__all__ = ["CountingTarget", "ParVIModel", "ParVIEvaluation", "kernel_in_dim", "FORMULATIONS", "EOS_NAMES", "VISCOSITIES",
            "unit_ball_volume", "eta_for_neighbours"]
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
