@@ -56,7 +56,8 @@ class ParVICalculator(SPHCalculator):
         target = CountingTarget(p.log_density, p.score, p.dim)
         alpha = check_positive("alpha", p.alpha)
         self.model = ParVIModel(target, p.dim, formulation=p.formulation, eos=p.eos, alpha=alpha,
-                                c0=float(np.sqrt(alpha)) if p.c0 is None else p.c0, rho0=p.rho0, gamma=p.gamma, kernel=p.kernel, h=p.h,
+                                c0=float(np.sqrt(alpha)) if p.c0 is None else p.c0, rho0=p.rho0, gamma=p.gamma,
+                                kernel=p.kernel, h=p.h,
                                 n_neighbours=p.n_neighbours, viscosity=p.viscosity, viscosity_alpha=p.viscosity_alpha,
                                 nu=p.nu, regularisation=p.regularisation, eps=p.eps, mass=p.mass)
 

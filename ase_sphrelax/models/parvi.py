@@ -56,8 +56,8 @@ from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 from ..tree_neighbors import TreeNeighborList
 
-__all__ = ["CountingTarget", "ParVIModel", "ParVIEvaluation", "kernel_in_dim", "FORMULATIONS", "EOS_NAMES", "VISCOSITIES",
-           "unit_ball_volume", "eta_for_neighbours"]
+__all__ = ["CountingTarget", "ParVIModel", "ParVIEvaluation", "kernel_in_dim", "FORMULATIONS", "EOS_NAMES",
+           "VISCOSITIES", "unit_ball_volume", "eta_for_neighbours"]
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
 EOS_NAMES = ("isothermal", "tait")
