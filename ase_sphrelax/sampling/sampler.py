@@ -154,6 +154,24 @@ class ParVISampler:
             return self.x0.copy()
         return self.init_scale * np.random.default_rng(self.seed).standard_normal((self.n, self.dim))
 
+    def _separate_coincident(self, r):
+        """Coincident particles feel no pressure from each other (the kernel is flat at r = 0) and an
+        adaptive support has no solution for them: every copy after the first of a repeated position
+        is moved by a seeded N(0, (1e-3 s)^2) jitter, s the spread of the distinct points (or
+        ``init_scale``). Returns the particles and the number moved."""
+        _, first, inverse = np.unique(r, axis=0, return_index=True, return_inverse=True)
+        duplicate = np.ones(r.shape[0], dtype=bool)
+        duplicate[first] = False
+        if not duplicate.any():
+            return r, 0
+        distinct = r[first]
+        scale = float(np.sqrt(np.mean(np.var(distinct, axis=0)))) if len(distinct) > 1 else 0.0
+        scale = scale if scale > 0 else self.init_scale
+        rng = np.random.default_rng([int(self.seed) if isinstance(self.seed, (int, np.integer)) else 0, 7919])
+        r = r.copy()
+        r[duplicate] += 1e-3 * scale * rng.standard_normal((int(duplicate.sum()), r.shape[1]))
+        return r, int(duplicate.sum())
+
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
@@ -164,11 +182,13 @@ class ParVISampler:
 
         ``trace`` columns: ``step, time, dt, mean_density, kinetic, energy`` (NaN where the
         configuration is not conservative or p is not known), ``n_density, n_score, wall``.
-        ``info``: the parameters, ``rule``, ``chosen_step``, ``fallback`` (zero-density pulls).
+        ``info``: the parameters, ``rule``, ``chosen_step``, ``fallback`` (zero-density pulls),
+        ``jittered`` (coincident starting particles moved apart, see :meth:`_separate_coincident`).
         """
         t0 = time.perf_counter()
         model = self.model
         r = self.initial_particles()
+        r, jittered = self._separate_coincident(r)
         v = np.zeros_like(r)
         if self.h_schedule == "anneal":
             model.set_h(self._h_at(0))
@@ -228,7 +248,7 @@ class ParVISampler:
             bar.close()
         samples = r if self.rule == "final" else best["samples"]
         chosen = self.steps if self.rule == "final" else best["step"]
-        info = dict(self.parameters, method="sph-parvi", chosen_step=chosen, fallback=fallback,
+        info = dict(self.parameters, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
                     optimal_step=best["step"], final_h_median=float(np.median(ev.h)))
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
