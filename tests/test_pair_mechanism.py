@@ -15,6 +15,7 @@ from ase.calculators.calculator import all_changes
 from ase.calculators.fd import calculate_numerical_forces, calculate_numerical_stress
 
 from ase_sphrelax.calculators.base import SPHCalculator
+from ase_sphrelax.checks import check_positive
 from ase_sphrelax.neighbors import NeighborList
 from ase_sphrelax.pairs import Output, PairInteraction
 
@@ -48,6 +49,10 @@ class SoftSphereCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(k=1.0, gamma=0.0, dim=3, skin=0.1)
     velocity_dependent = True
+
+    def _validate_parameters(self):
+        super()._validate_parameters()
+        check_positive("k", self.parameters.k)
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
