@@ -35,21 +35,13 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .checks import check_skin
-from .neighbors import _check_cutoff, fold_thread_buffers
+from .neighbors import _check_cutoff, _check_positions, fold_thread_buffers
 
 __all__ = ["TreeNeighborList", "brute_force_pairs_nd"]
 
 
 def _check_points(positions):
-    r_pc = np.asarray(positions, dtype=float)
-    if r_pc.ndim != 2 or r_pc.shape[1] < 1:
-        raise ValueError(f"positions must have shape (M, D) with D >= 1, got {r_pc.shape}")
-    if r_pc.shape[0] == 0:
-        raise ValueError("positions: need at least one point, got none")
-    if not np.all(np.isfinite(r_pc)):
-        bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
-        raise ValueError(f"positions must be finite; points {bad[:10].tolist()} are NaN or inf")
-    return r_pc
+    return _check_positions(positions, columns=None)
 
 
 @numba.njit(cache=True)
