@@ -13,6 +13,7 @@ __version__ = "0.1.0"
 
 _WHERE = {
     "FanCalculator": ".calculators",
+    "ALARICCalculator": ".calculators.alaric",
     "FanRelaxation": ".drivers",
     "Kernel": ".kernels",
     "get_kernel": ".kernels",

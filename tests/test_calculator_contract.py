@@ -50,6 +50,15 @@ def parvi_2d():
     return calc, Atoms("H120", positions=positions, pbc=False), dict(alpha=1.5)
 
 
+def alaric_2d():
+    from ase_sphrelax import ALARICCalculator
+
+    def target(x):
+        return 1.0 + 0.5 * np.sin(x[:, 0] / 3.0)
+
+    return ALARICCalculator(target_density=target, dim=2), periodic_box(12, dx=1.0, jitter=0.25, seed=4), dict(cs2=2.0)
+
+
 def fan_lammps_bounded():
     """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
     import lammps_io
@@ -63,7 +72,7 @@ def fan_lammps_bounded():
 
 
 CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
-         "fan lammps bounded": fan_lammps_bounded, "parvi 2D": parvi_2d}
+         "fan lammps bounded": fan_lammps_bounded, "alaric 2D": alaric_2d, "parvi 2D": parvi_2d}
 
 
 def _evaluate(calc, atoms):

@@ -1,4 +1,5 @@
 """ASE calculators, one module per method."""
 from .fan import FanCalculator
+from .alaric import ALARICCalculator
 
-__all__ = ["FanCalculator"]
+__all__ = ["FanCalculator", "ALARICCalculator"]

@@ -39,6 +39,7 @@ COMMANDS = {
     "lattice": "ase_sphrelax.cli.lattice",
     "table": "ase_sphrelax.cli.table",
     "sample": "ase_sphrelax.cli.sample",
+    "density": "ase_sphrelax.cli.density",
 }
 
 #: built-in methods per command (``sphrelax COMMAND --method NAME``)

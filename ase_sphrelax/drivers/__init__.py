@@ -8,6 +8,9 @@ _WHERE = {
     "FanRelaxation": ".fan_relaxation",
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
+    "ALARICDynamics": ".alaric_dynamics",
+    "WVTRelaxation": ".wvt",
+    "limit_blas_in_steps": ".blas",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
