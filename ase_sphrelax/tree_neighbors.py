@@ -172,7 +172,7 @@ class TreeNeighborList:
         self.order_s = order_s
         self._x_buffer = np.empty_like(r_pc)
         self._gather_buffers = {}
-        self._identity = np.arange(n, dtype=np.int64)
+        self._is_ghost_s = np.zeros(n, dtype=np.bool_)
         self._no_ghosts = np.empty(0, dtype=np.int64)
         self._r0_pc = r_pc.copy()
         self._cut_build = cut_p
@@ -208,8 +208,8 @@ class TreeNeighborList:
 
     def fold_threads(self, bufs):
         """Per-point sums (M, k) of per-thread buffers (T, M, k) on sorted points, for each buffer."""
-        # order_s[s] is the point at sorted position s, every point is an "original" (no ghosts)
-        return fold_thread_buffers(bufs, self.order_s, self._no_ghosts, self._identity, self.n_particles)
+        # order_s[s] is the point at sorted position s; every point is an original (no ghosts)
+        return fold_thread_buffers(bufs, self.order_s, self._is_ghost_s, self._no_ghosts, self.n_particles)
 
     def loop_arrays(self):
         """("list", (pair_start, pair_j)) for :class:`~ase_sphrelax.pairs.PairInteraction`."""
