@@ -75,6 +75,6 @@ def test_bad_input_is_one_line(tmp_path, capsys, args, message):
 
 
 def test_bad_numbers_are_rejected_while_parsing(tmp_path):
-    for args in (["--n", "-3"], ["--alpha", "0"], ["--h", "abc"]):
+    for args in (["--n", "-3"], ["--alpha", "0"], ["--support", "abc"]):
         with pytest.raises(SystemExit):
             main(["sample", "--target", "gaussian", "--out", str(tmp_path)] + args)

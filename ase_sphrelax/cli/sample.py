@@ -36,16 +36,24 @@ def add_arguments(parser):
     parser.add_argument("--score", default=None, help="module:function, the score of a module:function target")
     parser.add_argument("--n", type=positive(int), default=500, help="number of particles (default 500)")
     parser.add_argument("--dim", type=positive(int), default=None, help="dimension (built-in targets: their own)")
-    parser.add_argument("--formulation", choices=FORMULATIONS, default="force")
-    parser.add_argument("--eos", choices=EOS, default="isothermal")
+    parser.add_argument("--formulation", choices=FORMULATIONS, default="force",
+                        help="force: body force along the score (Algorithm 2, default); pressure-log / "
+                             "pressure-inverse: external pressure -alpha log p or 1/(alpha p) (Algorithm 1)")
+    parser.add_argument("--eos", choices=EOS, default="isothermal",
+                        help="isothermal P = c0^2 rho (default: its stationary density is the target when "
+                             "alpha = c0^2) or tait")
     parser.add_argument("--alpha", type=positive(float), default=1.0, help="target amplification (default 1)")
     parser.add_argument("--c0", type=positive(float), default=None, help="sound speed (default sqrt(alpha))")
-    parser.add_argument("--h", type=_h, default="adaptive", help="kernel support, or 'adaptive' (default)")
+    parser.add_argument("--support", type=_h, default="adaptive",
+                        help="kernel support radius h as a length (not in units of dx, as relax's --h), or "
+                             "'adaptive' (default: per-particle H from the density)")
     parser.add_argument("--steps", type=positive(int), default=600, help="time steps (default 600)")
     parser.add_argument("--friction", type=float, default=1.0, help="drag coefficient (default 1)")
-    parser.add_argument("--rule", choices=("final", "optimal"), default="final")
+    parser.add_argument("--rule", choices=("final", "optimal"), default="final",
+                        help="which state to return: final (default) or the paper's optimal state (maximum mean "
+                             "density; measured 7-400x worse, see examples/results/parvi)")
     parser.add_argument("--init-scale", type=positive(float), default=1.0, help="sd of the initial N(0, s^2 I)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the initial particles (default 0)")
     parser.add_argument("--out", default="sample_out", help="output folder (default sample_out)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -136,7 +144,7 @@ def run(args):
         if args.friction < 0:
             raise UsageError(f"--friction must be >= 0, got {args.friction}")
         sampler = ParVISampler(log_density=log_density, score=score, dim=dim, n=args.n, formulation=args.formulation,
-                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.h, steps=args.steps,
+                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support, steps=args.steps,
                                friction=args.friction, rule=args.rule, init_scale=args.init_scale, seed=args.seed,
                                progress=not args.no_progress)
         out = Path(args.out)
