@@ -2,14 +2,31 @@
 
 Methods: Fan et al. (total error, Eq. 3.8) as :class:`FanCalculator` with the
 Eq. 2.4 driver :class:`FanRelaxation`.
+
+The names below are imported on first use, so that ``import ase_sphrelax`` (and
+``sphrelax --help``) loads no numba: to export a name, add one line to ``_WHERE``
+(name -> defining module), never an eager import (``tests/test_cli.py`` checks).
 """
-from .calculators import FanCalculator
-from .drivers import FanRelaxation
-from .build import fill, periodic_box
-from .domains import Box, Circle, Difference, Intersection, Mesh, Polygon, Sphere, Union
-from .kernels import Kernel, get_kernel
-from .neighbors import NeighborList
+from ._lazy import lazy_exports
 
 __version__ = "0.1.0"
-__all__ = ["FanCalculator", "FanRelaxation", "Kernel", "get_kernel", "NeighborList", "fill", "periodic_box",
-           "Box", "Circle", "Sphere", "Polygon", "Mesh", "Union", "Intersection", "Difference", "__version__"]
+
+_WHERE = {
+    "FanCalculator": ".calculators",
+    "FanRelaxation": ".drivers",
+    "Kernel": ".kernels",
+    "get_kernel": ".kernels",
+    "NeighborList": ".neighbors",
+    "fill": ".build",
+    "periodic_box": ".build",
+    "Box": ".domains",
+    "Circle": ".domains",
+    "Sphere": ".domains",
+    "Polygon": ".domains",
+    "Mesh": ".domains",
+    "Union": ".domains",
+    "Intersection": ".domains",
+    "Difference": ".domains",
+}
+__all__ = list(_WHERE) + ["__version__"]
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

@@ -25,10 +25,14 @@ def check_positive(name, value, allow_none=False):
     return float(value)
 
 
-def check_dim(dim):
-    """Return ``dim`` as an int in {1, 2, 3}; ValueError naming ``dim`` otherwise."""
-    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
-        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
+def check_dim(dim, allowed=(1, 2, 3)):
+    """Return ``dim`` as an int in ``allowed`` (default {1, 2, 3}); ValueError naming ``dim`` otherwise.
+
+    ``allowed=(2, 3)`` is the lattice theory's variant (no 1D lattices of patterns).
+    """
+    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in allowed:
+        names = ", ".join(map(str, allowed[:-1])) + f" or {allowed[-1]}" if len(allowed) > 1 else str(allowed[0])
+        raise ValueError(f"dim must be {names}, got {dim!r}")
     return int(dim)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from .checks import check_skin
 from .parallel import PARALLEL_MIN, run_chunks
 
-__all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "brute_force_pairs", "complete_cell", "is_canonical_pair", "bin_coords",
+__all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
 
 
@@ -646,26 +646,3 @@ def _check_cutoff(cutoff):
     if cutoff_arr.ndim > 1 or cutoff_arr.size == 0 or not np.all(np.isfinite(cutoff_arr)) or np.any(cutoff_arr <= 0):
         raise ValueError(f"cutoff must be a positive finite number or 1D array of them, got {cutoff!r}")
     return cutoff_arr
-
-
-def brute_force_pairs(positions, cell, pbc, cutoff):
-    """Reference O(N^2 * images) search for tests: set of (i, j, image) with r < cutoff.
-
-    Each unordered physical pair appears once, oriented so that i < j, or for
-    i == j with a lexicographically positive image.
-    """
-    r_pc = _check_positions(positions)
-    full_cell, inv_cell = complete_cell(cell, pbc)
-    pbc = np.asarray(pbc, dtype=bool)
-    width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
-    span = np.ptp(r_pc @ inv_cell, axis=0)
-    layers = [int(np.ceil(cutoff / width_c[c] + span[c])) + 1 if pbc[c] else 0 for c in range(3)]
-    pairs = {}
-    for shift in itertools.product(*[range(-l, l + 1) for l in layers]):
-        t_c = np.array(shift) @ full_cell
-        d_ppc = r_pc[None, :, :] + t_c - r_pc[:, None, :]
-        r_pp = np.linalg.norm(d_ppc, axis=2)
-        for i, j in zip(*np.nonzero(r_pp < cutoff)):
-            if i < j or (i == j and tuple(shift) > (0, 0, 0)):
-                pairs[(int(i), int(j), tuple(shift))] = r_pp[i, j]
-    return pairs

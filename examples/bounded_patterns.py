@@ -21,7 +21,7 @@ import time
 from ase.io import read
 
 from ase_sphrelax.analysis.bounded import classify_bounded_pattern, plot_bounded_pattern, relax_circle
-from ase_sphrelax.analysis.lattice import predict_pattern
+from ase_sphrelax.analysis import predict_pattern
 
 CASES = (2.25, 2.75, 3.3, 2.0, 2.05, 2.15)
 

@@ -14,7 +14,7 @@ constant area/volume) identified by spglib. The same tables come from the CLI:
 import argparse
 import os
 
-from ase_sphrelax.analysis.lattice import characteristic_volume, predict_pattern
+from ase_sphrelax.analysis import characteristic_volume, predict_pattern
 from ase_sphrelax.analysis.patterns import relax_lattice, write_table
 from ase_sphrelax.analysis.symmetry import classify_lattice, pattern_name_3d
 

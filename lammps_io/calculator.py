@@ -1,9 +1,11 @@
 """ASE calculator evaluating Fan's total error (Eq. 3.8) with LAMMPS.
 
-The pair part runs in LAMMPS (``pair_style lepton`` or ``table``, see
-:mod:`lammps_io.potential`); the constant self term ``N v0 vt W(0) - V`` and,
-for a bounded ``domain``, the level-set boundary term (Eq. 3.8 last term,
-force Eq. 4.4) are added in numpy.
+The model (volumes, self term, boundary term, stress correction) is
+:class:`ase_sphrelax.models.fan.FanModel`, the one :class:`~ase_sphrelax.FanCalculator`
+uses: both backends accept the same parameters and raise the same errors. The pair part
+runs in LAMMPS (``pair_style lepton`` or ``table``, see :mod:`lammps_io.potential`); the
+constant self term ``N v0 vt W(0) - V`` and, for a bounded ``domain``, the level-set
+boundary term (Eq. 3.8 last term, force Eq. 4.4) are added in numpy.
 """
 from __future__ import annotations
 
@@ -12,12 +14,14 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from ase.calculators.calculator import Calculator, all_changes
+from ase.calculators.calculator import all_changes
 
-from ._library import import_lammps, new_lammps
-from .boundary import boundary_energy_forces
+from ase_sphrelax.calculators.base import SPHCalculator, periodic_measure
+from ase_sphrelax.models.fan import FanModel, verlet_skin
+
+from ._library import check_threads, import_lammps, new_lammps
 from .box import lammps_box
-from .potential import PAIR_STYLES, fan_self_energy, pair_commands
+from .potential import check_pair_style, check_table_points, pair_commands
 
 __all__ = ["FanLammpsCalculator", "fan_calculator"]
 
@@ -28,22 +32,29 @@ def _gather(lmp, name, n):
     return np.frombuffer(data, dtype=np.float64, count=3 * n).reshape(n, 3).copy()
 
 
-class FanLammpsCalculator(Calculator):
+class FanLammpsCalculator(SPHCalculator):
     """Fan's total error E (Eq. 3.8), forces (Eq. 3.17/4.4) and stress from LAMMPS.
+
+    Parameters are kept in ``self.parameters`` (ASE convention) and validated like
+    :class:`~ase_sphrelax.FanCalculator`'s; ``set()`` with a change discards the results
+    and the LAMMPS instance, which the next evaluation rebuilds.
 
     Parameters
     ----------
     h : float
         Kernel support radius.
     dx : float or None
-        Particle spacing: v0 = vt = dx^dim.  None (periodic only): v0 = vt = V/N.
+        Particle spacing: v0 = vt = dx^dim. None: v0 = vt = V/N, V the domain volume
+        or the periodic cell measure (:meth:`ase_sphrelax.models.fan.FanModel.volumes`).
     dim : {1, 2, 3}
     style : {"lepton", "table"}
-        Exact expression or a spline table of ``n_table`` points.
-    domain : object or None
+        Exact expression or a spline table of ``n_table`` points (piecewise kernels need ``"table"``).
+    domain : Domain or None
         Bounded domain with ``phi_and_normal`` and ``volume``; adds the boundary term.
     kernel : str
-        Kernel name for :func:`ase_sphrelax.kernels.get_kernel`.
+        Kernel name (:data:`ase_sphrelax.kernels.KERNEL_NAMES`).
+    n_table : int
+        Points of the ``table`` style (>= 2).
     nthreads : int
         OpenMP threads in LAMMPS (OPENMP package).
     skin : float or None
@@ -55,66 +66,38 @@ class FanLammpsCalculator(Calculator):
     """
 
     implemented_properties = ["energy", "free_energy", "forces", "stress"]
-    _keys = ("h", "dx", "dim", "style", "domain", "kernel", "n_table", "nthreads", "skin", "reuse_neighbors")
+    default_parameters = dict(h=None, dx=None, domain=None, dim=2, kernel="wendland_c2", skin=None, style="lepton",
+                              n_table=20000, nthreads=1, reuse_neighbors=False)
 
-    def __init__(self, h, dx=None, dim=2, style="lepton", domain=None, kernel="wendland_c2", n_table=20000,
+    def __init__(self, h=None, dx=None, dim=2, style="lepton", domain=None, kernel="wendland_c2", n_table=20000,
                  nthreads=1, skin=None, reuse_neighbors=False, **kwargs):
-        unknown = set(kwargs) - {"label", "atoms", "directory"}
-        if unknown:
-            raise TypeError(f"unknown keyword(s) {sorted(unknown)}; accepted: {self._keys}")
-        if not (np.isscalar(h) and h > 0):
-            raise ValueError(f"h must be a positive float, got {h!r}")
-        if dx is not None and not (np.isscalar(dx) and dx > 0):
-            raise ValueError(f"dx must be a positive float or None, got {dx!r}")
-        if dim not in (1, 2, 3):
-            raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
-        if style not in PAIR_STYLES:
-            raise ValueError(f"style must be one of {PAIR_STYLES}, got {style!r}")
-        if domain is not None and not hasattr(domain, "phi_and_normal"):
-            raise TypeError("domain must provide phi_and_normal(r_pc) and volume")
-        if not (isinstance(nthreads, (int, np.integer)) and nthreads >= 1):
-            raise ValueError(f"nthreads must be an integer >= 1, got {nthreads!r}")
-        import_lammps()  # fail early with the install hint
-        Calculator.__init__(self, **kwargs)
-        self.h = float(h)
-        self.dx = None if dx is None else float(dx)
-        self.dim = int(dim)
-        self.style = style
-        self.domain = domain
-        self.kernel = kernel
-        self.n_table = int(n_table)
-        self.nthreads = int(nthreads)
-        self.skin = 0.1 * self.h if skin is None else float(skin)
-        self.reuse_neighbors = bool(reuse_neighbors)
         self._lmp = None
         self._key = None
         self._tmp = None
+        super().__init__(h=h, dx=dx, domain=domain, dim=dim, kernel=kernel, skin=skin, style=style,
+                         n_table=n_table, nthreads=nthreads, reuse_neighbors=reuse_neighbors, **kwargs)
+        import_lammps()  # fail early with the install hint
+
+    def _validate_parameters(self):
+        super()._validate_parameters()
+        p = self.parameters
+        self.model = FanModel.from_parameters(p)
+        self.skin = verlet_skin(p.skin, self.model.h)  # None: 0.1 h of the current h
+        check_pair_style(p.style, self.model.kernel, self.model.dim)
+        p.n_table = check_table_points(p.n_table)
+        p.nthreads = check_threads(p.nthreads)
+        if not isinstance(p.reuse_neighbors, (bool, np.bool_)):
+            raise ValueError(f"reuse_neighbors must be True or False, got {p.reuse_neighbors!r}")
+        p.reuse_neighbors = bool(p.reuse_neighbors)
 
     def set(self, **kwargs):
-        unknown = set(kwargs) - set(self._keys)
-        if unknown:
-            raise TypeError(f"unknown keyword(s) {sorted(unknown)}; accepted: {self._keys}")
-        return Calculator.set(self, **kwargs)
+        """Change parameters; any change discards the results and the LAMMPS instance."""
+        changed = super().set(**kwargs)
+        if changed:
+            self.close()
+        return changed
 
     # -- LAMMPS instance -------------------------------------------------------
-    def _volumes(self, atoms):
-        n = len(atoms)
-        periodic = all(atoms.pbc[: self.dim])
-        measure = abs(float(np.linalg.det(atoms.cell[: self.dim, : self.dim]))) if periodic else None
-        if self.dx is None:
-            if not periodic:
-                raise ValueError("dx=None needs a periodic cell (v0 = vt = V/N)")
-            v0 = measure / n
-        else:
-            v0 = self.dx**self.dim
-        if self.domain is not None:
-            volume = float(self.domain.volume)
-        elif periodic:
-            volume = measure
-        else:
-            volume = n * v0
-        return v0, volume, periodic
-
     def close(self):
         if self._lmp is not None:
             self._lmp.close()
@@ -127,12 +110,14 @@ class FanLammpsCalculator(Calculator):
         except Exception:  # noqa: BLE001
             pass
 
-    def _build(self, atoms, box, v0):
+    def _build(self, box, v0):
         self.close()
-        lmp = new_lammps(nthreads=self.nthreads)
+        p = self.parameters
+        model = self.model
+        lmp = new_lammps(nthreads=p.nthreads)
         if self._tmp is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="lammps_io_")
-        boundary = " ".join("p" if p else "m" for p in box.pbc)
+        boundary = " ".join("p" if periodic else "m" for periodic in box.pbc)
         cmds = [
             "units lj",
             f"dimension {box.lammps_dimension}",
@@ -144,11 +129,10 @@ class FanLammpsCalculator(Calculator):
             "mass 1 1.0",
         ]
         lmp.commands_list(cmds)
-        n = len(atoms)
+        n = len(box.r_pc)
         lmp.create_atoms(n, list(range(1, n + 1)), [1] * n, box.r_pc.ravel().tolist())
-        dxv = self.dx if self.dx is not None else v0 ** (1.0 / self.dim)
-        cmds = pair_commands(self.h, dxv, self.dim, style=self.style, kernel=self.kernel,
-                             table_path=Path(self._tmp.name) / "fan.table", n_table=self.n_table, v0=v0, vt=v0)
+        cmds = pair_commands(model.h, model.dx, model.dim, style=p.style, kernel=model.kernel,
+                             table_path=Path(self._tmp.name) / "fan.table", n_table=p.n_table, v0=v0)
         cmds += [
             f"neighbor {self.skin:.17g} bin",
             "neigh_modify every 1 delay 0 check yes",
@@ -162,20 +146,11 @@ class FanLammpsCalculator(Calculator):
         lmp.commands_list(cmds)
         self._lmp = lmp
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        Calculator.calculate(self, atoms, properties, system_changes)
-        atoms = self.atoms
-        n = len(atoms)
-        box = lammps_box(atoms, dim=self.dim, margin=self.h)
-        v0, volume, periodic = self._volumes(atoms)
-        key = (n, tuple(atoms.pbc), atoms.cell[:].tobytes(), v0, box.lo_c.tobytes() if periodic else None)
-        rebuilt = False
-        if self._lmp is None or key != self._key:
-            self._build(atoms, box, v0)
-            self._key = key
-            rebuilt = True
+    def _run(self, box, n, rebuilt, periodic):
+        """Move the atoms to ``box.r_pc`` and evaluate: ``run 0`` (full set-up) or, reusing
+        neighbours, one ``fix nve/noforce`` step."""
         lmp = self._lmp
-        if rebuilt or not self.reuse_neighbors:
+        if rebuilt or not self.parameters.reuse_neighbors:
             if not rebuilt:
                 x = np.ascontiguousarray(box.r_pc.ravel())
                 lmp.scatter_atoms("x", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(x))
@@ -189,40 +164,63 @@ class FanLammpsCalculator(Calculator):
                 cell_lmp = np.array([[*(box.hi_c - box.lo_c)[:1], 0, 0],
                                      [box.tilt_t[0], (box.hi_c - box.lo_c)[1], 0],
                                      [box.tilt_t[1], box.tilt_t[2], (box.hi_c - box.lo_c)[2]]])
-                act = slice(0, self.dim)
+                act = slice(0, box.dim)
                 frac = np.linalg.solve(cell_lmp[act, act].T, d_pc[:, act].T).T
                 d_pc[:, act] = (frac - np.round(frac)) @ cell_lmp[act, act]
             v = np.ascontiguousarray(d_pc.ravel())
             lmp.scatter_atoms("v", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(v))
             lmp.command("run 1 pre no post no")
+
+    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+        super().calculate(atoms, properties, system_changes)
+        model = self.model
+        atoms = self.atoms
+        n = len(atoms)
+        if n and not np.all(np.isfinite(atoms.positions)):
+            bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
+            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
+        want_stress = "stress" in properties
+        if want_stress:
+            model.check_stress(vols, atoms.cell.volume)
+        periodic = vols.measure is not None
+        box = lammps_box(atoms, dim=model.dim, margin=model.h)
+        key = (n, tuple(atoms.pbc), atoms.cell[:].tobytes(), vols.v0, box.lo_c.tobytes() if periodic else None)
+        rebuilt = False
+        if self._lmp is None or key != self._key:
+            self._build(box, vols.v0)
+            self._key = key
+            rebuilt = True
+        try:
+            self._run(box, n, rebuilt, periodic)
+        except Exception:
+            self.close()  # never reuse an instance LAMMPS stopped in
+            raise
+        lmp = self._lmp
         thermo = lmp.last_thermo()
-        e_pair = float(thermo["PotEng"])
-        f_pc = _gather(lmp, "f", n)
-        f_pc = box.to_ase(f_pc)
-        energy = e_pair + fan_self_energy(n, self.h, v0 ** (1.0 / self.dim), self.dim, volume, self.kernel, v0, v0)
-        if self.domain is not None:
-            e_b, fb_pc = boundary_energy_forces(self.domain, atoms.positions, self.h, v0, self.dim, self.kernel)
-            energy += e_b
-            f_pc = f_pc + fb_pc
-        if self.dim < 3:
-            f_pc[:, self.dim:] = 0.0
+        f_pc = box.to_ase(_gather(lmp, "f", n))
+        if not np.all(np.isfinite(f_pc)):
+            bad = np.where(~np.all(np.isfinite(f_pc), axis=1))[0]
+            raise ValueError(f"atoms: LAMMPS gave non-finite forces on particles {bad[:10].tolist()}: coincident "
+                             "particles (r = 0) make pair_style lepton divide by r; separate them or use FanCalculator")
+        energy = float(thermo["PotEng"]) + model.self_energy(n, vols.v0, vols.volume)
+        if model.domain is not None:
+            boundary_e_p, boundary_f_pc = model.boundary(atoms.positions, vols.v0)
+            energy += float(boundary_e_p.sum())
+            f_pc += boundary_f_pc
+        f_pc[:, model.dim:] = 0.0
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["forces"] = f_pc
-        if periodic and self.domain is None and abs(atoms.cell.volume) > 0:
-            p = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
-            p_cc = np.array([[p[0], p[3], p[4]], [p[3], p[1], p[5]], [p[4], p[5], p[2]]])
-            ase_volume = abs(atoms.cell.volume)
-            s_cc = -box.tensor_to_ase(p_cc) * box.lammps_volume / ase_volume
-            diag = -volume
-            if self.dx is None:  # v0 = vt = V/N: E + V scales with V^2
-                diag += 2.0 * (energy + volume)
-            for a in range(self.dim):
-                s_cc[a, a] += diag / ase_volume
-            self.results["stress"] = s_cc.flat[[0, 4, 8, 5, 2, 1]]
+        if want_stress:
+            v = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
+            pressure_cc = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
+            # LAMMPS' virial pressure is -(1/V) dE/d(strain)
+            pair_virial_cc = -box.tensor_to_ase(pressure_cc) * box.lammps_volume
+            self.results["stress"] = model.stress(pair_virial_cc, energy, vols, atoms.cell.volume)
 
 
-def fan_calculator(h, dx=None, dim=2, style="lepton", **kwargs):
+def fan_calculator(h=None, dx=None, dim=2, style="lepton", **kwargs):
     """An ASE calculator for Fan's total error evaluated in LAMMPS.
 
     See :class:`FanLammpsCalculator` for the parameters.

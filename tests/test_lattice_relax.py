@@ -11,7 +11,7 @@ from ase import Atoms
 
 from ase_sphrelax import FanCalculator
 from ase_sphrelax.analysis.cell_filter import ConstantMeasureCellFilter
-from ase_sphrelax.analysis.lattice import characteristic_volume, characteristic_volume_of_atoms, predict_pattern
+from ase_sphrelax.analysis import characteristic_volume, characteristic_volume_of_atoms, predict_pattern
 from ase_sphrelax.analysis.patterns import lattice_supercell, relax_lattice
 from ase_sphrelax.analysis.symmetry import classify_lattice, pattern_name_3d
 

@@ -6,7 +6,7 @@ import pytest
 from ase import Atoms
 from ase.build import bulk, make_supercell
 
-from ase_sphrelax.analysis.lattice import pattern_cell
+from ase_sphrelax.analysis import pattern_cell
 from ase_sphrelax.analysis.symmetry import (
     LatticeNotFoundError,
     classify_cell,

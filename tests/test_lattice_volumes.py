@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from ase_sphrelax.analysis.lattice import (
+from ase_sphrelax.analysis import (
     PATTERNS_2D,
     characteristic_volume,
     characteristic_volume_of_atoms,

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from ase_sphrelax.neighbors import NeighborList, brute_force_pairs, complete_cell
+from ase_sphrelax.neighbors import NeighborList, complete_cell
+from reference import brute_force_pairs
 
 
 def canonical(i, j, shift):

@@ -55,3 +55,30 @@ def test_quality_rejects_bad_input():
 
     with pytest.raises(ValueError, match="at least one particle"):
         Quality(h=1.0, dx=1.0).compute(Atoms())
+
+
+def test_particle_volume_follows_the_fan_model():
+    """V_j is the calculators' v0: dx^d, or V/N from the domain or the periodic cell."""
+    from ase_sphrelax import FanCalculator
+    from ase_sphrelax.domains import Circle
+
+    circle = Circle((0.0, 0.0), 1.0)
+    atoms = fill(circle, 0.1, jitter=0.1, seed=3)
+    for dx in (0.1, None):
+        q = Quality(h=0.26, dx=dx, domain=circle).compute(atoms)
+        assert q.v0 == FanCalculator(h=0.26, dx=dx, domain=circle).volumes(atoms).v0
+    assert Quality(h=0.26, dx=None, domain=circle).compute(atoms).v0 == pytest.approx(np.pi / len(atoms), rel=1e-14)
+    box = periodic_box((6, 6), dx=0.5)
+    assert Quality(h=1.3).compute(box).v0 == pytest.approx(0.25, rel=1e-14)
+
+
+@pytest.mark.parametrize("kwargs", [dict(h=-1.0), dict(h="1"), dict(h=1.0, dx=0.0), dict(h=1.0, dim=0),
+                                    dict(h=1.0, kernel="gauss"), dict(h=1.0, domain=object())])
+def test_quality_rejects_what_fan_calculator_rejects(kwargs):
+    from ase_sphrelax import FanCalculator
+
+    with pytest.raises(Exception) as ours:
+        Quality(**kwargs)
+    with pytest.raises(Exception) as calc:
+        FanCalculator(**kwargs)
+    assert (type(ours.value), str(ours.value)) == (type(calc.value), str(calc.value))

@@ -1,34 +1,39 @@
 """Analysis: quality metrics, characteristic volumes and lattice patterns (Fan Sec. 5).
 
+Lattice theory, one module per idea: ``lattice_sums`` (v_c of a periodic
+arrangement, Eq. 5.2), ``pattern_cells`` (the cells of the patterns),
+``pattern_prediction`` (best member of each family, predicted pattern, Table 2),
+``patterns`` (variable-cell relaxation of periodic patterns, the ``lattice`` and
+``table`` commands' bodies), ``symmetry`` (spglib classification), ``bounded``
+(patterns in bounded domains), ``cell_filter`` (constant-area cell filter).
+
 Names are imported on first use, so ``import ase_sphrelax.analysis.quality`` does
 not load spglib or the lattice machinery.
 """
-import importlib
+from .._lazy import lazy_exports
 
 _WHERE = {
-    "Quality": "quality",
-    "quality_summary": "quality",
-    "PATTERNS_2D": "lattice",
-    "PATTERNS_3D": "lattice",
-    "characteristic_volume": "lattice",
-    "characteristic_volume_of_cell": "lattice",
-    "characteristic_volume_of_atoms": "lattice",
-    "pattern_cell": "lattice",
-    "predict_pattern": "lattice",
-    "classify_lattice": "symmetry",
-    "pattern_name_3d": "symmetry",
-    "LatticeNotFoundError": "symmetry",
-    "ConstantMeasureCellFilter": "cell_filter",
-    "relax_lattice": "patterns",
-    "lattice_report": "patterns",
-    "write_table": "patterns",
-    "classify_bounded_pattern": "bounded",
-    "relax_circle": "bounded",
+    "Quality": ".quality",
+    "quality_summary": ".quality",
+    "lattice_kernel_sum": ".lattice_sums",
+    "characteristic_volume_of_cell": ".lattice_sums",
+    "characteristic_volume_of_atoms": ".lattice_sums",
+    "PATTERNS_2D": ".pattern_cells",
+    "PATTERNS_3D": ".pattern_cells",
+    "pattern_cell": ".pattern_cells",
+    "CONVENTIONS": ".pattern_prediction",
+    "characteristic_volume": ".pattern_prediction",
+    "predict_pattern": ".pattern_prediction",
+    "pattern_table": ".pattern_prediction",
+    "classify_lattice": ".symmetry",
+    "pattern_name_3d": ".symmetry",
+    "LatticeNotFoundError": ".symmetry",
+    "ConstantMeasureCellFilter": ".cell_filter",
+    "relax_lattice": ".patterns",
+    "lattice_report": ".patterns",
+    "write_table": ".patterns",
+    "classify_bounded_pattern": ".bounded",
+    "relax_circle": ".bounded",
 }
 __all__ = sorted(_WHERE)
-
-
-def __getattr__(name):
-    if name in _WHERE:
-        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

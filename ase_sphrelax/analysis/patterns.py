@@ -19,13 +19,13 @@ import numbers
 import numpy as np
 from ase import Atoms
 
-from ..checks import check_positive
+from ..checks import check_dim, check_positive
+from ..drivers.optimizers import OPTIMIZERS
 from .cell_filter import ConstantMeasureCellFilter
-from .lattice import PATTERNS_2D, PATTERNS_3D, characteristic_volume, pattern_cell, pattern_table, predict_pattern
+from .pattern_cells import PATTERNS_2D, PATTERNS_3D, pattern_cell
+from .pattern_prediction import characteristic_volume, pattern_table, predict_pattern
 
 __all__ = ["relax_lattice", "lattice_supercell", "random_start", "lattice_report", "write_table"]
-
-_OPTIMIZERS = ("fire", "bfgs", "lbfgs", "fan")
 
 
 def _factor_near_square(n, dim):
@@ -123,7 +123,7 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
         unit particle volume throughout (constant area / volume).
     n_atoms : int
     dim : {2, 3}
-    optimizer : {"fire", "bfgs", "lbfgs", "fan"}
+    optimizer : one of :data:`ase_sphrelax.drivers.optimizers.OPTIMIZERS`
         Built by :func:`ase_sphrelax.drivers.make_optimizer` on the filter.
         ``"fan"`` (Eq. 2.4, fixed step ``c h``) oscillates at the step scale
         and does not reach a tight ``fmax``; ``"fire"`` is the tested choice
@@ -151,14 +151,12 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
         (Eq. 3.8), ``v_c = 1 / (E/N + 1)`` (Eq. 5.2), ``converged``,
         ``steps`` and ``start`` (which start produced it).
     """
-    from .lattice import _check_dim
-
     h = check_positive("h_over_dx", h_over_dx)
-    dim = _check_dim(dim)
+    dim = check_dim(dim, allowed=(2, 3))
     n_atoms = _check_int("n_atoms", n_atoms, 1)
     n_starts = _check_int("n_starts", n_starts, 0)
-    if optimizer not in _OPTIMIZERS:
-        raise ValueError(f"optimizer must be one of {_OPTIMIZERS}, got {optimizer!r}")
+    if optimizer not in OPTIMIZERS:
+        raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
     if not (fmax > 0):
         raise ValueError(f"fmax must be > 0, got {fmax!r}")
     if n_starts == 0 and not lattice_starts:

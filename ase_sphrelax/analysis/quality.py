@@ -1,6 +1,7 @@
 """Quality metrics every relaxation method is judged by.
 
-For particles with volume ``V_j`` (the average volume ``v0``, Fan Eq. 3.2):
+For particles with volume ``V_j`` (the average volume ``v0``, Fan Eq. 3.2; ``dx^d`` or
+``V / N`` by :meth:`ase_sphrelax.models.fan.FanModel.volumes`, the rule of the Fan calculators):
 
 * zeroth-order consistency (partition of unity) ``|sum_j V_j W_ij - 1|``,
 * first-order consistency ``|sum_j V_j grad_i W_ij|`` (reported times ``h`` to
@@ -18,9 +19,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..calculators.base import periodic_measure
-from ..checks import check_dim, check_positive
 from ..kernel_sums import kernel_sums
-from ..kernels import get_kernel
+from ..models.fan import FanModel
 from ..neighbors import NeighborList
 
 __all__ = ["Quality", "quality_summary"]
@@ -37,6 +37,8 @@ class Quality:
         Kernel cut-off radius.
     dx : float or None
         ``V_j = dx**dim``; None uses ``V / N`` (domain volume, or periodic cell measure).
+        Parameters are checked as by :class:`~ase_sphrelax.FanCalculator` (one model,
+        :class:`~ase_sphrelax.models.fan.FanModel`).
     domain : Domain or None
     dim : {1, 2, 3}
     kernel : str
@@ -60,30 +62,18 @@ class Quality:
     """
 
     def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
-        self.h = check_positive("h", h)
-        self.dx = check_positive("dx", dx, allow_none=True)
-        self.dim = check_dim(dim)
-        self.domain = domain
-        self.kernel = get_kernel(kernel, self.dim)
+        self.model = FanModel(h, dx, domain, dim, kernel)
+        self.h, self.dx, self.domain, self.dim = self.model.h, self.model.dx, self.model.domain, self.model.dim
+        self.kernel = self.model.kernel
 
     def compute(self, atoms):
         """Compute the metrics for ``atoms``; returns self."""
         n = len(atoms)
-        if n == 0:
-            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        v0 = self.model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, self.dim)).v0
         r_pc = np.array(atoms.positions, dtype=float)
         r_pc[:, self.dim:] = 0.0
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[self.dim:] = False
-        if self.dx is not None:
-            v0 = self.dx**self.dim
-        elif self.domain is not None:
-            v0 = self.domain.volume / n
-        else:
-            measure = periodic_measure(atoms.cell.array, pbc, self.dim)
-            if measure is None:
-                raise ValueError("dx=None needs a domain or a periodic cell to define V_j = V/N; give dx")
-            v0 = measure / n
         nlist = NeighborList(self.h)
         nlist.update(r_pc, atoms.cell.array, pbc)
         sums = kernel_sums(nlist, r_pc, self.h, self.kernel)

@@ -8,7 +8,7 @@ calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 from __future__ import annotations
 
 import numpy as np
-from ase.calculators.calculator import Calculator, all_changes
+from ase.calculators.calculator import Calculator, Parameters, all_changes
 
 from ..checks import check_dim
 from ..kernels import KERNEL_NAMES
@@ -49,8 +49,10 @@ class SPHCalculator(Calculator):
         self._check_keys(kwargs)
         self.nlist = None
         self._evaluations = 0
+        self._valid = False
         Calculator.__init__(self, **kwargs)
         self._validate_parameters()
+        self._valid = True
 
     @property
     def pairs(self):
@@ -64,11 +66,21 @@ class SPHCalculator(Calculator):
                             f"accepted: {sorted(self.default_parameters)}")
 
     def set(self, **kwargs):
-        """Change parameters; any change discards the results and the neighbour list."""
+        """Change parameters; any change discards the results and the neighbour list.
+
+        Invalid values raise before anything changes: the calculator keeps its old parameters.
+        """
         self._check_keys(kwargs)
+        before = Parameters(self.parameters)
         changed = Calculator.set(self, **kwargs)
         if changed:
-            self._validate_parameters()
+            try:
+                self._validate_parameters()
+            except Exception:
+                self.parameters = before
+                if self._valid:  # derived state (models, kernels) back to the old parameters
+                    self._validate_parameters()
+                raise
             self.reset()  # ASE keeps results on set() unless told otherwise
             self.nlist = None
             self._evaluations = 0

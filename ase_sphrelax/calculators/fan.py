@@ -17,12 +17,10 @@ exact strain derivative of ``E`` divided by the cell volume, including the
 """
 from __future__ import annotations
 
-import numpy as np
-from ase.calculators.calculator import PropertyNotImplementedError, all_changes
+from ase.calculators.calculator import all_changes
 
 from ..kernel_sums import pair_potential_sums
-from ..kernels import get_kernel
-from ..checks import check_positive
+from ..models.fan import FanModel, verlet_skin
 from .base import SPHCalculator, periodic_measure
 
 __all__ = ["FanCalculator"]
@@ -30,6 +28,10 @@ __all__ = ["FanCalculator"]
 
 class FanCalculator(SPHCalculator):
     """Total error E of Fan et al. (Eq. 3.8) with forces -dE/dx (Eq. 3.17, 4.4).
+
+    The model (volumes, self and boundary terms, stress correction) is
+    :class:`ase_sphrelax.models.fan.FanModel` (``self.model``); this calculator sums
+    its pair potential with :func:`ase_sphrelax.kernel_sums.pair_potential_sums`.
 
     Parameters
     ----------
@@ -64,78 +66,37 @@ class FanCalculator(SPHCalculator):
 
     def _validate_parameters(self):
         super()._validate_parameters()
-        p = self.parameters
-        p.h = check_positive("h", p.h)
-        p.dx = check_positive("dx", p.dx, allow_none=True)
-        if p.skin is None:
-            p.skin = 0.1 * p.h
-        elif not np.isfinite(p.skin) or p.skin < 0:
-            raise ValueError(f"skin must be a finite number >= 0 or None, got {p.skin!r}")
-        if p.domain is not None:
-            if not hasattr(p.domain, "phi_and_normal"):
-                raise TypeError(f"domain must be a Domain with phi_and_normal() or None, got {type(p.domain).__name__}")
-            if getattr(p.domain, "dim", p.dim) != p.dim:
-                raise ValueError(f"domain is {p.domain.dim}D but dim={p.dim}")
-        self.kernel = get_kernel(p.kernel, p.dim)
+        self.model = FanModel.from_parameters(self.parameters)
+        self.skin = verlet_skin(self.parameters.skin, self.model.h)  # None: 0.1 h of the current h
+        self.kernel = self.model.kernel
 
-    # -- volumes ---------------------------------------------------------------
     def volumes(self, atoms):
-        """(V, v0, measure): domain volume, particle volume v0 = vt, periodic cell measure or None."""
-        p = self.parameters
-        measure = periodic_measure(atoms.cell.array, atoms.pbc, p.dim)
-        n = len(atoms)
-        if p.domain is not None:
-            volume = float(p.domain.volume)
-        elif measure is not None:
-            volume = measure
-        elif p.dx is not None:
-            volume = n * p.dx**p.dim
-        else:
-            raise ValueError("dx=None needs a domain or a cell periodic along all dim axes to define v0 = V/N; "
-                             "give dx")
-        v0 = p.dx**p.dim if p.dx is not None else volume / n
-        return volume, v0, measure
+        """:class:`~ase_sphrelax.models.fan.FanVolumes` (V, v0, measure) of ``atoms``."""
+        return self.model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, self.model.dim))
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
-        p = self.parameters
+        model = self.model
         atoms = self.atoms
         want_stress = "stress" in properties
-        volume, v0, measure = self.volumes(atoms)
-        if want_stress and (p.domain is not None or measure is None):
-            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes and no domain")
-        r_pc, _ = self.prepare(atoms, p.h, p.skin)
+        vols = self.volumes(atoms)
+        if want_stress:
+            model.check_stress(vols, atoms.cell.volume)
+        r_pc, _ = self.prepare(atoms, model.h, self.skin)
         n = len(atoms)
-        kernel = self.kernel
-        w_norm = kernel.sigma / p.h**p.dim  # W = w_norm * f(q)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
-        pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, p.h, 2.0 * v0 * v0 * w_norm, kernel,
-                                                     want_virial=want_stress)
-        self_term = v0 * v0 * kernel.w0(p.h)
-        energies_p = pair_e_p + self_term - volume / n
-        if p.domain is not None:
-            phi_p, n_pc = p.domain.phi_and_normal(r_pc)
-            phi_p = np.asarray(phi_p, dtype=float)
-            energies_p += 2.0 * v0 * kernel.w1_tail_integral(-phi_p, p.h)
-            f_pc -= (2.0 * v0 * kernel.w1(np.maximum(-phi_p, 0.0), p.h))[:, None] * np.asarray(n_pc)[:, :3]
-        f_pc[:, p.dim:] = 0.0
+        pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, model.h, model.pair_prefactor(vols.v0),
+                                                     model.kernel, want_virial=want_stress)
+        energies_p = pair_e_p + model.self_energy(n, vols.v0, vols.volume) / n
+        if model.domain is not None:
+            boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
+            energies_p += boundary_e_p
+            f_pc += boundary_f_pc
+        f_pc[:, model.dim:] = 0.0
         energy = float(energies_p.sum())
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["energies"] = energies_p
         self.results["forces"] = f_pc
         if want_stress:
-            self.results["stress"] = self._stress(atoms, virial, energy + volume, v0, measure)
-
-    def _stress(self, atoms, virial, sum_term, v0, measure):
-        """Voigt stress (1/V_cell) dE/d(strain); ``sum_term = v0^2 sum_{i,j} W_ij``."""
-        p = self.parameters
-        d_e = virial.copy()
-        in_plane = np.zeros((3, 3))
-        in_plane[: p.dim, : p.dim] = np.eye(p.dim)
-        d_e -= measure * in_plane  # the -V term
-        if p.dx is None:
-            # v0 = vt = V/N scales with the cell measure: d(v0^2)/d eps = 2 v0^2 delta
-            d_e += 2.0 * sum_term * in_plane
-        stress_cc = d_e / atoms.get_volume()
-        return stress_cc.flat[[0, 4, 8, 5, 2, 1]]
+            self.results["stress"] = model.stress(virial, energy, vols, atoms.cell.volume)

@@ -1,5 +1,13 @@
-"""Drivers: the papers' own update rules as ASE optimisers, and scale-aware ASE optimisers."""
-from .fan_relaxation import FanRelaxation
-from .optimizers import OPTIMIZERS, make_optimizer
+"""Drivers: the papers' own update rules as ASE optimisers, and scale-aware ASE optimisers.
 
-__all__ = ["FanRelaxation", "make_optimizer", "OPTIMIZERS"]
+Names are imported on first use (ASE's optimisers load scipy): add one line to ``_WHERE``.
+"""
+from .._lazy import lazy_exports
+
+_WHERE = {
+    "FanRelaxation": ".fan_relaxation",
+    "make_optimizer": ".optimizers",
+    "OPTIMIZERS": ".optimizers",
+}
+__all__ = list(_WHERE)
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)

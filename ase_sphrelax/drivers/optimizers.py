@@ -9,13 +9,12 @@ that the first step moves the fastest particle by ``c h``, the step of Eq. 2.4.
 from __future__ import annotations
 
 import numpy as np
-from ase.optimize import BFGS, FIRE, LBFGS
 
 from ..checks import check_positive
-from .fan_relaxation import FanRelaxation, _calculator_h
 
 __all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer"]
 
+# the one list of optimiser names (CLI choices, relax_lattice); importing it loads no ASE optimiser
 OPTIMIZERS = ("fan", "fire", "bfgs", "lbfgs")
 
 # default step scale c per optimiser (first step c h, largest step 10 c h); measured in
@@ -42,6 +41,10 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, **kwargs):
     **kwargs
         Override the optimiser's own parameters.
     """
+    from ase.optimize import BFGS, FIRE, LBFGS
+
+    from .fan_relaxation import FanRelaxation, _calculator_h
+
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
     c = DEFAULT_C[name] if c is None else c

@@ -1,14 +1,11 @@
-"""Characteristic volumes of 2D and 3D lattices (Fan et al. Sec. 5.1, Appendix B, Tables 1-2).
+"""Predicted lattice patterns: the largest characteristic volume over each family (Fan Tables 1-2, App. B).
 
-For a periodic distribution every particle has the same volume
-``v_c = 1 / sum_j W(|r_j|, h)`` (the sum over the whole lattice, including
-``j = 0``), and the interior error is ``E_P = V vt / v_c`` (Eq. 5.2): the
-relaxed pattern is the lattice with the largest ``v_c`` at fixed particle
-volume. Everything here is at unit particle volume (``dx = 1``), so ``h`` is
-Fan's ``h / dx``. Lattice sums are exact finite sums (the kernel has compact
-support).
+The predicted pattern (Table 1) is the family whose best member has the
+largest ``v_c`` (:mod:`~ase_sphrelax.analysis.lattice_sums`, Eq. 5.2); the
+cells are those of :mod:`~ase_sphrelax.analysis.pattern_cells`. Everything is
+at unit particle volume (``dx = 1``), so ``h`` is Fan's ``h / dx``.
 
-Pattern families in 2D
+Parameter ranges in 2D
 ----------------------
 The lattice is always scaled to unit area per particle. Two conventions:
 
@@ -68,49 +65,22 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from ..checks import check_positive
-from ..kernels import get_kernel, profile_value_and_slope
+from ..checks import check_dim, check_positive
+from ..kernels import get_kernel
+from .lattice_sums import characteristic_volume_of_cell, lattice_kernel_sum
+from .pattern_cells import _HCP_C_OVER_A, _SQRT3, PATTERNS_2D, PATTERNS_3D, _cell_2d, _cell_3d, _check_pattern
 
-__all__ = [
-    "PATTERNS_2D",
-    "PATTERNS_3D",
-    "CONVENTIONS",
-    "lattice_kernel_sum",
-    "characteristic_volume_of_cell",
-    "characteristic_volume_of_atoms",
-    "pattern_cell",
-    "characteristic_volume",
-    "predict_pattern",
-    "pattern_table",
-]
+__all__ = ["CONVENTIONS", "characteristic_volume", "predict_pattern", "pattern_table"]
 
-PATTERNS_2D = ("hexagonal", "square", "rectangular", "diamond", "parallelogram")
-PATTERNS_3D = ("sc", "bcc", "fcc", "hcp", "general")
 CONVENTIONS = ("fan", "bravais")
 
 # recovered lower bounds of the aspect ratios (see module docstring)
 _FAN_K_MIN = 1.005
 _K_MAX = 4.0
 _TIE_RTOL = 1e-9
-_SQRT3 = math.sqrt(3.0)
-
-
-# -- input checks -------------------------------------------------------------------
-def _check_dim(dim):
-    if isinstance(dim, bool) or dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim!r}")
-    return int(dim)
-
-
-def _check_pattern(pattern, dim):
-    names = PATTERNS_2D if dim == 2 else PATTERNS_3D
-    if pattern not in names:
-        raise ValueError(f"pattern must be one of {names} for dim={dim}, got {pattern!r}")
-    return pattern
 
 
 def _check_convention(convention):
@@ -118,171 +88,6 @@ def _check_convention(convention):
         raise ValueError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
     return convention
 
-
-# -- lattice sums ---------------------------------------------------------------------
-@numba.njit(cache=True)
-def _profile_lattice_sum(cell_vv, h, breaks, coef, m_max):
-    """sum over m in the box |m_i| <= m_max[i] of f(|m @ cell| / h) for a one-site lattice (2D or 3D)."""
-    dim = cell_vv.shape[0]
-    total = 0.0
-    inv_h = 1.0 / h
-    m2_max = m_max[2] if dim == 3 else 0
-    for m0 in range(-m_max[0], m_max[0] + 1):
-        for m1 in range(-m_max[1], m_max[1] + 1):
-            for m2 in range(-m2_max, m2_max + 1):
-                r2 = 0.0
-                for c in range(dim):
-                    x = m0 * cell_vv[0, c] + m1 * cell_vv[1, c]
-                    if dim == 3:
-                        x += m2 * cell_vv[2, c]
-                    r2 += x * x
-                q = np.sqrt(r2) * inv_h
-                if q < 1.0:
-                    total += profile_value_and_slope(q, breaks, coef)[0]
-    return total
-
-
-def lattice_kernel_sum(cell_vv, h, kernel="wendland_c2", basis_bv=None):
-    """Mean over basis sites of ``sum_j W(|r_j - r_i|, h)`` over the whole crystal (j = i included).
-
-    Parameters
-    ----------
-    cell_vv : (d, d) array_like
-        Lattice vectors as rows, ``d`` = 2 or 3, in the units of ``h``.
-    h : float
-        Kernel support radius.
-    kernel : str or Kernel
-    basis_bv : (b, d) array_like, optional
-        Cartesian positions of the sites in the cell (default: one site at 0).
-
-    Returns
-    -------
-    float
-        ``mean_i sum_j W_ij``; ``1 / (v sum)`` is Fan's ``v_c`` (Eq. 5.2) when the
-        cell holds ``b`` particles of volume ``v = |det cell| / b``.
-    """
-    cell_vv = np.asarray(cell_vv, dtype=float)
-    dim = cell_vv.shape[0]
-    if cell_vv.shape != (dim, dim) or dim not in (2, 3):
-        raise ValueError(f"cell_vv must be a (2, 2) or (3, 3) array, got shape {cell_vv.shape}")
-    kern = get_kernel(kernel, dim)
-    inv_vv = np.linalg.inv(cell_vv)
-    if basis_bv is None:
-        m_max = np.ceil(h * np.linalg.norm(inv_vv, axis=0)).astype(np.int64) + 1
-        m_max = np.concatenate([m_max, np.zeros(3 - dim, dtype=np.int64)])
-        total = _profile_lattice_sum(cell_vv, float(h), kern.breaks, kern.coef, m_max)
-        return float(kern.sigma / h**dim * total)
-    basis_bv = np.asarray(basis_bv, dtype=float).reshape(-1, dim)
-    # integer coefficients of r = m @ cell: |m_i| <= (h + basis extent) * |column i of inv|
-    extent = h + 2.0 * np.max(np.linalg.norm(basis_bv - basis_bv[0], axis=1)) if len(basis_bv) > 1 else h
-    m_max = np.ceil(extent * np.linalg.norm(inv_vv, axis=0)).astype(int) + 1
-    axes = [np.arange(-m, m + 1) for m in m_max]
-    m_tv = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
-    t_tv = m_tv @ cell_vv
-    d_bbv = basis_bv[None, :, :] - basis_bv[:, None, :]  # r_j - r_i
-    r = np.linalg.norm(t_tv[:, None, None, :] + d_bbv[None], axis=-1)
-    return float(kern.w(r, h).sum() / len(basis_bv))
-
-
-def characteristic_volume_of_cell(cell_vv, h_over_dx, kernel="wendland_c2", basis_bv=None):
-    """``v_c`` of a periodic arrangement rescaled to unit particle volume (Eq. 5.2).
-
-    The cell (rows) and basis are scaled so that ``|det cell| / n_basis = 1``;
-    ``v_c = 1 / mean_i sum_j W(|r_ij|, h)``.
-    """
-    h = check_positive("h_over_dx", h_over_dx)
-    cell_vv = np.asarray(cell_vv, dtype=float)
-    dim = cell_vv.shape[0]
-    nb = 1 if basis_bv is None else len(np.asarray(basis_bv).reshape(-1, dim))
-    vol = abs(np.linalg.det(cell_vv)) / nb
-    if not vol > 0:
-        raise ValueError("cell_vv is singular")
-    scale = vol ** (-1.0 / dim)
-    basis = None if basis_bv is None else np.asarray(basis_bv, dtype=float) * scale
-    return 1.0 / lattice_kernel_sum(cell_vv * scale, h, kernel, basis)
-
-
-def characteristic_volume_of_atoms(atoms, h_over_dx, dim=None, kernel="wendland_c2"):
-    """``v_c = 1 / mean_i sum_j W(|r_ij|, h)`` of a periodic ``Atoms`` at unit particle volume.
-
-    ``h_over_dx`` is in units of ``dx = (V / N)**(1/d)``; 2D atoms use the
-    first two cell vectors and coordinates (Fan Eq. 5.1-5.2: ``E_P = V vt / v_c``).
-    """
-    dim = _check_dim(dim if dim is not None else (2 if not atoms.pbc[2] else 3))
-    if not all(atoms.pbc[:dim]):
-        raise ValueError(f"atoms must be periodic along the first {dim} axes, got pbc={atoms.pbc}")
-    cell = atoms.cell.array[:dim, :dim]
-    pos = atoms.positions[:, :dim] - atoms.positions[0, :dim]
-    return characteristic_volume_of_cell(cell, h_over_dx, kernel, pos)
-
-
-# -- 2D pattern cells -------------------------------------------------------------------
-def _cell_2d(pattern, params):
-    """Unit-area primitive cell (rows) of a 2D pattern with the documented parameters."""
-    if pattern == "hexagonal":
-        s = math.sqrt(2.0 / _SQRT3)
-        return np.array([[s, 0.0], [0.5 * s, 0.5 * _SQRT3 * s]])
-    if pattern == "square":
-        return np.eye(2)
-    k = float(params["k"])
-    if pattern == "rectangular":
-        a = 1.0 / math.sqrt(k)
-        return np.array([[a, 0.0], [0.0, k * a]])
-    if pattern == "diamond":
-        a = math.sqrt(2.0 / k)
-        return np.array([[a, 0.0], [0.5 * a, 0.5 * k * a]])
-    if pattern == "parallelogram":
-        s, height = 1.0 / math.sqrt(k), math.sqrt(k)
-        return np.array([[s, 0.0], [params["r"] * height, height]])
-    raise ValueError(f"unknown pattern {pattern!r}")
-
-
-_HCP_C_OVER_A = math.sqrt(8.0 / 3.0)
-
-
-def _cell_3d(pattern, params=None):
-    """(cell rows, basis) of a 3D pattern, any scale."""
-    if pattern == "sc":
-        return np.eye(3), None
-    if pattern == "bcc":
-        return 0.5 * np.array([[-1.0, 1, 1], [1, -1, 1], [1, 1, -1]]), None
-    if pattern == "fcc":
-        return 0.5 * np.array([[0.0, 1, 1], [1, 0, 1], [1, 1, 0]]), None
-    if pattern == "hcp":
-        c = params.get("c_over_a", _HCP_C_OVER_A) if params else _HCP_C_OVER_A
-        cell = np.array([[1.0, 0, 0], [-0.5, 0.5 * _SQRT3, 0], [0, 0, c]])
-        basis = np.array([[0.0, 0, 0], [1.0 / 3.0, 2.0 / 3.0, 0.5]]) @ cell
-        return cell, basis
-    if pattern == "general":
-        return np.asarray(params["cell"], dtype=float), None
-    raise ValueError(f"unknown pattern {pattern!r}")
-
-
-def pattern_cell(pattern, params=None, dim=2):
-    """Primitive cell (rows, unit volume per particle) and basis of a pattern.
-
-    Parameters
-    ----------
-    pattern : str
-        One of :data:`PATTERNS_2D` or :data:`PATTERNS_3D`.
-    params : dict, optional
-        The parameters returned by :func:`characteristic_volume` (``k`` and
-        ``r`` in 2D, ``cell`` for the 3D ``"general"`` lattice).
-
-    Returns
-    -------
-    cell_vv : (d, d) ndarray
-    basis_bv : (b, d) ndarray
-    """
-    dim = _check_dim(dim)
-    _check_pattern(pattern, dim)
-    if dim == 2:
-        cell, basis = _cell_2d(pattern, params or {}), np.zeros((1, 2))
-    else:
-        cell, basis = _cell_3d(pattern, params)
-        basis = np.zeros((1, 3)) if basis is None else basis
-    scale = (abs(np.linalg.det(cell)) / len(basis)) ** (-1.0 / dim)
-    return cell * scale, basis * scale
 
 
 # -- optimisation of the free parameters ----------------------------------------------------
@@ -418,6 +223,7 @@ def _characteristic_volume_3d(pattern, h, kernel):
     return v, ({"c_over_a": _HCP_C_OVER_A} if pattern == "hcp" else {})
 
 
+
 # -- public API ---------------------------------------------------------------------------
 def characteristic_volume(pattern, h_over_dx, dim=2, kernel="wendland_c2", convention="fan"):
     """Largest characteristic volume of a pattern over its free parameters (Eq. 5.2, B.1).
@@ -446,7 +252,7 @@ def characteristic_volume(pattern, h_over_dx, dim=2, kernel="wendland_c2", conve
         shorter edge/axis or the height); 3D ``cell`` (rows) for ``"general"``,
         ``c_over_a`` for ``"hcp"``.
     """
-    dim = _check_dim(dim)
+    dim = check_dim(dim, allowed=(2, 3))
     _check_pattern(pattern, dim)
     h = check_positive("h_over_dx", h_over_dx)
     _check_convention(convention)
@@ -502,7 +308,7 @@ def predict_pattern(h_over_dx, dim=2, kernel="wendland_c2", convention="fan", re
         one-atom lattice beats them by more than ``1e-7`` relative, then its
         Bravais symbol (e.g. ``"tI"``).
     """
-    dim = _check_dim(dim)
+    dim = check_dim(dim, allowed=(2, 3))
     _check_convention(convention)
     names = PATTERNS_2D if dim == 2 else PATTERNS_3D
     values = {n: characteristic_volume(n, h_over_dx, dim, kernel, convention) for n in names}
@@ -522,7 +328,7 @@ def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
         3D keys: ``h``, ``v_<pattern>``, ``pattern``, ``bravais_general`` (Pearson
         symbol of the best one-atom lattice), ``cell_general``.
     """
-    dim = _check_dim(dim)
+    dim = check_dim(dim, allowed=(2, 3))
     if h_values is None:
         h_values = np.round(np.arange(1.5, 3.5 + 1e-9, 0.05), 2)
     rows = []
@@ -549,3 +355,4 @@ def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
                        cell_general=values["general"][1]["cell"])
         rows.append(row)
     return rows
+

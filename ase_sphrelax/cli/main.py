@@ -1,0 +1,52 @@
+"""The ``sphrelax`` entry point: one sub-parser per registered command, usage errors as one line."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import registry
+from .usage import UsageError
+
+__all__ = ["build_parser", "main"]
+
+PROG = "sphrelax"
+
+
+def build_parser(commands=None):
+    """The ``sphrelax`` parser; each sub-parser carries its command object as ``args._command``.
+
+    Parameters
+    ----------
+    commands : dict, optional
+        ``{name: command}`` (default :func:`registry.commands`): objects with
+        ``add_arguments(parser)`` and ``run(args)``.
+    """
+    from .. import __version__
+
+    commands = registry.commands() if commands is None else commands
+    parser = argparse.ArgumentParser(prog=PROG, description="SPH particle relaxation (ase_sphrelax)")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, command in commands.items():
+        short, long = registry.help_texts(command)
+        parser_c = sub.add_parser(name, help=short, description=long,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        command.add_arguments(parser_c)
+        parser_c.set_defaults(_command=command)
+    return parser
+
+
+def main(argv=None):
+    """Run ``sphrelax`` with ``argv`` (default ``sys.argv[1:]``); return the exit code.
+
+    A :class:`~ase_sphrelax.cli.usage.UsageError` is printed as one line and gives
+    code 2; any other exception propagates with its traceback.
+    """
+    args = build_parser().parse_args(argv)
+    try:
+        code = args._command.run(args)
+    except UsageError as error:
+        message = " ".join(str(error).split())
+        print(f"{PROG} {args.command}: error: {message}", file=sys.stderr)
+        return 2
+    return 0 if code is None else int(code)

@@ -1,0 +1,225 @@
+"""Fan et al.'s total error (Eq. 3.8) without the pair loop: :class:`FanModel`.
+
+With one particle volume ``v0 = vt`` (Fan's ``v0`` and ``ṽ``, Appendix A),
+
+    E = sum_{i,j} W(|x_i - x_j|, h) v0 vt  -  V  +  sum_i 2 vt I(-phi(x_i)),      (3.8)
+    I(s) = int_s^h W1(max(r, 0), h) dr,                                            (3.5)
+
+where the double sum includes ``i = j``. The model splits ``E`` into
+
+* the **pair part**, each unordered pair once: ``phi(r) = 2 v0 vt W(r, h) = C f(r/h)`` with
+  ``C = 2 v0 vt sigma_d / h^d`` (:meth:`FanModel.pair_prefactor`); its negative gradient
+  is Eq. 3.17;
+* the **self part** ``N v0 vt W(0, h) - V`` (:meth:`FanModel.self_energy`), a constant
+  of the positions;
+* the **boundary part** ``2 vt I(-phi_i)`` per particle with force
+  ``-2 W1(max(-phi_i, 0), h) vt n_i``, ``n = grad phi`` (last term of Eq. 4.4;
+  :meth:`FanModel.boundary`).
+
+Volumes (:meth:`FanModel.volumes`), one rule for every backend: ``V`` is the domain
+volume, else the periodic measure of the cell (length, area or volume spanned by the first
+``dim`` cell vectors), else ``N dx^d``; ``v0 = vt = dx^d`` (Eq. 3.3) or, with ``dx`` None,
+``V / N`` (Eq. 3.2).
+
+Stress (:meth:`FanModel.stress`; periodic cells without a domain) is ``(1/V_cell) dE/d(strain)``:
+the pair virial, ``-V`` times the in-plane identity for the ``-V`` term and, with ``dx`` None,
+``+2 (E + V)`` times the in-plane identity, because ``v0 vt = (V/N)^2`` scales with the cell.
+
+The pair sums run elsewhere: :class:`~ase_sphrelax.calculators.fan.FanCalculator` through
+:func:`ase_sphrelax.kernel_sums.pair_potential_sums`; ``lammps_io``'s calculator and
+relaxation deck through LAMMPS pair styles written from :meth:`FanModel.pair_prefactor`.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple, Optional
+
+import numpy as np
+from ase.calculators.calculator import PropertyNotImplementedError
+
+from ..checks import check_dim, check_positive, check_skin
+from ..kernels import get_kernel
+
+__all__ = ["FanModel", "FanVolumes", "verlet_skin"]
+
+SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
+
+
+def verlet_skin(skin, h):
+    """Neighbour-list skin of a Fan run: ``skin`` as a float >= 0, or ``SKIN_FRACTION * h`` when None."""
+    return SKIN_FRACTION * h if skin is None else check_skin(skin)
+
+
+class FanVolumes(NamedTuple):
+    """Volumes of one particle set (:meth:`FanModel.volumes`)."""
+
+    volume: float
+    """``V`` of Eq. 3.8."""
+    v0: float
+    """Particle volume ``v0 = vt``."""
+    measure: Optional[float]
+    """Periodic measure of the cell, or None when it is not periodic along all ``dim`` axes."""
+
+
+class FanModel:
+    """Parameters and closed-form terms of Fan's total error (Eq. 3.8, 3.17, 4.4).
+
+    Parameters
+    ----------
+    h : float
+        Kernel support radius (Fan's cut-off ``h``, e.g. ``2.6 * dx``).
+    dx : float or None
+        Background cell size: ``v0 = vt = dx**dim``; None: ``V / N``.
+    domain : Domain or None
+        Level set ``phi`` (negative inside) with ``phi_and_normal`` and ``volume``;
+        None is the interior case (periodic or free).
+    dim : {1, 2, 3}
+    kernel : str or Kernel
+        Kernel name (:data:`ase_sphrelax.kernels.KERNEL_NAMES`); Fan uses ``"wendland_c2"``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        One line naming the parameter and what is accepted, before any work.
+
+    Attributes
+    ----------
+    h, dx, domain, dim
+        The validated parameters (floats, int).
+    kernel : Kernel
+    """
+
+    def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
+        self.dim = check_dim(dim)
+        self.kernel = get_kernel(kernel, self.dim)
+        self.h = check_positive("h", h)
+        self.dx = check_positive("dx", dx, allow_none=True)
+        if domain is not None:
+            if not hasattr(domain, "phi_and_normal"):
+                raise TypeError(f"domain must be a Domain with phi_and_normal() or None, got {type(domain).__name__}")
+            if getattr(domain, "dim", self.dim) != self.dim:
+                raise ValueError(f"domain is {domain.dim}D but dim={self.dim}")
+        self.domain = domain
+
+    @classmethod
+    def from_parameters(cls, parameters):
+        """The model of a calculator's ``parameters`` (h, dx, domain, dim, kernel), which are
+        normalised in place (``h``, ``dx`` as floats)."""
+        p = parameters
+        model = cls(p.h, p.dx, p.domain, p.dim, p.kernel)
+        p.h, p.dx, p.dim = model.h, model.dx, model.dim
+        return model
+
+    def __repr__(self):
+        return (f"FanModel(h={self.h!r}, dx={self.dx!r}, domain={self.domain!r}, dim={self.dim}, "
+                f"kernel={self.kernel.name!r})")
+
+    # -- volumes ---------------------------------------------------------------
+    def volumes(self, n, measure=None):
+        """``V``, ``v0 = vt`` and the periodic measure of ``n`` particles (one rule, Eq. 3.2-3.3).
+
+        Parameters
+        ----------
+        n : int
+            Number of particles (>= 1).
+        measure : float or None
+            Periodic measure of the cell, as
+            :func:`ase_sphrelax.calculators.base.periodic_measure` returns it
+            (None when the cell is not periodic along all ``dim`` axes).
+
+        Returns
+        -------
+        FanVolumes
+        """
+        if n < 1:
+            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        if self.domain is not None:
+            volume = float(self.domain.volume)
+            if not (np.isfinite(volume) and volume > 0):
+                raise ValueError(f"domain.volume must be a positive finite number, got {volume!r}")
+        elif measure is not None:
+            volume = float(measure)
+            if not volume > 0:
+                raise ValueError(f"the periodic cell must have a positive {self.dim}D measure, got {volume!r}")
+        elif self.dx is not None:
+            volume = n * self.dx**self.dim
+        else:
+            raise ValueError("dx=None needs a domain or a cell periodic along all dim axes to define v0 = V/N; "
+                             "give dx")
+        v0 = self.dx**self.dim if self.dx is not None else volume / n
+        return FanVolumes(volume, v0, measure)
+
+    # -- the three parts of Eq. 3.8 -------------------------------------------------
+    def pair_prefactor(self, v0):
+        """``C`` of the pair potential ``phi(r) = 2 v0 vt W(r, h) = C f(r/h)``: ``2 v0^2 sigma_d / h^d``."""
+        return 2.0 * v0 * v0 * self.kernel.sigma / self.h**self.dim
+
+    def pair_energy(self, r, v0):
+        """``phi(r) = 2 v0 vt W(r, h)`` and ``dphi/dr`` (arrays)."""
+        return 2.0 * v0 * v0 * self.kernel.w(r, self.h), 2.0 * v0 * v0 * self.kernel.dw(r, self.h)
+
+    def self_energy(self, n, v0, volume):
+        """``N v0 vt W(0, h) - V``: the ``i = j`` terms of Eq. 3.8 and its ``-V``."""
+        return float(n * v0 * v0 * self.kernel.w0(self.h) - volume)
+
+    def boundary(self, r_pc, v0, want_forces=True):
+        """Boundary term of Eq. 3.8 per particle and its force (last term of Eq. 4.4).
+
+        Parameters
+        ----------
+        r_pc : ndarray (N, 3) or (N, dim)
+            Positions in the domain's frame.
+        v0 : float
+            ``vt = v0``.
+
+        Returns
+        -------
+        e_p : ndarray (N,)
+            ``2 vt I(-phi_i)`` (zeros without a domain).
+        f_pc : ndarray (N, 3) or None
+            ``-2 W1(max(-phi_i, 0), h) vt n_i`` (None unless ``want_forces``).
+        """
+        r_pc = np.asarray(r_pc, dtype=float)
+        n = len(r_pc)
+        if self.domain is None:
+            return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
+        phi_p, n_pc = self.domain.phi_and_normal(np.ascontiguousarray(r_pc[:, : self.dim]))
+        s_p = -np.asarray(phi_p, dtype=float).reshape(n)
+        e_p = 2.0 * v0 * self.kernel.w1_tail_integral(s_p, self.h)
+        if not want_forces:
+            return e_p, None
+        n_pc = np.asarray(n_pc, dtype=float)
+        normal_pc = np.zeros((n, 3))
+        normal_pc[:, : n_pc.shape[1]] = n_pc[:, :3]
+        return e_p, -(2.0 * v0 * self.kernel.w1(np.maximum(s_p, 0.0), self.h))[:, None] * normal_pc
+
+    # -- stress ----------------------------------------------------------------------
+    def check_stress(self, volumes, cell_volume):
+        """Raise PropertyNotImplementedError unless stress is defined: periodic along all dim axes,
+        no domain, a cell of non-zero volume (2D cells need a c vector)."""
+        if self.domain is not None or volumes.measure is None:
+            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes and no domain")
+        if not abs(cell_volume) > 0:
+            raise PropertyNotImplementedError("stress needs a cell of non-zero volume (give a 2D cell a c vector), "
+                                              f"got {cell_volume!r}")
+
+    def stress(self, pair_virial_cc, energy, volumes, cell_volume):
+        """Voigt stress ``(1/V_cell) dE/d(strain)`` (xx yy zz yz xz xy) of Eq. 3.8 in a periodic cell.
+
+        Parameters
+        ----------
+        pair_virial_cc : ndarray (3, 3)
+            ``dE_pair/d(strain)`` of the pair part (``sum over pairs phi'(r) d d^T / r``).
+        energy : float
+            The total ``E`` (no domain: pair part + self part).
+        volumes : FanVolumes
+        cell_volume : float
+            ``atoms.cell.volume``.
+        """
+        self.check_stress(volumes, cell_volume)
+        in_plane = np.zeros((3, 3))
+        in_plane[: self.dim, : self.dim] = np.eye(self.dim)
+        d_e = np.array(pair_virial_cc, dtype=float) - volumes.measure * in_plane  # the -V term
+        if self.dx is None:
+            # v0 = vt = V/N scales with the measure: d(v0 vt)/d(eps_aa) = 2 v0 vt, on E + V = v0 vt sum W
+            d_e += 2.0 * (energy + volumes.volume) * in_plane
+        return (d_e / abs(cell_volume)).flat[[0, 4, 8, 5, 2, 1]]

