@@ -13,7 +13,9 @@ __version__ = "0.1.0"
 
 _WHERE = {
     "FanCalculator": ".calculators",
+    "BIPICalculator": ".calculators",
     "FanRelaxation": ".drivers",
+    "BIPIPacker": ".drivers",
     "Kernel": ".kernels",
     "get_kernel": ".kernels",
     "NeighborList": ".neighbors",

@@ -49,6 +49,7 @@ UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point w
 # rounding error ~1e-16 L / delta; points closer than NUDGE h to the surface are evaluated NUDGE h inside
 # (gamma changes by at most |grad gamma| NUDGE h ~ 2e-7)
 NUDGE = 1e-7
+BAND_RULES = ("normal", "centroid", "ball")
 
 
 @numba.njit(cache=True, inline="always")
@@ -91,7 +92,7 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
 
 @numba.njit(cache=True, nogil=True)
 def _rows_2d(x_sc, start_p, elem_k, dist_k, point_k, seg, next_s, prev_s, inv_h, breaks, fc, gc, a, sigma, band,
-             want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
+             rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
     h = 1.0 / inv_h
     for p in range(first, last):
         total = 0.0
@@ -104,13 +105,26 @@ def _rows_2d(x_sc, start_p, elem_k, dist_k, point_k, seg, next_s, prev_s, inv_h,
         for k in range(start_p[p], start_p[p + 1]):
             s = point_k[k]
             e = elem_k[k]
-            g, gr, d = segment_terms(x_sc[s, 0], x_sc[s, 1], seg, e, inv_h, breaks, fc, gc, a, sigma)
+            g, gr, d = segment_terms(x_sc[s, 0], x_sc[s, 1], seg, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
             total += g
             gx += gr * seg[e, 4]
             gy += gr * seg[e, 5]
-            if abs(d) * h < band:
-                wx += gr * seg[e, 4]
-                wy += gr * seg[e, 5]
+            if rule == 2:
+                if dist_k[k] < band:
+                    gb = segment_terms(x_sc[s, 0], x_sc[s, 1], seg, e, inv_h, breaks, fc, gc, a, sigma,
+                                       band * inv_h)[1]
+                    wx += gb * seg[e, 4]
+                    wy += gb * seg[e, 5]
+            else:
+                if rule == 1:
+                    cx = 0.5 * (seg[e, 0] + seg[e, 2]) - x_sc[s, 0]
+                    cy = 0.5 * (seg[e, 1] + seg[e, 3]) - x_sc[s, 1]
+                    near = cx * cx + cy * cy < band * band
+                else:
+                    near = abs(d) * h < band
+                if near:
+                    wx += gr * seg[e, 4]
+                    wy += gr * seg[e, 5]
             if want_terms:
                 gamma_k[k] = g
                 grad_k[k] = gr
@@ -134,8 +148,9 @@ def _rows_2d(x_sc, start_p, elem_k, dist_k, point_k, seg, next_s, prev_s, inv_h,
 
 @numba.njit(cache=True, nogil=True)
 def _rows_3d(x_sc, start_p, elem_k, dist_k, point_k, tri, nrm, pseudo, inv_h, breaks, lp, lq, a0, p1_one, sigma,
-             xg, wg, close2, band, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
+             xg, wg, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
     h = 1.0 / inv_h
+    cuts = np.empty(2 * breaks.shape[0] + 5)
     for p in range(first, last):
         total = 0.0
         gx = 0.0
@@ -150,15 +165,30 @@ def _rows_3d(x_sc, start_p, elem_k, dist_k, point_k, tri, nrm, pseudo, inv_h, br
             s = point_k[k]
             t = elem_k[k]
             g, gr, d = triangle_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], tri, nrm, t, inv_h, breaks, lp, lq, a0,
-                                      p1_one, sigma, xg, wg)
+                                      p1_one, sigma, xg, wg, 1.0, cuts)
             total += g
             gx += gr * nrm[t, 0]
             gy += gr * nrm[t, 1]
             gz += gr * nrm[t, 2]
-            if abs(d) * h < band:
-                wx += gr * nrm[t, 0]
-                wy += gr * nrm[t, 1]
-                wz += gr * nrm[t, 2]
+            if rule == 2:
+                if dist_k[k] < band:
+                    gb = triangle_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], tri, nrm, t, inv_h, breaks, lp, lq, a0,
+                                        p1_one, sigma, xg, wg, band * inv_h, cuts)[1]
+                    wx += gb * nrm[t, 0]
+                    wy += gb * nrm[t, 1]
+                    wz += gb * nrm[t, 2]
+            else:
+                if rule == 1:
+                    cx = (tri[t, 0] + tri[t, 3] + tri[t, 6]) / 3.0 - x_sc[s, 0]
+                    cy = (tri[t, 1] + tri[t, 4] + tri[t, 7]) / 3.0 - x_sc[s, 1]
+                    cz = (tri[t, 2] + tri[t, 5] + tri[t, 8]) / 3.0 - x_sc[s, 2]
+                    near = cx * cx + cy * cy + cz * cz < band * band
+                else:
+                    near = abs(d) * h < band
+                if near:
+                    wx += gr * nrm[t, 0]
+                    wy += gr * nrm[t, 1]
+                    wz += gr * nrm[t, 2]
             if want_terms:
                 gamma_k[k] = g
                 grad_k[k] = gr
@@ -276,7 +306,7 @@ class BoundaryIntegrals:
             self.inside_tests += 1
         return self._inside_p
 
-    def compute(self, nlist, r_pc, terms=False, band=0.0, _nudge=True):
+    def compute(self, nlist, r_pc, terms=False, band=0.0, band_rule="ball", _nudge=True):
         """Boundary terms for particles at ``r_pc`` (N, 3); ``nlist`` updated for them.
 
         Parameters
@@ -286,9 +316,18 @@ class BoundaryIntegrals:
         terms : bool
             Also return the per-pair terms (``gamma_k``, ``grad_k``, ``delta_k``).
         band : float
-            If > 0, also sum ``grad gamma_as`` over the elements closer than ``band`` to the
-            particle's line/plane (``near_pc``; BIPI Eq. 14 with ``band = 0.5 dx_r``).
+            If > 0, also sum ``grad gamma_as`` over the elements within ``band`` (``near_pc``;
+            BIPI Eq. 14 with ``band = 0.5 dx_r``).
+        band_rule : {"ball", "normal", "centroid"}
+            Which parts of the boundary enter ``near_pc``. "ball" (default): the part within
+            ``band`` of the particle, ``sum_s n_s int_{s cap B(x_a, band)} W dS``, exact, the limit of
+            "centroid" for fine elements; "normal": whole elements with ``|(x_a - x_s) . n_s| < band``
+            (the distance to the element's line or plane, as BIPI's Eq. 14 is written);
+            "centroid": whole elements with ``|x_a - c_s| < band``, ``c_s`` the centroid (as Eq. 21
+            is written; depends on the element size, hence BIPI2D's refinement to ``dx / 10``).
         """
+        if band_rule not in BAND_RULES:
+            raise ValueError(f"band_rule must be one of {BAND_RULES}, got {band_rule!r}")
         r_pc = np.asarray(r_pc, dtype=float)
         n = len(r_pc)
         pairs = self.query.pairs(nlist, r_pc, self.h)
@@ -303,7 +342,7 @@ class BoundaryIntegrals:
         t = self.tables
         b = self.boundary
         common = (pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k)
-        out = (float(band), bool(terms), gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p)
+        out = (float(band), BAND_RULES.index(band_rule), bool(terms), gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p)
         if self.dim == 2:
             args = common + (b.packed_sk, b.next_s, b.prev_s, 1.0 / self.h, t.breaks, t.fc, t.gc, t.a, t.sigma) + out
             run_chunks(_rows_2d, n, args)
@@ -363,7 +402,7 @@ def _positions(r_pc, dim):
     return out
 
 
-def boundary_terms(r_pc, boundary, h, kernel="wendland_c2", band=0.0):
+def boundary_terms(r_pc, boundary, h, kernel="wendland_c2", band=0.0, band_rule="ball"):
     """One-shot :class:`BoundaryTerms` (per-pair terms included) for particles at ``r_pc``."""
     from ..neighbors import NeighborList
 
@@ -371,7 +410,7 @@ def boundary_terms(r_pc, boundary, h, kernel="wendland_c2", band=0.0):
     r = _positions(r_pc, integrals.dim)
     nlist = NeighborList(integrals.h)
     nlist.update(r, np.zeros((3, 3)), False, store=False)
-    return integrals.compute(nlist, r, terms=True, band=band)
+    return integrals.compute(nlist, r, terms=True, band=band, band_rule=band_rule)
 
 
 def gamma_and_gradient(r_pc, segments, h, kernel="wendland_c2"):

@@ -66,8 +66,12 @@ def line_offset(px, py, seg, e):
 
 
 @numba.njit(cache=True)
-def segment_terms(px, py, seg, e, inv_h, breaks, fc, gc, a, sigma):
+def segment_terms(px, py, seg, e, inv_h, breaks, fc, gc, a, sigma, q_max):
     """Boundary terms of particle (px, py) and segment ``e`` of the packed rows ``seg``.
+
+    ``q_max`` is the radius (units of ``h``) the segment is clipped to: 1, the support, for
+    ``gamma_as`` and ``grad gamma_as``; less for ``int_{s cap B(x_a, q_max h)} W dS`` alone
+    (``gamma_as`` is then meaningless).
 
     Returns
     -------
@@ -83,7 +87,7 @@ def segment_terms(px, py, seg, e, inv_h, breaks, fc, gc, a, sigma):
     tx, ty = ny, -nx  # direction: the inward normal is the direction turned left
     delta = line_offset(px, py, seg, e) * inv_h
     ad = abs(delta)
-    if ad >= 1.0:
+    if ad >= q_max:
         return 0.0, 0.0, delta
     ta = ((ax - px) * tx + (ay - py) * ty) * inv_h
     tb = ((bx - px) * tx + (by - py) * ty) * inv_h
@@ -93,8 +97,8 @@ def segment_terms(px, py, seg, e, inv_h, breaks, fc, gc, a, sigma):
     d2 = delta * delta
     for j in range(breaks.shape[0] - 1):
         lo = breaks[j]
-        hi = breaks[j + 1]
-        if ad >= hi:
+        hi = min(breaks[j + 1], q_max)
+        if ad >= hi or lo >= hi:
             continue
         t_hi = math.sqrt(hi * hi - d2)
         t_lo = math.sqrt(lo * lo - d2) if lo > ad else 0.0

@@ -42,27 +42,22 @@ def _laurent(row, r):
 
 @numba.njit(cache=True, inline="always")
 def _divided_difference(row, r, d):
-    """(L(r) - L(d)) / (r^2 - d^2) for the Laurent polynomial L of ``row``, without cancellation."""
+    """(L(r) - L(d)) / (r^2 - d^2) for the Laurent polynomial L of ``row``, without cancellation.
+
+    ``(r^q - d^q) / (r^2 - d^2) = S_q / (r + d)`` with ``S_q = sum_{i < q} r^i d^(q-1-i)``, built by
+    ``S_q = r S_(q-1) + d^(q-1)``; the ``1 / r`` column gives ``-1 / (r d (r + d))``.
+    """
     total = 0.0
+    s_q = 1.0  # S_1
+    d_q = 1.0  # d^(q - 1)
+    for m in range(2, row.shape[0]):  # power q = m - 1 >= 1
+        if m > 2:
+            d_q *= d
+            s_q = r * s_q + d_q
+        total += row[m] * s_q
+    total /= r + d
     if row[0] != 0.0:
         total -= row[0] / (r * d * (r + d))
-    if row.shape[0] > 2:
-        total += row[2] / (r + d)
-    for m in range(3, row.shape[0]):
-        c = row[m]
-        if c == 0.0:
-            continue
-        q = m - 1  # power >= 2
-        s = 0.0
-        if q % 2 == 0:
-            # sum_{i < q/2} r^(2i) d^(q - 2 - 2i)
-            for i in range(q // 2):
-                s += r ** (2 * i) * d ** (q - 2 - 2 * i)
-        else:
-            for i in range(q):
-                s += r**i * d ** (q - 1 - i)
-            s /= r + d
-        total += c * s
     return total
 
 
@@ -89,8 +84,12 @@ def plane_offset(px, py, pz, tri, nrm, t):
 
 
 @numba.njit(cache=True)
-def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, xg, wg):
+def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, xg, wg, q_max, cuts):
     """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
+
+    ``q_max`` is the radius (units of ``h``) the triangle is clipped to: 1, the support, for both
+    terms; less for ``int_{t cap B(x_a, q_max h)} W dS`` alone (``gamma_at`` is then returned as 0).
+    ``cuts`` is scratch space of at least ``2 (number of kernel pieces) + 5`` entries.
 
     Returns
     -------
@@ -104,8 +103,9 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
     nx, ny, nz = nrm[t, 0], nrm[t, 1], nrm[t, 2]
     delta = plane_offset(px, py, pz, tri, nrm, t) * inv_h
     ad = abs(delta)
-    if ad >= 1.0:
+    if ad >= q_max:
         return 0.0, 0.0, delta
+    with_gamma = q_max >= 1.0
     sgn = 1.0 if delta > 0.0 else (-1.0 if delta < 0.0 else 0.0)
     h = 1.0 / inv_h
     # foot of p on the plane
@@ -115,10 +115,13 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
     jd = _piece(breaks, ad)
     p1_d = _laurent(lp[jd], ad)  # piece 0 has no 1 / rho term: fine at ad = 0
     qt_d = _laurent(lq[jd], ad)
-    kf_inf = p1_one - p1_d
-    kg_inf = sgn * a0 - delta * qt_d
+    if with_gamma:
+        kf_inf = p1_one - p1_d
+        kg_inf = sgn * a0 - delta * qt_d
+    else:
+        kf_inf = _laurent(lp[_piece(breaks, q_max)], q_max) - p1_d
+        kg_inf = 0.0
     nb = breaks.shape[0] - 1
-    cuts = np.empty(2 * nb + 3)
     gam = 0.0
     jf = 0.0
     for i in range(3):
@@ -151,8 +154,11 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
         if xa < 0.0 < xb:
             cuts[n_cut] = 0.0
             n_cut += 1
-        for j in range(1, nb + 1):
-            b2 = breaks[j] * breaks[j] - d2
+        for j in range(1, nb + 2):
+            radius = breaks[j] if j <= nb else q_max
+            if radius > q_max or (j == nb + 1 and with_gamma):
+                continue
+            b2 = radius * radius - d2
             if b2 > 0.0:
                 xc = math.sqrt(b2)
                 if xa < xc < xb:
@@ -178,13 +184,13 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
                 continue
             xm = 0.5 * (x0 + x1)
             rm = math.sqrt(d2 + xm * xm)
-            if rm >= 1.0:
+            if rm >= q_max:
                 ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
                 jf += kf_inf * ang
                 gam += kg_inf * ang
                 continue
             j = _piece(breaks, rm)
-            if sgn != 0.0:
+            if sgn != 0.0 and with_gamma:
                 r1 = math.sqrt(d2 + x1 * x1)
                 r0 = math.sqrt(d2 + x0 * x0)
                 phi1 = math.atan2(x1 * e * (e2 + x1 * x1), (r1 + ad) * (e2 * r1 + ad * x1 * x1))
@@ -206,5 +212,6 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
                 sf += wg[g] * ddp
                 sq += wg[g] * ddq
             jf += half * e * sf
-            gam += half * e * delta * sq
+            if with_gamma:
+                gam += half * e * delta * sq
     return sigma * gam, sigma * inv_h * jf, delta
