@@ -334,7 +334,6 @@ class BIPIPacker(Optimizer):
                                f"{'time':>9}\n")
         self.logfile.write(f"{r['stage']:>5} {r['iteration']:6d} {r['tpd_avg']:12.5e} {r['gradc_avg']:12.5e} "
                            f"{r['n_pack']:7d} {r['time']:9.2e}\n")
-        self.logfile.flush()
 
     def irun(self, steps=None):
         """Run the stages as a generator (yields after each iteration); ``steps`` caps the total."""
