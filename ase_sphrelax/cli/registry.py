@@ -38,12 +38,16 @@ COMMANDS = {
     "relax": "ase_sphrelax.cli.relax",
     "lattice": "ase_sphrelax.cli.lattice",
     "table": "ase_sphrelax.cli.table",
+    "pack": "ase_sphrelax.cli.pack",
 }
 
 #: built-in methods per command (``sphrelax COMMAND --method NAME``)
 METHODS = {
     "relax": {
         "fan": "ase_sphrelax.cli.relax:FanMethod",
+    },
+    "pack": {
+        "bipi": "ase_sphrelax.cli.pack:BIPIMethod",
     },
 }
 

@@ -44,7 +44,7 @@ from ase.optimize.optimize import Optimizer
 
 from ..checks import check_positive
 
-__all__ = ["BIPIPacker", "initial_fill", "plot_history", "STAGES"]
+__all__ = ["BIPIPacker", "initial_fill", "pack", "pack_summary", "plot_history", "plot_gradient", "STAGES"]
 
 STAGES = ("2a", "2b", "2c")
 CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
@@ -398,6 +398,79 @@ class BIPIPacker(Optimizer):
         """Write the history and the summary as JSON."""
         with open(path, "w") as fh:
             json.dump(dict(parameters=self.todict(), summary=self.summary(), history=self.history), fh, indent=1)
+
+
+def pack(boundary, dx, h=None, h_over_dx_paper=None, kernel="wendland_c2", J=None, band_rule="ball", skin=None,
+         **packer_kwargs):
+    """Step 1 and Step 2 in one call: :func:`initial_fill`, a BIPICalculator and :class:`BIPIPacker`.
+
+    Parameters
+    ----------
+    boundary : BoundarySegments, BoundaryTriangles, domain or file
+    dx : float
+    h, h_over_dx_paper : float
+        The support ``h`` (our convention), or the paper's ``h_B / dx_r`` (``h = 2 h_B``); default
+        BIPI2D's ``h_B / dx_r = 2`` (``h = 4 dx``).
+    **packer_kwargs
+        Passed to :class:`BIPIPacker` (caps, ``window``, ``stages``, ``progress``, ...).
+
+    Returns
+    -------
+    (ase.Atoms, BIPIPacker, ase.Atoms)
+        The packed particles, the packer (history, summary) and a copy of the start (Step 1).
+    """
+    from ..boundary import as_boundary
+    from ..calculators.bipi import BIPICalculator
+    from ..models.bipi import J_DEFAULT, support_from_paper
+
+    if h is not None and h_over_dx_paper is not None:
+        raise ValueError("give h (support) or h_over_dx_paper (h_B / dx_r), not both")
+    boundary = as_boundary(boundary)
+    if h is None:
+        h = support_from_paper(2.0 if h_over_dx_paper is None else h_over_dx_paper, dx)
+    calc = BIPICalculator(h=h, dx=dx, boundary=boundary, kernel=kernel, J=J_DEFAULT if J is None else J,
+                          band_rule=band_rule, skin=skin)
+    atoms = initial_fill(boundary, dx)
+    start = atoms.copy()
+    packer = BIPIPacker(atoms, calc, **packer_kwargs)
+    packer.run()
+    return atoms, packer, start
+
+
+def pack_summary(atoms, packer):
+    """Headline numbers of a packing: the packer's summary plus boundary layer, escapes, |grad C| drop
+    and the shared quality metrics of :mod:`ase_sphrelax.analysis.quality`."""
+    from ..analysis.quality import BOUNDARY_LAYER, quality_summary
+
+    model = packer.model
+    domain = packer.calc.boundary.domain
+    out = packer.summary()
+    d = -domain.phi(atoms.positions) / model.dx
+    layer = d < BOUNDARY_LAYER
+    final = packer.final_gradc_avg()
+    first = out.get("gradc_avg_2c_first", np.nan)
+    out.update(n_particles=len(atoms), h_over_dx=model.h / model.dx, n_outside=int(np.sum(d <= 0)),
+               boundary_layer_mean=float(d[layer].mean()) if layer.any() else float("nan"),
+               boundary_layer_min=float(d.min()), n_boundary_layer=int(layer.sum()), gradc_avg_final=final,
+               gradc_drop_orders=float(np.log10(first / final)) if final > 0 and np.isfinite(first) else float("nan"),
+               quality=quality_summary(atoms, model.h, dx=model.dx, domain=domain, dim=model.dim,
+                                       kernel=model.kernel.name))
+    return out
+
+
+def plot_gradient(atoms, calc, path, title=""):
+    """Particles coloured by log10 |grad C_a| (the paper's Figs. 10-12); 3D: a slice."""
+    from ..plotting import plot_particles
+
+    grad = np.linalg.norm(calc.get_concentration_gradient(atoms), axis=1)
+    value = np.log10(np.maximum(grad, 1e-300) * calc.model.h)
+    plot_particles(atoms, value, path, domain=calc.boundary.domain, dx=calc.model.dx, title=title,
+                   label=r"log$_{10}$ (h |$\nabla$C$_a$|)", slice_width=2 * calc.model.dx)
+    from PIL import Image
+
+    with Image.open(path) as image:  # a 256-colour palette: a quarter of the file size
+        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+    return path
 
 
 def plot_history(history, path=None, title=None):
