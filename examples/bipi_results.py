@@ -9,13 +9,16 @@ BIPI2D's stopping rules: 1 % change of TPD_avg in 2a and of |grad C|_avg in 2c o
 * the trapezoid at dx_r = 0.01, 0.02, 0.04 with h_B / dx_r = 2 (Fig. 8);
 * the trapezoid at h_B / dx_r = 1.2, 1.7, 2, 2.5, 3 with dx_r = 0.02 (Fig. 9);
 * the Stanford 2D bunny (mm), the NACA 6412 airfoil solid and the fluid box with the airfoil as a
-  hole (inch) (Figs. 11-12).
+  hole (inch) (Figs. 11-12);
+* 3D, beyond the paper: a sphere of radius 0.5 (``Sphere.to_mesh(3)``, 1280 triangles) and two closed
+  STL files written with trimesh and read back: a unit cube and an icosphere (radius 0.5, 320 triangles).
 
 Writes ``table.md``/``table.csv``/``results.json`` (both conventions: our support h and the paper's
 h_B = h / 2), per case ``<case>_history.json`` and ``<case>_start.png``/``<case>_packed.png``
 (particles coloured by log10 h |grad C_a|, like Figs. 10-12), and ``fig8_dx.png``, ``fig9_h.png``,
 ``fig11_12_shapes.png`` (TPD_avg and |grad C|_avg against the iteration). ``--cases`` runs a subset,
-``--quick`` caps both stages at 100 iterations (a smoke test).
+``--quick`` caps both stages at 100 iterations (a smoke test), ``--table-only`` rebuilds the table and figures.
+``∇C avg`` is |grad C|_avg over the unfrozen particles, in 1/length of the geometry's units.
 """
 from __future__ import annotations
 
@@ -42,15 +45,19 @@ CASES = {
     "bunny": ("Standford2DBunny", 1.0, 2.0),
     "airfoil_solid": ("AirFoilSolid", 0.05, 2.0),
     "airfoil_fluid": ("AirFoilFluid", 0.25, 2.0),
+    "sphere_3d": ("sphere", 0.05, 2.0),
+    "cube_stl_3d": ("cube.stl", 0.0625, 2.0),
+    "icosphere_stl_3d": ("icosphere.stl", 0.05, 2.0),
 }
 GROUPS = {
     "fig8_dx.png": ("trapezoid, h_B/dx_r = 2 (Fig. 8)", ["trapezoid_dx0.01", "trapezoid_dx0.02", "trapezoid_dx0.04"]),
     "fig9_h.png": ("trapezoid, dx_r = 0.02 (Fig. 9)", ["trapezoid_hb1.2", "trapezoid_hb1.7", "trapezoid_dx0.02",
                                                         "trapezoid_hb2.5", "trapezoid_hb3"]),
     "fig11_12_shapes.png": ("bunny and airfoils (Figs. 11-12)", ["bunny", "airfoil_solid", "airfoil_fluid"]),
+    "fig_3d.png": ("3D: sphere, STL cube and icosphere", ["sphere_3d", "cube_stl_3d", "icosphere_stl_3d"]),
 }
 COLUMNS = ["case", "geometry", "dx", "h_B/dx (paper)", "h/dx (support)", "N", "it 2a", "it 2c", "frozen",
-           "TPD_avg 2a", "|gradC|_avg 2c start", "|gradC|_avg end", "drop (orders)", "layer mean d/dx",
+           "TPD_avg 2a", "∇C avg 2c start", "∇C avg end", "drop (orders)", "layer mean d/dx",
            "layer min d/dx", "outside", "wall time s"]
 
 
@@ -63,12 +70,28 @@ def compact_history(history):
     return out
 
 
+def load_boundary(geometry, out):
+    """An edge file of ../shared/geometries, or a 3D shape (the STL files are written into ``out``)."""
+    import trimesh
+
+    from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
+    from ase_sphrelax.domains import Sphere
+
+    if geometry == "sphere":
+        return Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3).triangles
+    if geometry.endswith(".stl"):
+        mesh = (trimesh.creation.box(extents=(1.0, 1.0, 1.0)) if geometry == "cube.stl"
+                else trimesh.creation.icosphere(subdivisions=2, radius=0.5))
+        mesh.export(out / geometry)
+        return BoundaryTriangles.from_file(out / geometry)
+    return BoundarySegments.from_edges(GEOMETRIES / f"{geometry}.edges")
+
+
 def run_case(name, out, quick):
-    from ase_sphrelax.boundary import BoundarySegments
     from ase_sphrelax.drivers.bipi_packer import pack, pack_summary, plot_gradient
 
     geometry, dx, ratio = CASES[name]
-    boundary = BoundarySegments.from_edges(GEOMETRIES / f"{geometry}.edges")
+    boundary = load_boundary(geometry, out)
     caps = dict(max_steps_2a=100, max_steps_2c=100) if quick else {}
     t = time.perf_counter()
     atoms, packer, start = pack(boundary, dx, h_over_dx_paper=ratio, progress=True, **caps)
@@ -128,6 +151,7 @@ def main(argv=None):
     parser.add_argument("--out", default="examples/results/bipi")
     parser.add_argument("--cases", nargs="*", default=list(CASES), choices=list(CASES))
     parser.add_argument("--quick", action="store_true", help="cap both stages at 100 iterations")
+    parser.add_argument("--table-only", action="store_true", help="rebuild the table and figures from results.json")
     args = parser.parse_args(argv)
     if not GEOMETRIES.is_dir():
         sys.exit(f"{GEOMETRIES} not found: the geometries live in ../shared/geometries beside the checkout")
@@ -136,7 +160,7 @@ def main(argv=None):
     warnings.simplefilter("ignore", FutureWarning)
     results_path = out / "results.json"
     summaries = json.loads(results_path.read_text()) if results_path.exists() else {}
-    for name in args.cases:
+    for name in [] if args.table_only else args.cases:
         print(f"== {name}", flush=True)
         summaries[name] = run_case(name, out, args.quick)
         results_path.write_text(json.dumps(summaries, indent=1))

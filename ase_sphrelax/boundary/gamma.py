@@ -43,7 +43,7 @@ from .triangles import BoundaryTriangles
 __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary",
            "GAUSS_NODES"]
 
-GAUSS_NODES = 16  # 3D Gauss-Legendre nodes per smooth interval (errors ~1e-12 against adaptive quadrature)
+GAUSS_NODES = 8  # 3D Gauss-Legendre nodes per smooth interval (see tests/test_boundary_gamma.py for the errors)
 UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point within NUDGE h of the surface
 # 3D: a triangle's share of the solid angle seen from height delta above one of its edge lines carries a
 # rounding error ~1e-16 L / delta; points closer than NUDGE h to the surface are evaluated NUDGE h inside
@@ -90,41 +90,55 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
     return 1.0 if side > 0.0 else (0.0 if side < 0.0 else -1.0)
 
 
+@numba.njit(cache=True, inline="always")
+def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, xg, wg, q_max, cuts):
+    """(gamma_as, int W dS, delta) of a segment (kind 0) or a triangle (kind 1)."""
+    if kind == 0:
+        return segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, q_max)
+    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, xg, wg, q_max, cuts)
+
+
 @numba.njit(cache=True, nogil=True)
-def _rows_2d(x_sc, start_p, elem_k, dist_k, point_k, seg, next_s, prev_s, inv_h, breaks, fc, gc, a, sigma, band,
-             rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
+def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, next_s, prev_s, pseudo, inv_h, breaks,
+          fc, gc, a, lp, lq, p1_one, sigma, xg, wg, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p,
+          grad_pc, near_pc, chi_p, first, last):
+    """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
+
+    ``rule``: 0 normal, 1 centroid, 2 ball (:data:`BAND_RULES`). The kernel tables are those of
+    :class:`~ase_sphrelax.boundary.radial.RadialTables` (segments use fc, gc, a; triangles lp, lq,
+    a[0], p1_one).
+    """
     h = 1.0 / inv_h
+    cuts = np.empty(2 * breaks.shape[0] + 5)
     for p in range(first, last):
         total = 0.0
-        gx = 0.0
-        gy = 0.0
-        wx = 0.0
-        wy = 0.0
+        g0 = g1 = g2 = 0.0
+        w0 = w1 = w2 = 0.0
         best = np.inf
         k_best = -1
         for k in range(start_p[p], start_p[p + 1]):
             s = point_k[k]
             e = elem_k[k]
-            g, gr, d = segment_terms(x_sc[s, 0], x_sc[s, 1], seg, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
+            x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
+            g, gr, d = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                                      xg, wg, 1.0, cuts)
             total += g
-            gx += gr * seg[e, 4]
-            gy += gr * seg[e, 5]
+            g0 += gr * nrm[e, 0]
+            g1 += gr * nrm[e, 1]
+            g2 += gr * nrm[e, 2]
+            gb = 0.0
             if rule == 2:
                 if dist_k[k] < band:
-                    gb = segment_terms(x_sc[s, 0], x_sc[s, 1], seg, e, inv_h, breaks, fc, gc, a, sigma,
-                                       band * inv_h)[1]
-                    wx += gb * seg[e, 4]
-                    wy += gb * seg[e, 5]
-            else:
-                if rule == 1:
-                    cx = 0.5 * (seg[e, 0] + seg[e, 2]) - x_sc[s, 0]
-                    cy = 0.5 * (seg[e, 1] + seg[e, 3]) - x_sc[s, 1]
-                    near = cx * cx + cy * cy < band * band
-                else:
-                    near = abs(d) * h < band
-                if near:
-                    wx += gr * seg[e, 4]
-                    wy += gr * seg[e, 5]
+                    gb = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                                        xg, wg, band * inv_h, cuts)[1]
+            elif rule == 1:
+                cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
+                gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
+            elif abs(d) * h < band:
+                gb = gr
+            w0 += gb * nrm[e, 0]
+            w1 += gb * nrm[e, 1]
+            w2 += gb * nrm[e, 2]
             if want_terms:
                 gamma_k[k] = g
                 grad_k[k] = gr
@@ -133,81 +147,16 @@ def _rows_2d(x_sc, start_p, elem_k, dist_k, point_k, seg, next_s, prev_s, inv_h,
                 best = dist_k[k]
                 k_best = k
         sum_p[p] = total
-        grad_pc[p, 0] = gx
-        grad_pc[p, 1] = gy
-        grad_pc[p, 2] = 0.0
-        near_pc[p, 0] = wx
-        near_pc[p, 1] = wy
-        near_pc[p, 2] = 0.0
+        grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
+        near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
         if k_best < 0:
             chi_p[p] = -1.0
+            continue
+        s = point_k[k_best]
+        if kind == 0:
+            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s)
         else:
-            s = point_k[k_best]
-            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], seg, elem_k[k_best], next_s, prev_s)
-
-
-@numba.njit(cache=True, nogil=True)
-def _rows_3d(x_sc, start_p, elem_k, dist_k, point_k, tri, nrm, pseudo, inv_h, breaks, lp, lq, a0, p1_one, sigma,
-             xg, wg, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
-    h = 1.0 / inv_h
-    cuts = np.empty(2 * breaks.shape[0] + 5)
-    for p in range(first, last):
-        total = 0.0
-        gx = 0.0
-        gy = 0.0
-        gz = 0.0
-        wx = 0.0
-        wy = 0.0
-        wz = 0.0
-        best = np.inf
-        k_best = -1
-        for k in range(start_p[p], start_p[p + 1]):
-            s = point_k[k]
-            t = elem_k[k]
-            g, gr, d = triangle_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], tri, nrm, t, inv_h, breaks, lp, lq, a0,
-                                      p1_one, sigma, xg, wg, 1.0, cuts)
-            total += g
-            gx += gr * nrm[t, 0]
-            gy += gr * nrm[t, 1]
-            gz += gr * nrm[t, 2]
-            if rule == 2:
-                if dist_k[k] < band:
-                    gb = triangle_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], tri, nrm, t, inv_h, breaks, lp, lq, a0,
-                                        p1_one, sigma, xg, wg, band * inv_h, cuts)[1]
-                    wx += gb * nrm[t, 0]
-                    wy += gb * nrm[t, 1]
-                    wz += gb * nrm[t, 2]
-            else:
-                if rule == 1:
-                    cx = (tri[t, 0] + tri[t, 3] + tri[t, 6]) / 3.0 - x_sc[s, 0]
-                    cy = (tri[t, 1] + tri[t, 4] + tri[t, 7]) / 3.0 - x_sc[s, 1]
-                    cz = (tri[t, 2] + tri[t, 5] + tri[t, 8]) / 3.0 - x_sc[s, 2]
-                    near = cx * cx + cy * cy + cz * cz < band * band
-                else:
-                    near = abs(d) * h < band
-                if near:
-                    wx += gr * nrm[t, 0]
-                    wy += gr * nrm[t, 1]
-                    wz += gr * nrm[t, 2]
-            if want_terms:
-                gamma_k[k] = g
-                grad_k[k] = gr
-                delta_k[k] = d * h
-            if dist_k[k] < best:
-                best = dist_k[k]
-                k_best = k
-        sum_p[p] = total
-        grad_pc[p, 0] = gx
-        grad_pc[p, 1] = gy
-        grad_pc[p, 2] = gz
-        near_pc[p, 0] = wx
-        near_pc[p, 1] = wy
-        near_pc[p, 2] = wz
-        if k_best < 0:
-            chi_p[p] = -1.0
-        else:
-            s = point_k[k_best]
-            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], tri, nrm, pseudo, elem_k[k_best], close2)
+            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, nrm, pseudo, elem_k[k_best], close2)
 
 
 class BoundaryTerms:
@@ -292,6 +241,16 @@ class BoundaryIntegrals:
         if isinstance(gauss_nodes, bool) or not isinstance(gauss_nodes, (int, np.integer)) or gauss_nodes < 2:
             raise ValueError(f"gauss_nodes must be an integer >= 2, got {gauss_nodes!r}")
         self._xg, self._wg = np.polynomial.legendre.leggauss(int(gauss_nodes))
+        b = self.boundary
+        self._empty2 = np.zeros((1, 1))
+        if self.dim == 2:  # normals and centroids with a zero z, connectivity for the point term
+            self._nrm = np.ascontiguousarray(np.column_stack([b.normal_sc, np.zeros(len(b))]))
+            self._centroid = np.ascontiguousarray(np.column_stack([b.centroid_sc, np.zeros(len(b))]))
+            self._next, self._prev = b.next_s, b.prev_s
+            self._pseudo = np.zeros((1, 7, 3))
+        else:
+            self._next = self._prev = np.zeros(1, dtype=np.int64)
+            self._pseudo = b.pseudo_normal_tfc
         self._inside_points = None
         self._inside_p = None
         self.inside_tests = 0
@@ -341,16 +300,18 @@ class BoundaryIntegrals:
         chi_p = np.empty(n)
         t = self.tables
         b = self.boundary
-        common = (pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k)
-        out = (float(band), BAND_RULES.index(band_rule), bool(terms), gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p)
         if self.dim == 2:
-            args = common + (b.packed_sk, b.next_s, b.prev_s, 1.0 / self.h, t.breaks, t.fc, t.gc, t.a, t.sigma) + out
-            run_chunks(_rows_2d, n, args)
+            kind, elem, nrm, centroid = 0, b.packed_sk, self._nrm, self._centroid
+            tables = (t.breaks, t.fc, t.gc, t.a, self._empty2, self._empty2, 0.0)
+            close2 = 0.0
         else:
-            args = common + (b.packed_tk, b.normal_tc, b.pseudo_normal_tfc, 1.0 / self.h, t.breaks, t.lp, t.lq,
-                             float(t.a[0]), t.p1_one, t.sigma, self._xg, self._wg,
-                             (NUDGE * self.h) ** 2 if _nudge else 0.0) + out
-            run_chunks(_rows_3d, n, args)
+            kind, elem, nrm, centroid = 1, b.packed_tk, b.normal_tc, b.centroid_tc
+            tables = (t.breaks, self._empty2, self._empty2, t.a, t.lp, t.lq, t.p1_one)
+            close2 = (NUDGE * self.h) ** 2 if _nudge else 0.0
+        run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
+                              nrm, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
+                              self._xg, self._wg, close2, float(band), BAND_RULES.index(band_rule), bool(terms),
+                              gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p))
         unknown = chi_p == UNKNOWN
         if unknown.any():
             chi_p[unknown] = self._inside(nlist, r_pc)[unknown]
