@@ -19,6 +19,15 @@ The list is built with ``cutoff + skin`` and reused until some particle moved
 more than ``skin / 2`` (or the cell, pbc, particle number or cut-offs change).
 Per-particle cut-offs are supported: a pair is listed if
 ``r < max(cutoff_i, cutoff_j) + skin``.
+
+A (re)build bins the points and leaves the list scan *pending*: the next pair sum of
+:mod:`ase_sphrelax.pairs` runs one bin scan that writes the list and evaluates its pairs
+(:meth:`NeighborList.fused_build`); reading ``pair_start``/``pair_j`` or moving the
+points first completes it alone, from the positions of the build. The scan is one pass
+(no count pass): each thread's chunk of points writes into its own region of a pair
+buffer kept between builds, the regions are then closed up. Bins have an edge of
+``reach / 2`` in 2D and 3D and are scanned as rows of consecutive bins (one contiguous
+range of sorted points each), bins beyond reach left out.
 """
 from __future__ import annotations
 
@@ -28,7 +37,7 @@ import numba
 import numpy as np
 
 from .checks import check_skin
-from .parallel import PARALLEL_MIN, run_chunks
+from .parallel import PARALLEL_MIN, chunk_bounds, run_chunks, thread_count, thread_pool
 
 __all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "complete_cell", "is_canonical_pair", "bin_coords",
            "stencil_range"]
@@ -62,40 +71,111 @@ def complete_cell(cell, pbc):
     return cell, np.linalg.inv(cell)
 
 
-def _check_positions(positions):
+def _check_positions(positions, finite=True):
     r_pc = np.asarray(positions, dtype=float)
     if r_pc.ndim != 2 or r_pc.shape[1] != 3:
         raise ValueError(f"positions must have shape (N, 3), got {r_pc.shape}")
     if r_pc.shape[0] == 0:
         raise ValueError("positions: need at least one particle, got none")
-    if not np.all(np.isfinite(r_pc)):
+    if finite and not np.all(np.isfinite(r_pc)):
         bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
         raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
     return r_pc
 
 
+@numba.njit(cache=True, inline="always")
+def _image_position(r_pc, p, img0, img1, img2, cell_cc, c):
+    """Coordinate c of particle p's image (integer image vector, wrap included)."""
+    return r_pc[p, c] + img0 * cell_cc[0, c] + img1 * cell_cc[1, c] + img2 * cell_cc[2, c]
+
+
 @numba.njit(cache=True)
-def _bin_sort(x_ec, origin_c, binsize, nbin_c):
-    """Counting sort of points into bins; returns (order_s, bin_start, bin_s)."""
-    n = x_ec.shape[0]
+def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
+    """Particles wrapped into the cell along periodic axes, followed by ghosts:
+    periodic images within ``pad`` (fractional units) of the unit cell.
+
+    Returns (src_e, img_ec, lo_c, hi_c): source particle and integer image vector
+    (including the wrap) of every extended point, and the bounding box of their
+    positions. Positions are not stored: they follow from the images
+    (:func:`_image_position`), as in every later pass.
+    """
+    n = r_pc.shape[0]
+    lx, ly, lz = layers_c[0], layers_c[1], layers_c[2]
+    src_e = np.empty(0, dtype=np.int32)
+    img_ec = np.empty((0, 3), dtype=np.int32)
+    lo_c = np.full(3, np.inf)
+    hi_c = np.full(3, -np.inf)
+    for sweep in range(2):
+        count = n
+        for p in range(n):
+            f0 = r_pc[p, 0] * inv_cc[0, 0] + r_pc[p, 1] * inv_cc[1, 0] + r_pc[p, 2] * inv_cc[2, 0]
+            f1 = r_pc[p, 0] * inv_cc[0, 1] + r_pc[p, 1] * inv_cc[1, 1] + r_pc[p, 2] * inv_cc[2, 1]
+            f2 = r_pc[p, 0] * inv_cc[0, 2] + r_pc[p, 1] * inv_cc[1, 2] + r_pc[p, 2] * inv_cc[2, 2]
+            w0 = -np.floor(f0) if pbc_c[0] else 0.0
+            w1 = -np.floor(f1) if pbc_c[1] else 0.0
+            w2 = -np.floor(f2) if pbc_c[2] else 0.0
+            f0 += w0
+            f1 += w1
+            f2 += w2
+            if sweep == 1:
+                src_e[p] = p
+                img_ec[p, 0], img_ec[p, 1], img_ec[p, 2] = int(w0), int(w1), int(w2)
+                for c in range(3):
+                    x = _image_position(r_pc, p, w0, w1, w2, cell_cc, c)
+                    lo_c[c] = min(lo_c[c], x)
+                    hi_c[c] = max(hi_c[c], x)
+            for sx in range(-lx, lx + 1):
+                fx = f0 + sx
+                if pbc_c[0] and (fx < -pad_c[0] or fx >= 1.0 + pad_c[0]):
+                    continue
+                for sy in range(-ly, ly + 1):
+                    fy = f1 + sy
+                    if pbc_c[1] and (fy < -pad_c[1] or fy >= 1.0 + pad_c[1]):
+                        continue
+                    for sz in range(-lz, lz + 1):
+                        if sx == 0 and sy == 0 and sz == 0:
+                            continue
+                        fz = f2 + sz
+                        if pbc_c[2] and (fz < -pad_c[2] or fz >= 1.0 + pad_c[2]):
+                            continue
+                        if sweep == 1:
+                            src_e[count] = p
+                            i0, i1, i2 = w0 + sx, w1 + sy, w2 + sz
+                            img_ec[count, 0], img_ec[count, 1], img_ec[count, 2] = int(i0), int(i1), int(i2)
+                            for c in range(3):
+                                x = _image_position(r_pc, p, i0, i1, i2, cell_cc, c)
+                                lo_c[c] = min(lo_c[c], x)
+                                hi_c[c] = max(hi_c[c], x)
+                        count += 1
+        if sweep == 0:
+            src_e = np.empty(count, dtype=np.int32)
+            img_ec = np.empty((count, 3), dtype=np.int32)
+    return src_e, img_ec, lo_c, hi_c
+
+
+@numba.njit(cache=True)
+def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c):
+    """Counting sort of the extended points into bins; returns (order_s, bin_start, bin_s)."""
+    n = src_e.shape[0]
     nbins = nbin_c[0] * nbin_c[1] * nbin_c[2]
     inv_bs = 1.0 / binsize
-    bin_e = np.empty(n, dtype=np.int64)
-    for e in range(n):
-        b = 0
-        for c in range(3):
-            k = min(max(int((x_ec[e, c] - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
-            b = b * nbin_c[c] + k
-        bin_e[e] = b
+    bin_e = np.empty(n, dtype=np.int32)
     count = np.zeros(nbins + 1, dtype=np.int64)
     for e in range(n):
-        count[bin_e[e] + 1] += 1
+        p = src_e[e]
+        b = 0
+        for c in range(3):
+            x = _image_position(r_pc, p, img_ec[e, 0], img_ec[e, 1], img_ec[e, 2], cell_cc, c)
+            k = min(max(int((x - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
+            b = b * nbin_c[c] + k
+        bin_e[e] = b
+        count[b + 1] += 1
     for b in range(nbins):
         count[b + 1] += count[b]
     bin_start = count.copy()
-    fill = count[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
-    bin_s = np.empty(n, dtype=np.int64)
+    fill = count[:-1]
+    order = np.empty(n, dtype=np.int32)
+    bin_s = np.empty(n, dtype=np.int32)
     for e in range(n):
         b = bin_e[e]
         order[fill[b]] = e
@@ -104,80 +184,12 @@ def _bin_sort(x_ec, origin_c, binsize, nbin_c):
     return order, bin_start, bin_s
 
 
-@numba.njit(cache=True)
-def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
-    """Particles wrapped into the cell along periodic axes, followed by ghosts:
-    periodic images within ``pad`` (fractional units) of the unit cell.
-
-    Returns (src_e, img_ec, x_ec): source particle, integer image vector
-    (including the wrap) and Cartesian position of every extended point.
-    """
+@numba.njit(cache=True, nogil=True)
+def _sorted_arrays_chunk(order_s, src_e, img_ec, r_pc, cell_cc, cut_p, src_s, img_sc, x_sc, is_ghost_s, cut_s,
+                         first, last):
+    """Per sorted extended point s in [first, last): source, image, position, ghost flag and cut-off."""
     n = r_pc.shape[0]
-    frac_pc = np.empty((n, 3))
-    wrap_pc = np.zeros((n, 3))
-    for p in range(n):
-        for c in range(3):
-            f = r_pc[p, 0] * inv_cc[0, c] + r_pc[p, 1] * inv_cc[1, c] + r_pc[p, 2] * inv_cc[2, c]
-            if pbc_c[c]:
-                wrap_pc[p, c] = -np.floor(f)
-                f += wrap_pc[p, c]
-            frac_pc[p, c] = f
-    lx, ly, lz = layers_c[0], layers_c[1], layers_c[2]
-    n_ext = n
-    src_e = np.empty(0, dtype=np.int64)
-    img_ec = np.empty((0, 3))
-    for sweep in range(2):
-        count = n
-        for p in range(n):
-            if sweep == 1:
-                src_e[p] = p
-                for c in range(3):
-                    img_ec[p, c] = wrap_pc[p, c]
-            for sx in range(-lx, lx + 1):
-                fx = frac_pc[p, 0] + sx
-                if pbc_c[0] and (fx < -pad_c[0] or fx >= 1.0 + pad_c[0]):
-                    continue
-                for sy in range(-ly, ly + 1):
-                    fy = frac_pc[p, 1] + sy
-                    if pbc_c[1] and (fy < -pad_c[1] or fy >= 1.0 + pad_c[1]):
-                        continue
-                    for sz in range(-lz, lz + 1):
-                        if sx == 0 and sy == 0 and sz == 0:
-                            continue
-                        fz = frac_pc[p, 2] + sz
-                        if pbc_c[2] and (fz < -pad_c[2] or fz >= 1.0 + pad_c[2]):
-                            continue
-                        if sweep == 1:
-                            src_e[count] = p
-                            img_ec[count, 0] = wrap_pc[p, 0] + sx
-                            img_ec[count, 1] = wrap_pc[p, 1] + sy
-                            img_ec[count, 2] = wrap_pc[p, 2] + sz
-                        count += 1
-        if sweep == 0:
-            n_ext = count
-            src_e = np.empty(n_ext, dtype=np.int64)
-            img_ec = np.empty((n_ext, 3))
-    x_ec = np.empty((n_ext, 3))
-    for e in range(n_ext):
-        p = src_e[e]
-        for c in range(3):
-            x_ec[e, c] = (r_pc[p, c] + img_ec[e, 0] * cell_cc[0, c] + img_ec[e, 1] * cell_cc[1, c]
-                          + img_ec[e, 2] * cell_cc[2, c])
-    return src_e, img_ec, x_ec
-
-
-@numba.njit(cache=True)
-def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
-    """Per sorted extended point: source, image, position, shift, ghost flag and cut-off."""
-    n_ext = order_s.shape[0]
-    n = r_pc.shape[0]
-    src_s = np.empty(n_ext, dtype=np.int64)
-    img_sc = np.empty((n_ext, 3))
-    x_sc = np.empty((n_ext, 3))
-    shift_sc = np.empty((n_ext, 3))
-    is_ghost_s = np.empty(n_ext, dtype=np.bool_)
-    cut_s = np.empty(n_ext)
-    for s in range(n_ext):
+    for s in range(first, last):
         e = order_s[s]
         p = src_e[e]
         src_s[s] = p
@@ -185,18 +197,26 @@ def _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p):
         cut_s[s] = cut_p[p]
         for c in range(3):
             img_sc[s, c] = img_ec[e, c]
-            x_sc[s, c] = x_ec[e, c]
-            shift_sc[s, c] = x_ec[e, c] - r_pc[p, c]
-    return src_s, img_sc, x_sc, shift_sc, is_ghost_s, cut_s
+        for c in range(3):
+            x_sc[s, c] = _image_position(r_pc, p, img_sc[s, 0], img_sc[s, 1], img_sc[s, 2], cell_cc, c)
+
+
+def _sorted_arrays(order_s, src_e, img_ec, r_pc, cell_cc, cut_p):
+    """(src_s, img_sc, x_sc, is_ghost_s, cut_s) of the sorted extended points."""
+    n_ext = order_s.shape[0]
+    out = (np.empty(n_ext, dtype=np.int32), np.empty((n_ext, 3), dtype=np.int32), np.empty((n_ext, 3)),
+           np.empty(n_ext, dtype=np.bool_), np.empty(n_ext))
+    run_chunks(_sorted_arrays_chunk, n_ext, (order_s, src_e, img_ec, r_pc, cell_cc, cut_p) + out)
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _gather_chunk(r_pc, src_s, shift_sc, x_sc, first, last):
-    """x_s = r[src_s] + shift_s for s in [first, last), written into x_sc."""
+def _gather_chunk(r_pc, src_s, img_sc, cell_cc, x_sc, first, last):
+    """x_s = position of image img_s of particle src_s, for s in [first, last), written into x_sc."""
     for s in range(first, last):
         p = src_s[s]
         for c in range(3):
-            x_sc[s, c] = r_pc[p, c] + shift_sc[s, c]
+            x_sc[s, c] = _image_position(r_pc, p, img_sc[s, 0], img_sc[s, 1], img_sc[s, 2], cell_cc, c)
 
 
 @numba.njit(cache=True, inline="always")
@@ -225,11 +245,40 @@ def is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
     return False
 
 
-def _half_stencil(m, nbin_c):
-    """Forward half of the (2m+1)^d bin stencil (own bin excluded) as a (K, 3) array,
-    without offsets along axes that have a single bin (2D sheets, 1D chains)."""
-    spans = [range(-m, m + 1) if nb > 1 else range(1) for nb in nbin_c]
-    return np.array([o for o in itertools.product(*spans) if o > (0, 0, 0)], dtype=np.int64).reshape(-1, 3)
+def _half_stencil(m, nbin_c, binsize, reach):
+    """Forward half of the bin stencil as rows of bins, a (K, 6) array.
+
+    Bins of edge ``binsize >= reach / m`` are scanned within ``m`` bins of the own bin.
+    Bins that are consecutive along the *row axis* (the last axis with more than one bin)
+    are consecutive in the sorted order, so each entry is one row of bins, one contiguous
+    range of points: columns 0-2 are the bin offset (x, y, z) of the row's first bin,
+    columns 3-5 that of its last. The rows cover every bin offset that is lexicographically
+    positive (the own bin itself, with b > a, is the scan's entry -1), without offsets
+    along axes that have a single bin, and without the bins that lie entirely beyond
+    ``reach`` of the own bin.
+    """
+    spread = [c for c in range(3) if nbin_c[c] > 1]
+    if not spread:
+        return np.zeros((0, 6), dtype=np.int64)
+    row = spread[-1]
+    others = [range(-m, m + 1) if c in spread and c != row else range(1) for c in range(3)]
+    rows = []
+    for o in itertools.product(*others):
+        across = sum(max(abs(k) - 1, 0) ** 2 for k in o) * binsize**2
+        if across >= reach**2:
+            continue
+        # longest span along the row whose end bins are still within reach
+        span = max(s for s in range(m + 1) if across + max(s - 1, 0) ** 2 * binsize**2 < reach**2)
+        lo, hi = list(o), list(o)
+        lo[row], hi[row] = -span, span
+        if tuple(o) == (0, 0, 0):  # own row: only the bins after the own bin
+            if span == 0:
+                continue
+            lo[row] = 1
+        elif tuple(o) < (0, 0, 0):
+            continue
+        rows.append(lo + hi)
+    return np.array(sorted(rows), dtype=np.int64).reshape(-1, 6)
 
 
 @numba.njit(cache=True, inline="always")
@@ -241,38 +290,44 @@ def bin_coords(a, bin_s, nbin_c):
 
 @numba.njit(cache=True, inline="always")
 def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
-    """Sorted points [lo, hi) of half-stencil entry k of point a in bin (kx, ky, kz).
+    """Sorted points [lo, hi) of half-stencil row k of point a in bin (kx, ky, kz).
 
-    k = -1 is the own bin with b > a; an offset outside the bin grid gives an empty range.
+    k = -1 is the own bin with b > a; a row is clipped to the bin grid (an empty range
+    when it lies outside).
     """
     if k < 0:
         return a + 1, bin_start[bin_s[a] + 1]
-    bx = kx + stencil_kc[k, 0]
-    by = ky + stencil_kc[k, 1]
-    bz = kz + stencil_kc[k, 2]
-    if bx < 0 or bx >= nbin_c[0] or by < 0 or by >= nbin_c[1] or bz < 0 or bz >= nbin_c[2]:
+    x0 = max(kx + stencil_kc[k, 0], 0)
+    x1 = min(kx + stencil_kc[k, 3], nbin_c[0] - 1)
+    y0 = max(ky + stencil_kc[k, 1], 0)
+    y1 = min(ky + stencil_kc[k, 4], nbin_c[1] - 1)
+    z0 = max(kz + stencil_kc[k, 2], 0)
+    z1 = min(kz + stencil_kc[k, 5], nbin_c[2] - 1)
+    if x0 > x1 or y0 > y1 or z0 > z1:
         return 0, 0
-    b_bin = (bx * nbin_c[1] + by) * nbin_c[2] + bz
-    return bin_start[b_bin], bin_start[b_bin + 1]
+    return bin_start[(x0 * nbin_c[1] + y0) * nbin_c[2] + z0], bin_start[(x1 * nbin_c[1] + y1) * nbin_c[2] + z1 + 1]
 
 
 @numba.njit(cache=True, nogil=True)
 def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
-                      pair_start, pair_j, fill, first, last):
-    """Half-stencil bin scan. With fill=False counts the pairs of each point
-    into pair_start[a+1]; with fill=True writes the partners into pair_j.
+                      count_s, pair_j, pos, first, last):
+    """Half-stencil bin scan in one pass: the partners of the points [first, last) are appended
+    to ``pair_j`` from ``pos`` on, and ``count_s[a + 1]`` is set to the number of partners of a.
 
-    A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two
-    is a ghost, and (for original-ghost pairs) it is the canonical orientation.
-    ``stencil_kc`` holds the bin offsets (x, y, z) of the forward half stencil;
-    the own bin is scanned for b > a.
+    A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two is a ghost, and
+    (for original-ghost pairs) it is the canonical orientation. ``stencil_kc`` holds the bin
+    offsets (x, y, z) of the forward half stencil; the own bin is scanned for b > a.
+
+    Returns ``(a_next, pos)``: ``a_next == last`` when done; otherwise ``pair_j`` was full and
+    the scan stopped before point ``a_next`` (``pos`` is where its partners go): the caller
+    grows the buffer and calls again from ``a_next``.
     """
+    cap = pair_j.shape[0]
     for a in range(first, last):
         xa0, xa1, xa2 = x_sc[a, 0], x_sc[a, 1], x_sc[a, 2]
         ca = cut_s[a]
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
-        count = 0
-        pos = pair_start[a] if fill else 0
+        start = pos
         for k in range(-1, stencil_kc.shape[0]):
             lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
             for b in range(lo, hi):
@@ -284,35 +339,84 @@ def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_
                     continue
                 if not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
                     continue
-                if fill:
-                    pair_j[pos + count] = b
-                count += 1
-        if not fill:
-            pair_start[a + 1] = count
+                if pos >= cap:
+                    return a, start
+                pair_j[pos] = b
+                pos += 1
+        count_s[a + 1] = pos - start
+    return last, pos
 
 
-def _gather(r_pc, src_s, shift_sc, x_sc):
-    run_chunks(_gather_chunk, src_s.shape[0], (r_pc, src_s, shift_sc, x_sc))
+def _gather(r_pc, src_s, img_sc, cell_cc, x_sc):
+    run_chunks(_gather_chunk, src_s.shape[0], (r_pc, src_s, img_sc, cell_cc, x_sc))
     return x_sc
 
 
-def _scan_pairs(*args):
-    run_chunks(_scan_pairs_chunk, args[0].shape[0], args)
+def _scan_chunk_growing(scan, t, count_s, region, first, last):
+    """Chunk ``t`` of a one-pass list scan into ``region``, continued in a grown copy
+    whenever it fills up. ``scan(t, count_s, region, pos, first, last) -> (a_next, pos)``.
+    Returns (array holding the chunk's partners, number written, grown?)."""
+    a, pos = scan(t, count_s, region, 0, first, last)
+    grown = False
+    while a < last:
+        bigger = np.empty(int(1.5 * region.shape[0]) + 1024, dtype=region.dtype)
+        bigger[:pos] = region[:pos]
+        region, grown = bigger, True
+        a, pos = scan(t, count_s, region, pos, a, last)
+    return region, pos, grown
+
+
+def _one_pass_list(scan, n_ext, buffer, nthreads):
+    """The half list in CSR form, built by one scan over the bins (no separate count pass).
+
+    ``scan(t, count_s, pair_j, pos, first, last) -> (a_next, pos)`` appends the partners of
+    the points [first, last) to ``pair_j`` from ``pos`` on, sets ``count_s[a + 1]``, and stops
+    early (``a_next < last``) when ``pair_j`` is full. Each of the ``nthreads`` chunks of
+    points writes into its own region of ``buffer``; the regions are then moved together.
+    A region that fills up continues in a grown copy of its own. Returns ``(pair_start,
+    pair_j, buffer)``: ``pair_j`` is a view of the returned buffer (a new, larger one when
+    the old was too small).
+    """
+    count_s = np.empty(n_ext + 1, dtype=np.int64)
+    count_s[0] = 0
+    bounds = chunk_bounds(n_ext, nthreads)
+    cap_t = buffer.shape[0] // nthreads
+    regions = [buffer[t * cap_t:(t + 1) * cap_t] for t in range(nthreads)]
+    pool = thread_pool(nthreads) if nthreads > 1 else None
+    jobs = [pool.submit(_scan_chunk_growing, scan, t, count_s, regions[t], *bounds[t]) for t in range(nthreads - 1)]
+    last = _scan_chunk_growing(scan, nthreads - 1, count_s, regions[-1], *bounds[-1])  # on the calling thread
+    results = [job.result() for job in jobs] + [last]
+    total = sum(pos for _, pos, _ in results)
+    if any(grown for _, _, grown in results):
+        # a region outgrew its share: gather all into a new buffer with a margin for the next build
+        buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
+        dst = 0
+        for region, pos, _ in results:
+            buffer[dst:dst + pos] = region[:pos]
+            dst += pos
+    else:
+        dst = results[0][1]
+        for t in range(1, nthreads):  # move the regions down to close the gaps (dst <= t * cap_t)
+            pos = results[t][1]
+            buffer[dst:dst + pos] = buffer[t * cap_t:t * cap_t + pos]
+            dst += pos
+    np.cumsum(count_s, out=count_s)
+    return count_s, buffer[:total], buffer
 
 
 @numba.njit(cache=True)
-def _fold(f_sc, order_s, src_e, n):
+def _fold(f_sc, src_s, n):
     """Sum values on sorted extended points back onto their source particles."""
     out = np.zeros((n, f_sc.shape[1]))
     for s in range(f_sc.shape[0]):
-        p = src_e[order_s[s]]
+        p = src_s[s]
         for c in range(f_sc.shape[1]):
             out[p, c] += f_sc[s, c]
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _fold_originals(bufs, order_s, n, outs, first, last):
+def _fold_originals(bufs, src_s, is_ghost_s, outs, first, last):
     """outs[i][p] = sum over threads of bufs[i][:, s], for the originals s in [first, last).
 
     Each original particle appears once among the sorted points, so chunks never write
@@ -323,17 +427,17 @@ def _fold_originals(bufs, order_s, n, outs, first, last):
         out_pk = outs[i]
         n_threads, _, k_max = buf_tsk.shape
         for s in range(first, last):
-            e = order_s[s]
-            if e < n:
+            if not is_ghost_s[s]:
+                p = src_s[s]
                 for k in range(k_max):
                     total = buf_tsk[0, s, k]
                     for t in range(1, n_threads):
                         total += buf_tsk[t, s, k]
-                    out_pk[e, k] = total
+                    out_pk[p, k] = total
 
 
 @numba.njit(cache=True)
-def _fold_ghosts(bufs, order_s, ghost_s, src_e, outs):
+def _fold_ghosts(bufs, ghost_s, src_s, outs):
     """Add the (few) ghosts' values to their source particles."""
     for i in range(len(bufs)):
         buf_tsk = bufs[i]
@@ -341,35 +445,83 @@ def _fold_ghosts(bufs, order_s, ghost_s, src_e, outs):
         n_threads, _, k_max = buf_tsk.shape
         for g in range(ghost_s.shape[0]):
             s = ghost_s[g]
-            p = src_e[order_s[s]]
+            p = src_s[s]
             for t in range(n_threads):
                 for k in range(k_max):
                     out_pk[p, k] += buf_tsk[t, s, k]
 
 
-def fold_thread_buffers(bufs, order_s, ghost_s, src_e, n):
+@numba.njit(cache=True, nogil=True)
+def _fold_part_originals(parts, bases, src_s, is_ghost_s, outs, first, last):
+    """outs[i][p] = sum over threads t of parts[i][t][s - bases[t]] (rows s >= bases[t]),
+    for the originals s in [first, last)."""
+    for i in range(len(parts)):
+        part_i = parts[i]
+        out_pk = outs[i]
+        k_max = out_pk.shape[1]
+        for s in range(first, last):
+            if not is_ghost_s[s]:
+                p = src_s[s]
+                for k in range(k_max):
+                    total = 0.0
+                    for t in range(len(part_i)):
+                        if s >= bases[t]:
+                            total += part_i[t][s - bases[t], k]
+                    out_pk[p, k] = total
+
+
+@numba.njit(cache=True)
+def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
+    for i in range(len(parts)):
+        part_i = parts[i]
+        out_pk = outs[i]
+        k_max = out_pk.shape[1]
+        for g in range(ghost_s.shape[0]):
+            s = ghost_s[g]
+            p = src_s[s]
+            for t in range(len(part_i)):
+                if s >= bases[t]:
+                    for k in range(k_max):
+                        out_pk[p, k] += part_i[t][s - bases[t], k]
+
+
+def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n):
+    """Per-particle sums (n, k) of per-thread buffers that start at their thread's first
+    point: ``parts[i][t]`` has shape (n_s - bases[t], k), row 0 being point ``bases[t]``."""
+    parts = tuple(tuple(p) for p in parts)
+    outs = tuple(np.empty((n, part[0].shape[1])) for part in parts)
+    run_chunks(_fold_part_originals, src_s.shape[0], (parts, bases, src_s, is_ghost_s, outs),
+               nthreads=len(parts[0]))
+    _fold_part_ghosts(parts, bases, ghost_s, src_s, outs)
+    return outs
+
+
+def fold_thread_buffers(bufs, src_s, is_ghost_s, ghost_s, n):
     """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer."""
     bufs = tuple(bufs)
     outs = tuple(np.empty((n, buf.shape[2])) for buf in bufs)
-    run_chunks(_fold_originals, bufs[0].shape[1], (bufs, order_s, n, outs), nthreads=bufs[0].shape[0])
-    _fold_ghosts(bufs, order_s, ghost_s, src_e, outs)
+    run_chunks(_fold_originals, bufs[0].shape[1], (bufs, src_s, is_ghost_s, outs), nthreads=bufs[0].shape[0])
+    _fold_ghosts(bufs, ghost_s, src_s, outs)
     return outs
 
 
 @numba.njit(cache=True)
 def _max_displacement2(r_pc, r0_pc):
+    """Largest squared displacement; inf if a position is NaN or inf (the rebuild then rejects it)."""
     best = 0.0
     for p in range(r_pc.shape[0]):
         d2 = 0.0
         for c in range(3):
             d = r_pc[p, c] - r0_pc[p, c]
             d2 += d * d
-        if d2 > best:
-            best = d2
+        if not d2 <= best:  # also true for NaN
+            best = d2 if d2 == d2 else np.inf
     return best
 
 
-BIN_DIVISIONS = 1  # bins of edge reach / BIN_DIVISIONS (2 checks fewer candidates but costs as much here)
+# bins of edge reach / m, by the number of axes the points spread along (measured in
+# benchmarks/profile_fan.py: m = 2 in 3D checks 0.58x the candidates of m = 1)
+BIN_DIVISIONS = {1: 1, 2: 2, 3: 2}
 
 
 class BinnedPoints:
@@ -381,16 +533,24 @@ class BinnedPoints:
 
     Attributes
     ----------
-    x_sc, src_s, img_sc, shift_sc, is_ghost_s, cut_s : ndarray
-        Position (at the build, then at the last :meth:`extend`), source particle,
-        integer image, Cartesian shift, ghost flag and cut-off of each sorted extended point.
+    x_sc, src_s, img_sc, is_ghost_s, cut_s : ndarray
+        Position (at the build, then at the last :meth:`extend`), source particle (int32),
+        integer image (int32, the wrap into the cell included), ghost flag and cut-off of each
+        sorted extended point; ``shift_sc`` (computed) is the Cartesian image shift.
+    cell_cc : ndarray (3, 3)
+        The cell completed to rank 3 (:func:`complete_cell`).
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
         Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
     origin_c, bin_size : ndarray, float
         Corner of bin (0, 0, 0) and the bin edge: point x is in bin ``floor((x - origin_c) / bin_size)``
         (clamped to the grid), at the positions of the build. Other searches on the same bins
         (particle-boundary queries, :mod:`ase_sphrelax.boundary`) use them.
+    forward_pairs : bool
+        True: every pair (a, b) of a scan or list has b > a (forward half stencil), which
+        lets the pair loops give each thread buffers that start at its first point.
     """
+
+    forward_pairs = True
 
     def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
         n = r_pc.shape[0]
@@ -400,42 +560,64 @@ class BinnedPoints:
         width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
         pad_c = np.where(pbc, reach / width_c, 0.0)
         layers_c = np.where(pbc, np.ceil(pad_c), 0).astype(np.int64)
-        src_e, img_ec, x_ec = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        src_e, img_ec, lo_c, hi_c = _extended_points(r_pc, full_cell, inv_cell, pbc, pad_c, layers_c)
+        self.cell_cc = full_cell
         n_ext = src_e.shape[0]
-        lo_c = x_ec.min(axis=0)
-        extent_c = x_ec.max(axis=0) - lo_c
-        # bins of edge reach / m scanned with a (2m+1)^d stencil; for sparse sets
-        # (bins > 4 per point) fall back to m = 1 and larger bins
-        m = BIN_DIVISIONS
+        extent_c = hi_c - lo_c
+        # bins of edge reach / m scanned with a (2m+1)^d stencil (m by the number of axes the
+        # points spread along); for sparse sets (bins > 4 per point) fall back to m = 1 and
+        # larger bins
+        spread = int(np.count_nonzero(extent_c >= reach))
+        m = BIN_DIVISIONS.get(spread, 1)
         binsize = reach / m
         nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
             m = 1
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
-        order_s, bin_start, bin_s = _bin_sort(x_ec, lo_c, max(binsize, reach / m), nbin_c)
+        binsize = max(binsize, reach / m)
+        order_s, bin_start, bin_s = _bin_sort(r_pc, full_cell, src_e, img_ec, lo_c, binsize, nbin_c)
         self.origin_c = lo_c  # bin (0, 0, 0) starts here; bins are cubes of edge bin_size
-        self.bin_size = float(max(binsize, reach / m))
+        self.bin_size = float(binsize)
         self.n_particles = n
         self.n_extended = n_ext
-        self.order_s = order_s
-        self.src_e = src_e
-        (self.src_s, self.img_sc, self.x_sc, self.shift_sc, self.is_ghost_s,
-         self.cut_s) = _sorted_arrays(order_s, src_e, img_ec, x_ec, r_pc, cut_p)
+        self.src_s, self.img_sc, self.x_sc, self.is_ghost_s, self.cut_s = _sorted_arrays(order_s, src_e, img_ec, r_pc,
+                                                                                     full_cell, cut_p)
+        del img_ec, src_e, order_s  # the sorted arrays say it all
         self._x_buffer = self.x_sc  # extend() writes current positions here
         self.ghost_s = np.nonzero(self.is_ghost_s)[0]
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
-        self.stencil_kc = _half_stencil(m, nbin_c)
+        self.stencil_kc = _half_stencil(m, nbin_c, binsize, reach)
+        self.binsize = binsize
+        self.reach = reach
+        # most candidates of one point: the fullest bin times the bins of the own bin and the stencil
+        span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
+        self.max_candidates = int(np.diff(bin_start).max()) * int(1 + np.prod(span_k, axis=1).sum())
         self._gather_buffers = {}
+
+    def expected_pairs(self):
+        """Estimated size of the half list (uniform density within the bins' extent)."""
+        spread = self.nbin_c > 1
+        dim = int(np.count_nonzero(spread))
+        if dim == 0:
+            return self.n_extended * (self.n_extended - 1) // 2
+        volume = float(np.prod((self.nbin_c * self.binsize)[spread]))
+        ball = {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[dim] * self.reach**dim
+        return int(0.5 * self.n_extended * min(self.n_extended, self.n_extended / volume * ball))
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``.
 
         The array is reused by the next call: copy it to keep it.
         """
-        return _gather(np.asarray(positions, dtype=float), self.src_s, self.shift_sc, self._x_buffer)
+        return _gather(np.asarray(positions, dtype=float), self.src_s, self.img_sc, self.cell_cc, self._x_buffer)
+
+    @property
+    def shift_sc(self):
+        """Cartesian image shift of each sorted extended point (x_s = r[src_s] + shift_s)."""
+        return self.img_sc @ self.cell_cc
 
     def gather(self, values_p, slot=0):
         """Per-particle values (N, ...) on the sorted extended points, without image shifts.
@@ -459,12 +641,17 @@ class BinnedPoints:
         """Sum per-extended-point values (shape (n_extended,) or (n_extended, k)) onto particles."""
         values_s = np.asarray(values_s, dtype=float)
         flat = values_s.ndim == 1
-        out = _fold(values_s.reshape(values_s.shape[0], -1), self.order_s, self.src_e, self.n_particles)
+        out = _fold(values_s.reshape(values_s.shape[0], -1), self.src_s, self.n_particles)
         return out[:, 0] if flat else out
 
     def fold_threads(self, bufs):
         """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer."""
-        return fold_thread_buffers(bufs, self.order_s, self.ghost_s, self.src_e, self.n_particles)
+        return fold_thread_buffers(bufs, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
+
+    def fold_thread_parts(self, parts, bases):
+        """Per-particle sums (N, k) of per-thread buffers starting at each thread's first
+        point (see :func:`fold_thread_parts`), ghosts included, for each output."""
+        return fold_thread_parts(parts, bases, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
 
     def loop_arrays(self):
         """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
@@ -507,25 +694,50 @@ class NeighborList:
         one-shot state.
     builds : int
         How many times the stored list was (re)built.
+    forward_pairs : bool
+        True: every listed or scanned pair (a, b) has b > a (see :class:`BinnedPoints`).
     """
+
+    forward_pairs = True
 
     def __init__(self, cutoff, skin=0.0):
         self.cutoff = _check_cutoff(cutoff)
         self.skin = check_skin(skin)
         self.builds = 0
         self.points = None
-        self.pair_start = None
-        self.pair_j = None
+        self._pair_start = None
+        self._pair_j = None
+        self._pending = False
         self._pair_buffer = np.empty(0, dtype=np.int32)
+        self._pair_count = 0
         self._key = None
         self._r0_pc = None
         self._cut_build = None
+        self._cut_build_uniform = None
 
     # -- public -----------------------------------------------------------------
     @property
     def stored(self):
         """True when a Verlet list is stored (False: one-shot bins, or nothing built)."""
-        return self.pair_j is not None
+        return self._pending or self._pair_j is not None
+
+    @property
+    def pair_start(self):
+        """CSR start of each sorted extended point's partners (None in the one-shot state)."""
+        self._complete_pending()
+        return self._pair_start
+
+    @property
+    def pair_j(self):
+        """Partners (sorted extended points) of the half list (None in the one-shot state)."""
+        self._complete_pending()
+        return self._pair_j
+
+    @property
+    def build_pending(self):
+        """True after a (re)build whose list scan waits for the next pair sum to fuse with
+        (:meth:`fused_build`); reading the list or moving the points completes it first."""
+        return self._pending
 
     @property
     def max_cutoff(self):
@@ -546,7 +758,7 @@ class NeighborList:
             False asks for a one-shot evaluation: if no valid stored list exists, the points
             are binned (skin 0) and the pair sums scan the bins; no list is built.
         """
-        r_pc = _check_positions(positions)
+        r_pc = _check_positions(positions, finite=False)  # NaN/inf: see _still_valid and _build
         pbc = np.array(pbc, dtype=bool).reshape(3) if np.ndim(pbc) else np.array([bool(pbc)] * 3)
         cell = np.array(cell, dtype=float).reshape(3, 3)
         if cutoff is not None:
@@ -556,13 +768,17 @@ class NeighborList:
         key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes())
         if key == self._key and (self.stored or not store) and self._still_valid(r_pc):
             return False
+        _check_positions(r_pc)
         self._build(r_pc, cell, pbc, store)
         self._key = key
         self._r0_pc = r_pc.copy()
         return True
 
     def _still_valid(self, r_pc):
-        growth = float(np.max(self.cutoff - self._cut_build))
+        if self.cutoff.ndim == 0 and self._cut_build_uniform is not None:
+            growth = float(self.cutoff) - self._cut_build_uniform
+        else:
+            growth = float(np.max(self.cutoff - self._cut_build))
         if not self.stored:  # one-shot bins: only for the positions and cut-offs they were made for
             return growth <= 0.0 and np.array_equal(r_pc, self._r0_pc)
         margin = self.skin - max(growth, 0.0)
@@ -574,6 +790,8 @@ class NeighborList:
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``."""
+        if self._pending and not np.array_equal(positions, self._r0_pc):
+            self._complete_pending()  # the list is made from the positions of the build
         return self.points.extend(positions)
 
     def gather(self, values_p, slot=0):
@@ -588,11 +806,35 @@ class NeighborList:
     def fold_threads(self, bufs):
         return self.points.fold_threads(bufs)
 
+    def fold_thread_parts(self, parts, bases):
+        return self.points.fold_thread_parts(parts, bases)
+
     def loop_arrays(self):
         """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""
         if self.stored:
             return "list", (self.pair_start, self.pair_j)
         return self.points.loop_arrays()
+
+    def fused_build(self, scan, nthreads):
+        """Complete a pending build with a scan that also does other work (a pair sum).
+
+        ``scan(t, count_s, pair_j, pos, first, last) -> (a_next, pos)`` is the one-pass list
+        scan of :func:`_scan_pairs_chunk` over chunk ``t`` of ``nthreads``, on the bins of
+        :meth:`build_arrays`; see :func:`_one_pass_list`. Used by
+        :meth:`ase_sphrelax.pairs.PairInteraction.compute`: a rebuild then costs one bin
+        scan that lists the pairs and evaluates the interaction, and no list walk.
+        """
+        if not self._pending:
+            raise ValueError("fused_build: no build is pending")
+        self._store_list(scan, nthreads)
+
+    def build_arrays(self):
+        """Arrays of the list scan, after the positions: (src_s, img_sc, is_ghost_s, cut_s,
+        skin, bin_s, nbin_c, bin_start, stencil_kc, room), ``room`` the most candidates a
+        point can have (:attr:`BinnedPoints.max_candidates`)."""
+        pts = self.points
+        return (pts.src_s, pts.img_sc, pts.is_ghost_s, pts.cut_s, self.skin, pts.bin_s, pts.nbin_c,
+                pts.bin_start, pts.stencil_kc, pts.max_candidates)
 
     @property
     def n_particles(self):
@@ -622,23 +864,36 @@ class NeighborList:
     def _build(self, r_pc, cell, pbc, store):
         cut_p = np.broadcast_to(self.cutoff, (r_pc.shape[0],)).astype(float)
         self._cut_build = cut_p
+        self._cut_build_uniform = float(self.cutoff) if self.cutoff.ndim == 0 else None
         skin = self.skin if store else 0.0
-        pts = self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
-        if not store:
-            self.pair_start = self.pair_j = None
-            return
-        pair_start = np.zeros(pts.n_extended + 1, dtype=np.int64)
-        args = (pts.x_sc, pts.cut_s, pts.src_s, pts.img_sc, pts.is_ghost_s, self.skin, pts.bin_s, pts.nbin_c,
-                pts.bin_start, pts.stencil_kc)
-        _scan_pairs(*args, pair_start, self._pair_buffer[:0], False)
-        np.cumsum(pair_start, out=pair_start)
-        if self._pair_buffer.shape[0] < pair_start[-1]:
-            # reuse the buffer between builds: fresh pages are expensive to touch
-            self._pair_buffer = np.empty(int(1.2 * pair_start[-1]) + 16, dtype=np.int32)
-        self.pair_start = pair_start
-        self.pair_j = self._pair_buffer[: pair_start[-1]]
-        _scan_pairs(*args, pair_start, self.pair_j, True)
-        self.builds += 1
+        self._pair_start = self._pair_j = None
+        self._pending = False
+        self.points = None  # free the old bins before the new ones are made
+        self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
+        if store:
+            # the list scan waits for the next pair sum, which can fuse with it (fused_build)
+            self._pending = True
+            self.builds += 1
+
+    def _complete_pending(self):
+        if self._pending:
+            x_sc = self.points.x_sc  # the positions of the build (extend() completes the list before moving them)
+            arrays = self.build_arrays()
+            self._store_list(lambda t, count_s, pair_j, pos, first, last: _scan_pairs_chunk(
+                x_sc, arrays[3], *arrays[:3], *arrays[4:9], count_s, pair_j, pos, first, last),
+                thread_count(self.points.n_extended))
+
+    def _store_list(self, scan, nthreads):
+        # one scan, no count pass: the buffer is sized from the last build (or the density)
+        # and kept between builds (fresh pages are expensive to touch)
+        expected = self._pair_count if self._pair_count else self.points.expected_pairs()
+        want = int(1.05 * expected) + 1024
+        if self._pair_buffer.shape[0] < want:
+            self._pair_buffer = np.empty(want, dtype=np.int32)
+        self._pair_start, self._pair_j, self._pair_buffer = _one_pass_list(scan, self.points.n_extended,
+                                                                           self._pair_buffer, nthreads)
+        self._pair_count = self._pair_j.shape[0]
+        self._pending = False
 
 
 def _check_cutoff(cutoff):

@@ -17,14 +17,18 @@ The terms are the per-point outputs flattened in their declared order (a scalar 
 takes one term, a ``(3,)`` output three), and the global outputs (e.g. a virial) flattened
 the same way. :class:`PairInteraction` turns the function into the loops:
 
-* the walk over a stored Verlet half list and the bin scan fused with the pair physics
-  (one-shot evaluations, no list stored), from one definition;
+* the walk over a stored Verlet half list, the bin scan fused with the pair physics
+  (one-shot evaluations, no list stored), and the rebuild scan, which writes the Verlet
+  list of a pending build (:attr:`NeighborList.build_pending`) and evaluates the pairs in
+  the same pass, so that a rebuild costs one bin scan and no list walk; all from one
+  definition;
 * a's terms summed in registers over its partners and written once; b's added to b;
   global terms summed per thread;
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
   each thread on a static chunk of points with its own output buffers (kept between calls:
-  fresh pages cost more than the pair loop on these machines), folded afterwards onto the
-  particles, ghosts included.
+  fresh pages cost more than the pair loop on these machines; zeroed by the thread itself;
+  starting at the chunk's first point when the neighbours are ``forward_pairs``), folded
+  afterwards onto the particles, ghosts included.
 
 Two kinds of interaction:
 
@@ -59,7 +63,7 @@ import numba
 import numpy as np
 
 from .neighbors import bin_coords, is_canonical_pair, stencil_range
-from .parallel import run_chunks, thread_count
+from .parallel import chunk_bounds, run_chunks, thread_count
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
 
@@ -99,8 +103,9 @@ class PairResult(dict):
 # is shared by all interactions.
 
 _LIST_TEMPLATE = """
-def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
+def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, base, first, last):
     {views}
+    {zero_buffers}
     {zero_global}
     for a in range(first, last):
         {load_a}
@@ -118,8 +123,9 @@ def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, first, last):
 
 _SCAN_TEMPLATE = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc, reach2, params, inp, out,
-           first, last):
+           base, first, last):
     {views}
+    {zero_buffers}
     {zero_global}
     for a in range(first, last):
         {load_a}
@@ -138,15 +144,54 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc
 """
 
 
+_BUILD_TEMPLATE = """
+def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil_kc, room, count_s, pair_j,
+           pos, reach2, params, inp, out, base, first, last):
+    {views}
+    if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
+        {zero_buffers_nested}
+    {zero_global}
+    cap = pair_j.shape[0]
+    for a in range(first, last):
+        # room for every candidate of a (at most ``room``), or stop before a (nothing of a is added yet)
+        if pos + room > cap:
+            {store_global_early}
+            return a, pos
+        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
+        {load_a}
+        {zero_own}
+        ca = cut_s[a]
+        start = pos
+        for k in range(-1, stencil_kc.shape[0]):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+            for b in range(lo, hi):
+                {diff}
+                r2 = {norm2}
+                rc = max(ca, cut_s[b]) + skin
+                if r2 >= rc * rc or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                    continue
+                pair_j[pos] = b
+                pos += 1
+                if r2 >= reach2:
+                    continue
+                {body}
+        count_s[a + 1] = pos - start
+        {store_own}
+    {store_global}
+    return last, pos
+"""
+
+
 def _targets(outputs, per_point, point):
     """Buffer element of every flattened term of the per-point (or global) outputs:
-    "o0[b]", "o1[b, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of output k."""
+    "o0[b - base]", "o1[b - base, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of
+    output k, whose row 0 is point ``base`` (see :meth:`PairInteraction._thread_buffers`)."""
     names = []
     for k, output in enumerate(outputs):
         if output.per_point != per_point:
             continue
         for index in itertools.product(*[range(n) for n in output.shape]):
-            parts = ([point] if per_point else []) + [str(i) for i in index]
+            parts = ([f"{point} - base"] if per_point else []) + [str(i) for i in index]
             names.append(f"o{k}[{', '.join(parts or ['0'])}]")
     return names
 
@@ -177,8 +222,12 @@ def _loop_source(template, name, outputs, dim, symmetric, indent):
     return template.format(
         name=name,
         views=pad_t.join(f"o{k} = out[{k}]" for k in range(len(outputs))),
+        # each thread zeroes its own buffers at the start of its chunk (in parallel)
+        zero_buffers=pad_t.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
+        zero_buffers_nested=pad_a.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
         zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
         store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
+        store_global_early=("\n" + " " * 12).join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
         load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(dim)),
         zero_own=pad_a.join(f"ta{i} = 0.0" for i in range(len(own))) or "pass",
         store_own=pad_a.join(f"{t} += ta{i}" for i, t in enumerate(own)) or "pass",
@@ -188,9 +237,29 @@ def _loop_source(template, name, outputs, dim, symmetric, indent):
     )
 
 
+def _core_stamp():
+    """Short hash of what the generated loops inline from the core (templates, bin helpers).
+
+    It is part of each loop's name, hence of its numba cache file: numba's cache checks only
+    the time stamp of the file a function is compiled against (the physics file), so without
+    it a change of the core would leave stale loops in the caches of the methods' files.
+    """
+    import hashlib
+
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + "".join(
+        inspect.getsource(f.py_func) for f in (bin_coords, stencil_range, is_canonical_pair))
+    return hashlib.sha1(text.encode()).hexdigest()[:8]
+
+
+_CORE_STAMP = None
+
+
 def _compile(pair, template, kind, outputs, dim, symmetric):
+    global _CORE_STAMP
+    if _CORE_STAMP is None:
+        _CORE_STAMP = _core_stamp()
     base = pair.py_func.__name__
-    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d__{base}"
+    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
     source = _loop_source(template, name, outputs, dim, symmetric, indent)
     namespace = {"pair": pair, "bin_coords": bin_coords, "stencil_range": stencil_range,
@@ -233,15 +302,18 @@ class PairInteraction:
         self.dim = int(dim)
         self._loops = {}
         self._buffers = {}
+        self._stacked = None
 
     def __repr__(self):
         kind = "symmetric" if self.symmetric else "gather"
         return f"PairInteraction({self.pair.py_func.__name__}, {kind}, outputs={list(self.outputs)})"
 
     def loop(self, kind):
-        """The generated loop over one chunk of points (``kind`` "list" or "scan"), compiled on first use."""
+        """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
+        (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
+        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`)."""
         if kind not in self._loops:
-            template = _LIST_TEMPLATE if kind == "list" else _SCAN_TEMPLATE
+            template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
             self._loops[kind] = _compile(self.pair, template, kind, list(self.outputs.values()), self.dim,
                                          self.symmetric)
         return self._loops[kind][0]
@@ -251,18 +323,31 @@ class PairInteraction:
         self.loop(kind)
         return self._loops[kind][1]
 
-    def _thread_buffers(self, nthreads, n_ext):
-        """Zeroed per-thread accumulators, reused between calls of the same size."""
-        key = (nthreads, n_ext)
+    def _thread_buffers(self, nthreads, n_ext, forward):
+        """Per-thread accumulators ``(buffers[t][k], bases[t])``, reused between calls of the
+        same size (each loop chunk zeroes its own thread's buffers).
+
+        Row 0 of thread t's per-point buffers is point ``bases[t]``. With ``forward``
+        neighbours (every partner b of a point a has b > a, as in :class:`NeighborList`'s
+        half lists and scans) thread t writes only rows from its chunk's first point on, so
+        its buffers start there: on 2 threads 1.5 instead of 2 rows per point to hold, zero
+        and fold. Otherwise every thread has all rows (views of one stacked array).
+        """
+        key = (nthreads, n_ext, forward)
         if key not in self._buffers:
             self._buffers.clear()
-            self._buffers[key] = tuple(
-                np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
-                for o in self.outputs.values())
-        buffers = self._buffers[key]
-        for buf in buffers:
-            buf.fill(0.0)
-        return buffers
+            outputs = list(self.outputs.values())
+            bases = [first for first, _ in chunk_bounds(n_ext, nthreads)] if forward else [0] * nthreads
+            if forward:
+                self._stacked = None
+                buffers = [tuple(np.empty((n_ext - bases[t],) + o.shape if o.per_point else (max(o.size, 1),))
+                                 for o in outputs) for t in range(nthreads)]
+            else:
+                self._stacked = [np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
+                                 for o in outputs]
+                buffers = [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
+            self._buffers[key] = (buffers, bases)
+        return self._buffers[key]
 
     def compute(self, neighbors, positions, params=(), inputs=(), reach=None):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
@@ -292,20 +377,38 @@ class PairInteraction:
         reach = neighbors.max_cutoff if reach is None else float(reach)
         n_ext = x_sc.shape[0]
         nthreads = thread_count(n_ext)
-        buffers = self._thread_buffers(nthreads, n_ext)
-        kind, arrays = neighbors.loop_arrays()
-        run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
-                   per_thread=[(tuple(buf[t] for buf in buffers),) for t in range(nthreads)])
-        return self._fold(neighbors, buffers)
+        forward = bool(getattr(neighbors, "forward_pairs", False))
+        buffers, bases = self._thread_buffers(nthreads, n_ext, forward)
+        per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
+        if getattr(neighbors, "build_pending", False):
+            # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
+            loop = self.loop("build")
+            pre = (x_sc, *neighbors.build_arrays())
+            post = (reach * reach, tuple(params), inp)
+            neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
+                *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
+        else:
+            kind, arrays = neighbors.loop_arrays()
+            run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
+                       per_thread=per_thread)
+        return self._fold(neighbors, buffers, bases, forward)
 
-    def _fold(self, neighbors, buffers):
+    def _fold(self, neighbors, buffers, bases, forward):
         result = PairResult()
-        per_point = [(name, o, buf) for (name, o), buf in zip(self.outputs.items(), buffers) if o.per_point]
-        if per_point:
-            folded = neighbors.fold_threads([buf.reshape(buf.shape[0], buf.shape[1], -1) for _, _, buf in per_point])
-            for (name, output, _), values in zip(per_point, folded):
-                result[name] = values.reshape((values.shape[0],) + output.shape)
-        for (name, output), buf in zip(self.outputs.items(), buffers):
+        outputs = list(self.outputs.items())
+        point_k = [k for k, (_, o) in enumerate(outputs) if o.per_point]
+        if point_k:
+            if forward:  # per-thread buffers of their own lengths
+                parts = [tuple(buffers[t][k].reshape(buffers[t][k].shape[0], -1) for t in range(len(buffers)))
+                         for k in point_k]
+                folded = neighbors.fold_thread_parts(parts, np.asarray(bases, dtype=np.int64))
+            else:
+                stacked = self._stacked
+                folded = neighbors.fold_threads([stacked[k].reshape(stacked[k].shape[0], stacked[k].shape[1], -1)
+                                                 for k in point_k])
+            for k, values in zip(point_k, folded):
+                result[outputs[k][0]] = values.reshape((values.shape[0],) + outputs[k][1].shape)
+        for k, (name, output) in enumerate(outputs):
             if not output.per_point:
-                result[name] = buf.sum(axis=0)
+                result[name] = sum(buffers[t][k] for t in range(len(buffers)))
         return result

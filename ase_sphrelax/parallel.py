@@ -2,8 +2,8 @@
 
 Every parallel loop of the package (pair loops, neighbour-list passes, gathers and folds)
 is a serial numba function compiled with ``nogil=True`` that works on the points
-``[first, last)``; :func:`run_chunks` runs one chunk per thread of a persistent thread
-pool. Only one threading model is used because mixing them costs: after a numba
+``[first, last)``; :func:`run_chunks` runs one chunk per thread: the calling thread
+takes the last chunk, a persistent thread pool the others. Only one threading model is used because mixing them costs: after a numba
 ``prange`` loop its OpenMP workers spin for a while and take a core from the next
 loop's threads (measured: a pair loop at 2 threads ran at the speed of 1).
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numba
 
-__all__ = ["PARALLEL_MIN", "thread_count", "run_chunks"]
+__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "chunk_bounds", "run_chunks"]
 
 PARALLEL_MIN = 20000
 
@@ -28,12 +28,19 @@ def thread_count(n_points):
     return numba.get_num_threads() if n_points >= PARALLEL_MIN else 1
 
 
-def _pool(nthreads):
+def thread_pool(nthreads):
+    """The persistent pool of ``nthreads`` worker threads (created on first use)."""
     if nthreads not in _POOLS:
         from concurrent.futures import ThreadPoolExecutor
 
         _POOLS[nthreads] = ThreadPoolExecutor(max_workers=nthreads, thread_name_prefix="ase_sphrelax")
     return _POOLS[nthreads]
+
+
+def chunk_bounds(n, nthreads):
+    """The static chunks ``[(first, last), ...]`` of ``range(n)`` on ``nthreads`` threads."""
+    chunk = (n + nthreads - 1) // nthreads
+    return [(min(n, t * chunk), min(n, (t + 1) * chunk)) for t in range(nthreads)]
 
 
 def run_chunks(loop, n, args, per_thread=None, nthreads=None):
@@ -59,9 +66,13 @@ def run_chunks(loop, n, args, per_thread=None, nthreads=None):
     extra = per_thread if per_thread is not None else [()] * nthreads
     if nthreads == 1:
         return loop(*args, *extra[0], 0, n)
-    chunk = (n + nthreads - 1) // nthreads
-    pool = _pool(nthreads)
-    jobs = [pool.submit(loop, *args, *extra[t], t * chunk, min(n, (t + 1) * chunk)) for t in range(nthreads)]
-    for job in jobs:
-        job.result()
+    bounds = chunk_bounds(n, nthreads)
+    pool = thread_pool(nthreads)
+    # the calling thread runs the last chunk itself: one thread fewer to wake per loop
+    jobs = [pool.submit(loop, *args, *extra[t], *bounds[t]) for t in range(nthreads - 1)]
+    try:
+        loop(*args, *extra[-1], *bounds[-1])
+    finally:
+        for job in jobs:
+            job.result()
     return None

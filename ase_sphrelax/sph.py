@@ -327,15 +327,19 @@ def initial_smoothing_length(r_pc, cell, pbc, dim, eta):
     return eta * (volume / n) ** (1.0 / dim)
 
 
-def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=60,
+NEWTON_ITERATIONS = 12  # then bisection only
+
+
+def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=100,
                             store=True):
     """Solve ``rho_a(H_a) H_a^d = m_a eta^d`` with ``rho_a = sum_b m_b W_ab(H_a)`` for every particle.
 
     With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). The function
     ``g(H) = eta^d - (sigma / m_a) sum_b m_b f(r_ab / H)`` decreases monotonically in ``H``, so each
     particle has at most one root; it is found by Newton steps on ``g`` (``g' = sigma sum_b m_b q f'(q)
-    / (m_a H)``) kept inside a bisection bracket (a step that leaves the bracket is replaced by
-    bisection, or by doubling/halving while one side is open). Converged when ``|dH|/H < tol``.
+    / (m_a H)``), limited to a factor 2 per iteration and kept inside a bisection bracket (a step that
+    leaves the bracket is replaced by bisection, or by doubling/halving while one side is open);
+    after :data:`NEWTON_ITERATIONS` iterations only bisection. Converged when ``|dH|/H < tol``.
 
     Parameters
     ----------
@@ -406,6 +410,10 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
         s_p[idx], t_p[idx], w_p[idx], count_p[idx] = s_a[idx], t_a[idx], w_a[idx], c_a[idx]
         h = h_p[idx]
         g = target - sigma * s_p[idx] / m_p[idx]
+        if not np.all(np.isfinite(g)):
+            a = int(idx[np.argmax(~np.isfinite(g))])
+            raise SmoothingLengthError(f"particle {a} at {r_pc[a].tolist()}: the kernel sum is not finite at H = "
+                                       f"{h_p[a]:.6g} (non-finite positions or masses?)")
         dg = sigma * t_p[idx] / (m_p[idx] * h)  # <= 0
         lo = np.where(g > 0.0, h, lo_p[idx])
         hi = np.where(g < 0.0, h, hi_p[idx])
@@ -414,9 +422,12 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             step = -g / dg
         newton_ok = np.isfinite(step) & (dg < 0.0)
         newton = h + np.where(newton_ok, step, 0.0)
-        bad = ~newton_ok | (newton < lo) | (newton > hi)
+        # a Newton step by more than a factor 2 (a first neighbour just outside H gives dg ~ 0 and a huge
+        # step, past the growth cap) is replaced by doubling/halving or bisection
+        bad = ~newton_ok | (newton < lo) | (newton > hi) | (newton > 2.0 * h) | (newton < 0.5 * h)
         bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
-        h_new = np.where(bad, bisect, newton)
+        # Newton inside the bracket for the first iterations, then plain bisection (always converges)
+        h_new = np.where(bad | (iteration > NEWTON_ITERATIONS), bisect, newton)
         # converged: the Newton correction (or the bracket) is below tol; keep h, whose sums are known
         done = (g == 0.0) | (newton_ok & (np.abs(step) <= tol * h)) | (hi - lo <= tol * h)
         h_p[idx] = np.where(done, h, h_new)

@@ -136,7 +136,9 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
     atom_style, units :
         LAMMPS data file options (:func:`lammps_io.write_data`).
     dx : float or None
-        Spacing for the particle volume dx^dim (mass = rho0 dx^dim, rho = rho0).
+        Spacing for the particle volume dx^dim (mass = rho0 dx^dim, rho = rho0). With None and
+        atom style sph, particles with a per-particle ``rho`` array and masses (``sphrelax density``)
+        keep their own mass and density.
     rho0 : float
     margin : float or None
         Box margin for open sets (default dx).
@@ -166,6 +168,11 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
     if margin is None and not periodic:
         margin = spacing
     volume = spacing**dim
+    if atom_style == "sph" and dx is None and "rho" in atoms.arrays and atoms.has("masses"):
+        # particles that carry their own SPH state (e.g. sphrelax density): keep each mass and density
+        write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=atoms.get_masses(),
+                   rho=atoms.arrays["rho"], margin=margin)
+        return output
     write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=rho0 * volume, volume=volume,
                rho=rho0 if atom_style == "sph" else None, margin=margin)
     return output

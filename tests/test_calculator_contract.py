@@ -37,6 +37,15 @@ def toy_soft_spheres():
     return SoftSphereCalculator(k=1.5, gamma=0.5), atoms, dict(k=2.5)
 
 
+def alaric_2d():
+    from ase_sphrelax import ALARICCalculator
+
+    def target(x):
+        return 1.0 + 0.5 * np.sin(x[:, 0] / 3.0)
+
+    return ALARICCalculator(target_density=target, dim=2), periodic_box(12, dx=1.0, jitter=0.25, seed=4), dict(cs2=2.0)
+
+
 def fan_lammps_bounded():
     """Fan's model evaluated by LAMMPS (lammps_io), with dx=None: v0 = V/N from the domain."""
     import lammps_io
@@ -59,8 +68,8 @@ def bipi_bounded():
     return BIPICalculator(h=4 * dx, dx=dx, boundary=domain), fill(domain, dx, jitter=0.2, seed=4), dict(h=3 * dx)
 
 
-CASES = {"bipi bounded": bipi_bounded, "fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
-         "fan lammps bounded": fan_lammps_bounded}
+CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
+         "fan lammps bounded": fan_lammps_bounded, "alaric 2D": alaric_2d, "bipi bounded": bipi_bounded}
 
 
 def _evaluate(calc, atoms):

@@ -204,3 +204,48 @@ def test_quasi_newton_optimisers_accept_steps_longer_than_one_length_unit():
     e0 = atoms.get_potential_energy()
     opt.run(fmax=0.0, steps=20)
     assert atoms.get_potential_energy() < e0
+
+
+def test_lean_run_loop_matches_ases_loop():
+    """FanRelaxation's own loop (one force request per step) gives ASE's trajectory, observer
+    calls and log lines."""
+    import io
+
+    from ase.optimize.optimize import Optimizer
+
+    runs = []
+    for lean in (True, False):
+        atoms = jittered_box()
+        log = io.StringIO()
+        opt = FanRelaxation(atoms, c=0.01, logfile=log)
+        calls = []
+        opt.attach(lambda: calls.append(opt.nsteps))
+        converged = opt.run(fmax=0.0, steps=7) if lean else Optimizer.run(opt, fmax=0.0, steps=7)
+        runs.append((atoms.positions.copy(), calls, len(log.getvalue().splitlines()), converged, opt.nsteps))
+    (r_lean, calls_lean, lines_lean, conv_lean, n_lean), (r_ase, calls_ase, lines_ase, conv_ase, n_ase) = runs
+    np.testing.assert_array_equal(r_lean, r_ase)
+    assert calls_lean == calls_ase == list(range(8))
+    assert lines_lean == lines_ase == 9  # header + steps 0..7
+    assert conv_lean == conv_ase and n_lean == n_ase == 7
+
+
+def test_fire_caps_each_particles_move_not_the_whole_step():
+    """ASE's FIRE caps the norm of the 3N step; make_optimizer scales that cap by sqrt(N), so that a
+    large system moves as far per step as a small one (first step: every particle by c h)."""
+    from ase import Atoms
+    from ase.calculators.calculator import Calculator, all_changes
+
+    class Uniform(Calculator):
+        implemented_properties = ["energy", "forces"]
+
+        def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+            Calculator.calculate(self, atoms, properties, system_changes)
+            self.results = dict(energy=-float(self.atoms.positions[:, 0].sum()),
+                                forces=np.tile([1.0, 0.0, 0.0], (len(self.atoms), 1)))
+
+    for n in (10, 10000):
+        atoms = Atoms("X" * n, positions=np.random.default_rng(0).uniform(0, 10, (n, 3)))
+        atoms.calc = Uniform()
+        start = atoms.positions.copy()
+        make_optimizer("fire", atoms, c=0.01, h=1.0).run(fmax=0.0, steps=1)
+        np.testing.assert_allclose(atoms.positions - start, np.tile([0.01, 0, 0], (n, 1)), rtol=1e-12, atol=1e-15)

@@ -350,3 +350,14 @@ def test_threaded_passes_match_serial(monkeypatch):
     f_threaded, _ = sph.pressure_forces(nlist, r_pc, 1.0, threaded.h_p, pr, kernel)
     np.testing.assert_allclose(threaded.rho_p, serial.rho_p, rtol=1e-13)
     np.testing.assert_allclose(f_threaded, f_serial, rtol=1e-12, atol=1e-14)
+
+
+def test_isolated_start_does_not_overshoot():
+    """A particle whose first H holds almost no neighbours (tiny slope) must not jump to a huge H."""
+    r_pc, cell, pbc = _system(2, 10, False, seed=9, jitter=0.0)
+    kernel = get_kernel("wendland_c4", 2)
+    h0 = np.full(len(r_pc), 3.0)
+    h0[45] = 1.02  # just beyond the nearest neighbours: one tiny slope term
+    out = sph.solve_smoothing_lengths(NeighborList(1.0, skin=0.1), r_pc, cell, pbc, 1.0, kernel, h0=h0)
+    np.testing.assert_allclose(out.h_p[45], sph.solve_smoothing_lengths(
+        NeighborList(1.0, skin=0.1), r_pc, cell, pbc, 1.0, kernel).h_p[45], rtol=1e-6)

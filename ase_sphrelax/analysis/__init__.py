@@ -34,6 +34,7 @@ _WHERE = {
     "write_table": ".patterns",
     "classify_bounded_pattern": ".bounded",
     "relax_circle": ".bounded",
+    "alaric_min_error": ".alaric",
 }
 __all__ = sorted(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

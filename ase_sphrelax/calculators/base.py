@@ -7,6 +7,7 @@ calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
@@ -24,6 +25,25 @@ def periodic_measure(cell, pbc, dim):
         return None
     vectors = np.asarray(cell, dtype=float)[:dim, :]
     return float(np.sqrt(abs(np.linalg.det(vectors @ vectors.T))))
+
+
+@numba.njit(cache=True)
+def _same_values(a, b):
+    """Exact equality of two arrays of one shape, without the temporary of ``a == b``."""
+    a = a.ravel()
+    b = b.ravel()
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+def _equal(a, b):
+    """``np.array_equal`` for the per-particle arrays of check_state: several calls per
+    optimiser step, where numpy's allocation and dispatch cost more than the compare."""
+    if a.shape != b.shape or a.dtype != b.dtype or not (a.flags.c_contiguous and b.flags.c_contiguous):
+        return np.array_equal(a, b)
+    return _same_values(a, b)
 
 
 class SPHCalculator(Calculator):
@@ -100,15 +120,20 @@ class SPHCalculator(Calculator):
         evaluation leaves the list in its one-shot state (pair sums fused into the bin
         scan); the Verlet list is built from the second evaluation on, when it can be
         reused. Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+
+        ``r_pc`` is ``atoms.positions`` itself when no coordinate needs zeroing (2D atoms at
+        z = 0, 3D): do not modify it in place.
         """
         dim = self.parameters.dim
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
-        r_pc = np.array(atoms.positions, dtype=float)
-        if not np.all(np.isfinite(r_pc)):
+        r_pc = atoms.positions
+        if not np.isfinite(r_pc).all():
             bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
-        r_pc[:, dim:] = 0.0
+        if r_pc.dtype != np.float64 or (dim < 3 and r_pc[:, dim:].any()):
+            r_pc = np.array(r_pc, dtype=float)  # a copy: the caller's positions stay as they are
+            r_pc[:, dim:] = 0.0
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None or self.nlist.skin != skin:
@@ -127,15 +152,15 @@ class SPHCalculator(Calculator):
         if self.atoms is None or len(atoms) != len(self.atoms):
             return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
-        if not np.array_equal(atoms.positions, self.atoms.positions):
+        if not _equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
-        if not np.array_equal(atoms.numbers, self.atoms.numbers):
+        if not _equal(atoms.numbers, self.atoms.numbers):
             changes.append("numbers")
         if not np.array_equal(atoms.cell.array, self.atoms.cell.array):
             changes.append("cell")
         if not np.array_equal(atoms.pbc, self.atoms.pbc):
             changes.append("pbc")
-        if self.velocity_dependent and not np.array_equal(atoms.get_momenta(), self.atoms.get_momenta()):
+        if self.velocity_dependent and not _equal(atoms.get_momenta(), self.atoms.get_momenta()):
             changes.append("momenta")
         return changes
 

@@ -9,6 +9,9 @@ _WHERE = {
     "BIPIPacker": ".bipi_packer",
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
+    "ALARICDynamics": ".alaric_dynamics",
+    "WVTRelaxation": ".wvt",
+    "limit_blas_in_steps": ".blas",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

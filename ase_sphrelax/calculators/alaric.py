@@ -1,0 +1,256 @@
+"""ALARIC (Vela Vela et al.) as an ASE calculator: energy = the ALARIC potential, forces = its exact negative gradient.
+
+See :mod:`ase_sphrelax.models.alaric` for the potential, its gradient and what happens where the
+target vanishes; :mod:`ase_sphrelax.sph` for the adaptive smoothing lengths (Eq. 31-32), Omega
+(Eq. 13) and the grad-h pressure force (Eq. 34). Friction, viscosity, velocity stops and
+splitting are the dynamics' (:class:`~ase_sphrelax.drivers.ALARICDynamics`).
+"""
+from __future__ import annotations
+
+import numpy as np
+from ase.calculators.calculator import PropertyNotImplementedError, all_changes
+
+from .. import sph
+from ..checks import check_positive
+from ..kernels import get_kernel
+from ..models import alaric as model
+from .base import SPHCalculator
+
+__all__ = ["ALARICCalculator", "FLOOR", "OMEGA_MIN"]
+
+OMEGA_MIN = 0.05  # Omega (Eq. 13) is floored here in the forces (degenerate H only; ~1 otherwise)
+FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
+
+
+class ALARICCalculator(SPHCalculator):
+    """The ALARIC potential ``U = sum_a m c_s^2 ln(rho_a / rho*(x_a))`` with exact forces.
+
+    Parameters
+    ----------
+    target_density : callable
+        ``rho*``: vectorised ``(N, dim) -> (N,)``, finite and ``>= 0``, not zero everywhere.
+    dim : {1, 2, 3}
+    target_gradient : callable or None
+        ``grad rho*``: ``(N, dim) -> (N, dim)``; None uses central differences of ``target_density``
+        (step ``fd_step``; the forces are then the gradient up to that error).
+    mass : float or None
+        Equal particle mass ``m``; None: Eq. 44 at the first evaluation, ``m = mean(rho*_a / n_a)``,
+        then kept (:meth:`set_mass` changes it without discarding the neighbour list).
+    cs2 : float
+        Isothermal ``c_s^2 = (gamma - 1) u`` (Eq. 30); scales energy and forces.
+    kernel : str
+        Default ``"wendland_c4"`` (Eq. 6).
+    eta : float or None
+        ``n_a H_a^d = eta^d`` (Eq. 31) for support ``H``; default :func:`ase_sphrelax.sph.default_eta`
+        (Phantom's 1.5 for support 2h, i.e. 3.0 for C4).
+    form : {"log", "squares", "paper"}
+        ``"log"``: the conservative potential above. ``"squares"``: the conservative least-squares
+        potential ``U = sum_a m c_s^2 (rho_a - rho*(x_a))^2 / (2 rho_ref)`` (``rho_ref`` the mean target at
+        the first evaluation), whose minimum is the paper's fixed point ``rho_a = rho*(x_a)``.
+        ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
+        non-conservative (``energy`` is then the log potential, a monitor).
+    domain : Domain or None
+        Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
+    wall_length : float or None
+        Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
+        (stiff enough to beat the outward pressure on a particle alone outside).
+    density_floor : float or None
+        ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-4 max rho*`` over the particles of the first
+        evaluation (``grad ln rho*`` diverges like ``2/r`` at a quadratic zero of the target, Eq. 46 with
+        Delta = 0: with a floor of 1e-12 the CFL step collapsed near the well, measured).
+    h_tol : float
+        Relative tolerance of the smoothing-length iteration.
+    skin : float or None
+        Verlet skin (default ``0.2`` times the mean H at the first evaluation).
+    fd_step : float
+        Step of the target's finite-difference gradient.
+    origin : sequence of dim floats or None
+        The target (and the domain) see ``origin + x``, with ``x`` wrapped into the cell along periodic
+        axes (ASE cells start at zero: a periodic interval ``[-1, 1)`` is the cell ``[0, 2)`` with
+        origin ``-1``).
+
+    Results
+    -------
+    ``energy``, ``free_energy`` (= energy), ``energies`` (per particle), ``forces``, and the SPH state
+    ``density`` (rho_a), ``number_density`` (n_a), ``smoothing_lengths`` (H_a), ``omega``, ``target``
+    (rho*(x_a)) and ``epsilon`` (Eq. 45 with the current mass).
+    """
+
+    implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
+    default_parameters = dict(target_density=None, dim=1, target_gradient=None, mass=None, cs2=1.0,
+                              kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
+                              density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
+
+    def __init__(self, target_density=None, dim=1, **kwargs):
+        self.mass = None
+        self.h_p = None
+        self.state = None
+        self._floor = None
+        self._wall = None
+        self._rho_ref = None
+        super().__init__(target_density=target_density, dim=dim, **kwargs)
+
+    @property
+    def conservative(self):
+        """True when the forces are the exact negative gradient of ``energy``."""
+        return self.parameters.form in ("log", "squares")
+
+    def _validate_parameters(self):
+        super()._validate_parameters()
+        p = self.parameters
+        self.target = model.Target(p.target_density, p.dim, p.target_gradient, check_positive("fd_step", p.fd_step))
+        p.mass = check_positive("mass", p.mass, allow_none=True)
+        p.cs2 = check_positive("cs2", p.cs2)
+        p.h_tol = check_positive("h_tol", p.h_tol)
+        p.eta = check_positive("eta", p.eta, allow_none=True)
+        p.wall_length = check_positive("wall_length", p.wall_length, allow_none=True)
+        p.density_floor = check_positive("density_floor", p.density_floor, allow_none=True)
+        if p.form not in model.FORMS:
+            raise ValueError(f"form must be one of {model.FORMS}, got {p.form!r}")
+        if p.skin is not None and (not np.isfinite(p.skin) or p.skin < 0):
+            raise ValueError(f"skin must be a finite number >= 0 or None, got {p.skin!r}")
+        if p.domain is not None:
+            if not hasattr(p.domain, "phi_and_normal"):
+                raise TypeError(f"domain must be a Domain with phi_and_normal() or None, got {type(p.domain).__name__}")
+            if getattr(p.domain, "dim", p.dim) != p.dim:
+                raise ValueError(f"domain is {p.domain.dim}D but dim={p.dim}")
+        self.kernel = get_kernel(p.kernel, p.dim)
+        self.eta = sph.default_eta(self.kernel) if p.eta is None else p.eta
+        self.mass = p.mass
+        self.h_p = None
+        self._floor = p.density_floor
+        self._wall = p.wall_length
+        self._rho_ref = None
+        self.origin = np.zeros(p.dim) if p.origin is None else np.asarray(p.origin, dtype=float).reshape(-1)
+        if self.origin.shape != (p.dim,) or not np.all(np.isfinite(self.origin)):
+            raise ValueError(f"origin must be {p.dim} finite numbers or None, got {p.origin!r}")
+
+    def set_mass(self, mass):
+        """Change the equal particle mass (Eq. 44 reset) keeping H and the neighbour list."""
+        self.mass = check_positive("mass", mass)
+        self.reset()
+
+    def _check_atoms(self, atoms):
+        d = self.parameters.dim
+        r = atoms.positions
+        if d < 3 and np.any(r[:, d:] != 0.0):
+            bad = np.nonzero(np.any(r[:, d:] != 0.0, axis=1))[0]
+            raise ValueError(f"dim={d} but particles {bad[:10].tolist()} have non-zero coordinates beyond axis {d - 1}")
+        if d < 3 and np.any(atoms.pbc[d:]):
+            raise ValueError(f"dim={d} but pbc={atoms.pbc.tolist()} is periodic beyond axis {d - 1}")
+        n_min = self.eta**d / (self.kernel.sigma * self.kernel.f0)
+        if len(atoms) < n_min and not np.all(atoms.pbc[:d]):
+            raise ValueError(f"ALARIC needs more than {n_min:.3g} particles (eta^d / (sigma f(0)) kernel neighbours "
+                             f"with eta={self.eta}) in an open system, got {len(atoms)}")
+
+    def points(self, r_pc, atoms):
+        """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""
+        d = self.parameters.dim
+        if np.any(atoms.pbc[:d]):
+            frac = np.linalg.solve(atoms.cell.complete().T, r_pc.T).T
+            frac[:, :d] = np.where(atoms.pbc[:d], frac[:, :d] % 1.0, frac[:, :d])
+            return np.ascontiguousarray((frac @ atoms.cell.complete())[:, :d] + self.origin)
+        return np.ascontiguousarray(r_pc[:, :d] + self.origin)
+
+    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+        super().calculate(atoms, properties, system_changes)
+        p = self.parameters
+        atoms = self.atoms
+        want_stress = "stress" in properties
+        if want_stress and not (np.all(atoms.pbc[: p.dim]) and atoms.cell.rank == 3 and self.conservative):
+            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes (rank 3: give a 2D cell "
+                                              "a c vector) and a conservative form (log or squares)")
+        self._check_atoms(atoms)
+        n = len(atoms)
+        d = p.dim
+        # the target first: bad targets fail before any SPH work
+        x_pd = self.points(atoms.positions, atoms)
+        target_p = self.target.values(x_pd)
+        if self._floor is None:
+            top = float(target_p.max())
+            if top <= 0.0:
+                raise ValueError("target_density is zero at every particle")
+            self._floor = FLOOR * top
+        if self.h_p is None or len(self.h_p) != n:
+            h0 = sph.initial_smoothing_length(atoms.positions, atoms.cell.array, atoms.pbc, d, self.eta)
+            self.h_p = np.full(n, h0)
+        skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
+        r_pc, pbc = self.prepare(atoms, self.h_p, skin)
+        state = sph.solve_smoothing_lengths(self.nlist, r_pc, atoms.cell.array, pbc, 1.0, self.kernel, eta=self.eta,
+                                            h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1)
+        self.h_p = state.h_p
+        n_p = state.n_p  # unit masses: rho = n
+        if self.mass is None:
+            self.mass = model.reset_mass(target_p, n_p)
+        m = self.mass
+        rho_p = m * n_p
+        cs2 = p.cs2
+        if p.form == "squares":
+            if self._rho_ref is None:
+                self._rho_ref = float(np.mean(target_p))
+            energies_p = m * cs2 * (rho_p - target_p) ** 2 / (2.0 * self._rho_ref)
+        else:
+            log_target = np.log(np.maximum(target_p, self._floor))
+            energies_p = m * cs2 * (np.log(rho_p) - log_target)
+        wall_p = None
+        if p.domain is not None:
+            if self._wall is None:
+                self._wall = 0.1 * (float(p.domain.volume) / n) ** (1.0 / d)
+            phi_p, normal_pc = p.domain.phi_and_normal(x_pd)
+            phi_p = np.asarray(phi_p, dtype=float)
+            energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
+            wall_p = (phi_p, np.asarray(normal_pc, dtype=float))
+        self.results["energies"] = energies_p
+        self.results["energy"] = self.results["free_energy"] = float(energies_p.sum())
+        self.results["density"] = rho_p
+        self.results["number_density"] = n_p
+        self.results["smoothing_lengths"] = state.h_p
+        self.results["omega"] = state.omega_p
+        self.results["target"] = target_p
+        self.results["epsilon"] = model.epsilon(rho_p, target_p, n_p)
+        self.state = state
+        if "forces" in properties or want_stress:
+            f_pc, f_ext_pc, virial = self._forces(r_pc, x_pd, state, target_p, wall_p, want_stress)
+            self.results["forces"] = f_pc
+            if want_stress:
+                # dU/d(strain): the pair virial plus -sum F_ext (x) x for the position-dependent terms, with x
+                # the wrapped position that the strain scales (the target sees origin + x)
+                x_w = np.zeros((n, 3))
+                x_w[:, :d] = x_pd - self.origin
+                d_e = virial - f_ext_pc.T @ x_w
+                d_e = 0.5 * (d_e + d_e.T)
+                stress_cc = d_e / atoms.get_volume()
+                self.results["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
+
+    def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False):
+        """(forces, the position-dependent (target and wall) part of them, pair virial)."""
+        p = self.parameters
+        m, cs2 = self.mass, p.cs2
+        rho_p = m * state.n_p
+        # Omega -> 0 when H is undetermined (in 1D, two coincident particles alone hold eta^d = sigma f(0) 2
+        # neighbours for any H): floored, which leaves the exact gradient everywhere Omega >= OMEGA_MIN
+        omega_p = np.maximum(state.omega_p, OMEGA_MIN)
+        if p.form == "log":
+            pr_p = cs2 / (omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
+        elif p.form == "squares":  # de/drho / Omega, e = c_s^2 (rho - rho*)^2 / (2 rho_ref)
+            pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
+        else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
+            pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
+        f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel, want_virial=want_virial)
+        f_ext_pc = np.zeros_like(f_pc)
+        if p.form == "log":
+            above = target_p > self._floor
+            if np.any(above):
+                grad_pd = self.target.gradients(x_pd[above])
+                f_ext_pc[above, : p.dim] = (m * cs2 / target_p[above])[:, None] * grad_pd
+        elif p.form == "squares":
+            grad_pd = self.target.gradients(x_pd)
+            f_ext_pc[:, : p.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
+        if wall_p is not None:
+            phi_p, normal_pc = wall_p
+            outside = phi_p > 0.0
+            f_ext_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
+        f_pc += f_ext_pc
+        f_pc[:, p.dim:] = 0.0
+        f_ext_pc[:, p.dim:] = 0.0
+        return f_pc, f_ext_pc, virial

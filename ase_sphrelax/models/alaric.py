@@ -1,0 +1,203 @@
+"""ALARIC's physics (Vela Vela et al.): isothermal SPH with adaptive H in an external potential.
+
+The **ALARIC potential** of equal-mass particles (mass ``m``, isothermal sound speed
+``c_s^2 = (gamma - 1) u``) with target density ``rho*``:
+
+    U = sum_a m c_s^2 ln(rho_a / rho*(x_a))  [+ sum_a m c_s^2 max(phi_D(x_a), 0) / l  with a domain],
+
+``rho_a = m n_a``, ``n_a = sum_b W_ab(H_a)`` and ``H_a`` solved from ``n_a H_a^d = eta^d`` (Eq. 31-32).
+Its exact negative gradient (grad-h terms included, Price 2012) is the isothermal SPH pressure
+force (Eq. 34 with ``P = c_s^2 rho``) plus the body force ``m c_s^2 grad ln rho*``:
+
+    F_a = -m sum_b m [c_s^2/(Omega_a rho_a) grad_a W_ab(H_a) + c_s^2/(Omega_b rho_b) grad_a W_ab(H_b)]
+          + m c_s^2 grad ln rho*(x_a).
+
+Its minimum has ``rho_a / rho*(x_a)`` the same for every particle (a Lagrange condition for the
+fixed number of particles); to first order in ``rho - rho*`` it is the paper's effective pressure
+``p_eff = c_s^2 (rho - rho*)`` (Eq. 29-30). The paper's own form, ``P_a = c_s^2 (rho_a - rho*(x_a))``
+inside the pressure term, is :data:`FORMS` ``"paper"``: not the gradient of any energy
+(non-conservative); its equilibrium is ``rho - rho* = const`` (Eq. 43), which the mass reset of
+Eq. 44 drives to zero.
+
+Where ``rho* = 0``
+------------------
+``ln rho*`` is replaced by ``ln max(rho*, floor)`` (``floor`` 1e-4 of the largest target value by
+default: near a zero of ``rho*`` the force ``m c_s^2 grad ln rho*`` grows like ``2/r``, and a smaller
+floor let the CFL step collapse at Eq. 46's well with Delta = 0): flat at the floor, so a particle there feels
+no pull from the target, only the pressure of its neighbours (no NaN, no infinite force). Give a
+:class:`~ase_sphrelax.domains.Domain` (e.g. the target's support) to confine the particles:
+outside it (``phi > 0``) the potential rises linearly, ``m c_s^2 phi / l`` (a constant inward force
+``m c_s^2 / l``, with ``l`` a tenth of the mean particle spacing by default), so no particle escapes and those
+that start outside are pulled in.
+
+Errors and built-in profiles
+----------------------------
+:func:`epsilon` is Eq. 45, :func:`reset_mass` Eq. 44 (with ``rho*`` in place of the printed
+``rho``, which would make it an identity), :func:`eq46`, :func:`eq49` and :func:`uniform` the
+paper's targets (vectorised, with gradients).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FORMS", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass"]
+
+FORMS = ("log", "squares", "paper")
+
+
+class Target:
+    """A target density ``rho*`` with its (optional) gradient, checked on every call.
+
+    Parameters
+    ----------
+    density : callable
+        ``(N, d) -> (N,)``, vectorised, finite and ``>= 0``.
+    gradient : callable or None
+        ``(N, d) -> (N, d)``, the gradient of ``density``; None: central differences with step
+        ``fd_step`` (``2 d`` extra calls per evaluation).
+    dim : int
+    fd_step : float
+        Finite-difference step (length units) when no gradient is given.
+    """
+
+    def __init__(self, density, dim, gradient=None, fd_step=1e-6):
+        if not callable(density):
+            raise TypeError(f"target_density must be a callable (N, {dim}) -> (N,), got {type(density).__name__}")
+        if gradient is not None and not callable(gradient):
+            raise TypeError(f"target_gradient must be a callable (N, {dim}) -> (N, {dim}) or None, "
+                            f"got {type(gradient).__name__}")
+        self.density = density
+        self.gradient = gradient
+        self.dim = dim
+        self.fd_step = fd_step
+        self.calls = 0
+
+    def values(self, x_pd):
+        """rho*(x) at points (N, d), validated: shape (N,), finite, >= 0."""
+        self.calls += 1
+        try:
+            out = np.asarray(self.density(x_pd), dtype=float)
+        except Exception as exc:  # noqa: BLE001 - report any failure of the user's function with its input
+            raise ValueError(f"target_density failed on an array of shape {x_pd.shape}: {exc}") from exc
+        n = x_pd.shape[0]
+        if out.shape != (n,):
+            raise ValueError(f"target_density must return shape ({n},) for input ({n}, {self.dim}), got {out.shape}")
+        if not np.all(np.isfinite(out)):
+            bad = np.nonzero(~np.isfinite(out))[0]
+            raise ValueError(f"target_density returned NaN or inf at points {bad[:10].tolist()}")
+        if np.any(out < 0.0):
+            bad = np.nonzero(out < 0.0)[0]
+            raise ValueError(f"target_density must be >= 0; negative at points {bad[:10].tolist()} "
+                             f"(e.g. {out[bad[0]]:.4g} at {x_pd[bad[0]].tolist()})")
+        return out
+
+    def gradients(self, x_pd, values=None):
+        """grad rho*(x), shape (N, d): the given gradient or central differences."""
+        n = x_pd.shape[0]
+        if self.gradient is not None:
+            out = np.asarray(self.gradient(x_pd), dtype=float)
+            if out.shape != (n, self.dim) and not (self.dim == 1 and out.shape == (n,)):
+                raise ValueError(f"target_gradient must return shape ({n}, {self.dim}), got {out.shape}")
+            out = out.reshape(n, self.dim)
+            if not np.all(np.isfinite(out)):
+                raise ValueError("target_gradient returned NaN or inf")
+            return out
+        out = np.empty((n, self.dim))
+        step = self.fd_step
+        for c in range(self.dim):
+            plus = x_pd.copy()
+            plus[:, c] += step
+            minus = x_pd.copy()
+            minus[:, c] -= step
+            out[:, c] = (self.values(plus) - self.values(minus)) / (2.0 * step)
+        return out
+
+
+def _radius(x_pd):
+    return np.sqrt(np.einsum("pd,pd->p", x_pd, x_pd))
+
+
+def eq46(delta=0.0):
+    """Eq. 46: ``rho*(r) = (1 + Delta) - cos(5 r) exp(-5 r^2)``, as (density, gradient)."""
+    delta = float(delta)
+    if not np.isfinite(delta) or delta < 0.0:
+        raise ValueError(f"delta must be a finite number >= 0 (rho*(0) = delta), got {delta!r}")
+
+    def density(x_pd):
+        r = _radius(x_pd)
+        return (1.0 + delta) - np.cos(5.0 * r) * np.exp(-5.0 * r * r)
+
+    def gradient(x_pd):
+        r = _radius(x_pd)
+        # d/dr = 5 sin(5r) e^{-5r^2} + 10 r cos(5r) e^{-5r^2}; grad = d/dr * x / r (smooth at 0: ~ (25 + 10) x)
+        e = np.exp(-5.0 * r * r)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            over_r = np.where(r > 1e-8, (5.0 * np.sin(5.0 * r) * e) / np.where(r > 0, r, 1.0), 25.0)
+        return (over_r + 10.0 * np.cos(5.0 * r) * e)[:, None] * x_pd
+
+    return density, gradient
+
+
+def eq49(p=1):
+    """Eq. 49: ``rho*(r, theta | p) = 1/2 + 2 r^2 exp(-4 (r - 1/5)^2) sin(p (theta + log r))`` (2D), (density, gradient)."""
+    p = float(p)
+
+    def parts(x_pd):
+        x, y = x_pd[:, 0], x_pd[:, 1]
+        r2 = x * x + y * y
+        r = np.sqrt(r2)
+        safe_r = np.where(r > 0, r, 1.0)
+        theta = np.arctan2(y, x)
+        phase = p * (theta + np.log(safe_r))
+        amp = 2.0 * r2 * np.exp(-4.0 * (r - 0.2) ** 2)
+        return x, y, r, safe_r, phase, amp
+
+    def density(x_pd):
+        x, y, r, safe_r, phase, amp = parts(x_pd)
+        return 0.5 + np.where(r > 0, amp * np.sin(phase), 0.0)
+
+    def gradient(x_pd):
+        x, y, r, safe_r, phase, amp = parts(x_pd)
+        damp_dr = amp * (2.0 / safe_r - 8.0 * (r - 0.2))
+        # phase = p (theta + ln r): d/dr = p / r, d/dtheta = p
+        d_dr = damp_dr * np.sin(phase) + amp * np.cos(phase) * p / safe_r
+        d_dtheta = amp * np.cos(phase) * p
+        er = np.stack([x / safe_r, y / safe_r], axis=1)
+        et = np.stack([-y / safe_r, x / safe_r], axis=1)
+        g = d_dr[:, None] * er + (d_dtheta / safe_r)[:, None] * et
+        g[r == 0] = 0.0
+        return g
+
+    return density, gradient
+
+
+def uniform(value=1.0):
+    """A constant target (confine it with a domain), as (density, gradient)."""
+    value = float(value)
+
+    def density(x_pd):
+        return np.full(x_pd.shape[0], value)
+
+    def gradient(x_pd):
+        return np.zeros_like(x_pd)
+
+    return density, gradient
+
+
+PROFILES = {"eq46": eq46, "eq49": eq49, "uniform": uniform}
+
+
+def epsilon(rho_p, target_p, n_p):
+    """Eq. 45: ``sum (rho_a - rho*_a)^2 / n_a  /  sum rho*_a^2 / n_a``."""
+    rho_p = np.asarray(rho_p, dtype=float)
+    target_p = np.asarray(target_p, dtype=float)
+    n_p = np.asarray(n_p, dtype=float)
+    denominator = float(np.sum(target_p**2 / n_p))
+    if denominator <= 0.0:
+        raise ValueError("epsilon: the target density is zero at every particle")
+    return float(np.sum((rho_p - target_p) ** 2 / n_p)) / denominator
+
+
+def reset_mass(target_p, n_p):
+    """Eq. 44 with the target: ``m = (1/N) sum_a rho*(x_a) / n_a`` (equal masses)."""
+    return float(np.mean(np.asarray(target_p, dtype=float) / np.asarray(n_p, dtype=float)))

@@ -1,0 +1,170 @@
+"""The rebuild path of the neighbour list: one-pass list scan, threads, buffer growth, and the
+list scan fused with the first pair sum after a build (issue 9)."""
+import numpy as np
+import pytest
+
+import ase_sphrelax.neighbors as neighbors
+import ase_sphrelax.pairs as pairs
+from ase_sphrelax.kernel_sums import pair_potential_sums
+from ase_sphrelax.kernels import get_kernel
+from ase_sphrelax.neighbors import NeighborList, complete_cell
+from reference import brute_force_pairs
+
+KERNEL = get_kernel("wendland_c2", 3)
+
+
+def listed(nlist, r_pc, cell, pbc, cutoff):
+    """Set of (i, j, image) of the stored pairs within ``cutoff``, each once, canonical."""
+    i_p, j_p, d_pc = nlist.get_pairs(r_pc)
+    keep = np.linalg.norm(d_pc, axis=1) < cutoff
+    _, inv = complete_cell(cell, pbc)
+    out = []
+    for i, j, d in zip(i_p[keep], j_p[keep], d_pc[keep]):
+        shift = tuple(int(round(x)) for x in (d - (r_pc[j] - r_pc[i])) @ inv)
+        if i > j or (i == j and shift < (0, 0, 0)):
+            i, j, shift = j, i, tuple(-x for x in shift)
+        out.append((int(i), int(j), shift))
+    assert len(out) == len(set(out)), "a pair is listed twice"
+    return set(out)
+
+
+def scene(seed, n=300, box=4.0, flat=False):
+    rng = np.random.default_rng(seed)
+    r_pc = rng.uniform(0, box, (n, 3))
+    cell = np.diag([box] * 3)
+    pbc = np.array([True, True, not flat])
+    if flat:
+        r_pc[:, 2] = 0.0
+        cell[2, 2] = 0.0
+    return r_pc, cell, pbc
+
+
+@pytest.fixture(params=[1, 3], ids=["1 chunk", "3 chunks"])
+def chunks(request, monkeypatch):
+    """Run every loop on 1 or 3 chunks (threads), whatever the system size."""
+    monkeypatch.setattr(neighbors, "thread_count", lambda n: request.param)
+    monkeypatch.setattr(pairs, "thread_count", lambda n: request.param)
+    return request.param
+
+
+@pytest.fixture(params=[False, True], ids=["sized buffer", "buffer grown"])
+def tiny_buffer(request, monkeypatch):
+    """Optionally start from an almost empty pair buffer, so that every region overflows and grows."""
+    if request.param:
+        monkeypatch.setattr(neighbors.BinnedPoints, "expected_pairs", lambda self: 1)
+    return request.param
+
+
+@pytest.mark.parametrize("flat", [False, True], ids=["3D", "2D"])
+def test_one_pass_list_matches_brute_force(chunks, tiny_buffer, flat):
+    r_pc, cell, pbc = scene(1, flat=flat)
+    nlist = NeighborList(0.9, skin=0.1)
+    nlist.update(r_pc, cell, pbc)
+    assert nlist.build_pending
+    assert listed(nlist, r_pc, cell, pbc, 1.0) == set(brute_force_pairs(r_pc, cell, pbc, 1.0))
+    assert not nlist.build_pending
+
+
+@pytest.mark.parametrize("flat", [False, True], ids=["3D", "2D"])
+def test_fused_build_gives_the_sums_and_the_list_of_the_separate_passes(chunks, tiny_buffer, flat):
+    r_pc, cell, pbc = scene(2, flat=flat)
+    h, skin = 0.9, 0.15
+    one_shot = NeighborList(h)
+    one_shot.update(r_pc, cell, pbc, store=False)
+    e_ref, f_ref, v_ref = pair_potential_sums(one_shot, r_pc, h, 1.0, KERNEL, want_virial=True)
+    fused = NeighborList(h, skin=skin)
+    fused.update(r_pc, cell, pbc)
+    e, f, v = pair_potential_sums(fused, r_pc, h, 1.0, KERNEL, want_virial=True)  # scan + list + sums
+    assert not fused.build_pending
+    np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
+    np.testing.assert_allclose(v, v_ref, rtol=1e-12, atol=1e-12 * np.abs(v_ref).max())
+    separate = NeighborList(h, skin=skin)
+    separate.update(r_pc, cell, pbc)
+    assert listed(fused, r_pc, cell, pbc, h + skin) == listed(separate, r_pc, cell, pbc, h + skin)
+    np.testing.assert_array_equal(fused.pair_start, separate.pair_start)
+    e2, f2, _ = pair_potential_sums(fused, r_pc, h, 1.0, KERNEL)  # the stored list is walked now
+    np.testing.assert_allclose(f2, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
+    assert fused.builds == 1
+
+
+def test_pending_list_is_made_from_the_build_positions(chunks):
+    """A sum asked at moved positions before the pending scan ran must not list pairs from
+    the moved positions: later positions within skin/2 of the build would miss pairs."""
+    r_pc, cell, pbc = scene(3)
+    h, skin = 0.8, 0.4
+    rng = np.random.default_rng(4)
+    nlist = NeighborList(h, skin=skin)
+    nlist.update(r_pc, cell, pbc)
+    u_pc = rng.normal(size=r_pc.shape)
+    u_pc *= 0.19 / np.linalg.norm(u_pc, axis=1)[:, None]
+    first = r_pc + u_pc  # within skin/2 of the build: no rebuild
+    assert not nlist.update(first, cell, pbc)
+    assert nlist.build_pending
+    pair_potential_sums(nlist, first, h, 1.0, KERNEL)
+    second = r_pc - u_pc  # within skin/2 of the build, 0.38 from `first`
+    assert not nlist.update(second, cell, pbc)
+    _, f, _ = pair_potential_sums(nlist, second, h, 1.0, KERNEL)
+    reference = NeighborList(h)
+    reference.update(second, cell, pbc, store=False)
+    _, f_ref, _ = pair_potential_sums(reference, second, h, 1.0, KERNEL)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
+    assert listed(nlist, second, cell, pbc, h) == set(brute_force_pairs(second, cell, pbc, h))
+
+
+def test_rebuilds_reuse_the_pair_buffer():
+    r_pc, cell, pbc = scene(5)
+    nlist = NeighborList(0.9, skin=0.1)
+    nlist.update(r_pc, cell, pbc)
+    nlist.pair_j  # complete the scan
+    buffer = nlist._pair_buffer
+    for k in range(3):
+        nlist.update(r_pc + 0.3 * (k + 1), cell, pbc)
+        pair_potential_sums(nlist, r_pc + 0.3 * (k + 1), 0.9, 1.0, KERNEL)
+    assert nlist.builds == 4
+    assert nlist._pair_buffer is buffer
+
+
+@pytest.mark.parametrize("store", [True, False])
+def test_nan_positions_are_rejected_on_the_reuse_path_too(store):
+    """update() checks finiteness only when it rebuilds; a NaN forces that rebuild."""
+    r_pc, cell, pbc = scene(6)
+    nlist = NeighborList(0.9, skin=0.1)
+    nlist.update(r_pc, cell, pbc, store=store)
+    for bad in (np.nan, np.inf):
+        moved = r_pc.copy()
+        moved[7, 1] = bad
+        with pytest.raises(ValueError, match=r"finite.*\[7\]"):
+            nlist.update(moved, cell, pbc, store=store)
+
+
+def _edge_scenes():
+    rng = np.random.default_rng(0)
+    chain_x = np.zeros((50, 3))
+    chain_x[:, 0] = rng.uniform(0, 10, 50)
+    chain_y = np.zeros((50, 3))
+    chain_y[:, 1] = rng.uniform(0, 10, 50)
+    skewed = np.array([[1.0, 0, 0], [0.4, 0.9, 0], [0.1, 0.2, 1.1]])
+    sheet = np.zeros((60, 3))
+    sheet[:, :2] = rng.uniform(-1, 4, (60, 2))
+    return {
+        "periodic chain along x (row axis x)": (chain_x, np.diag([10.0, 0, 0]), [True, False, False], 0.7),
+        "open chain along y": (chain_y, np.zeros((3, 3)), [False] * 3, 0.9),
+        "every point in one bin": (rng.uniform(0, 0.3, (20, 3)), np.zeros((3, 3)), [False] * 3, 1.0),
+        "skewed cell smaller than the cut-off": (rng.uniform(0, 1, (7, 3)) @ skewed, skewed, [True] * 3, 1.6),
+        "2D sheet, points outside the cell": (sheet, np.diag([3.0, 2.0, 0.0]), [True, True, False], 0.8),
+    }
+
+
+@pytest.mark.parametrize("name", list(_edge_scenes()))
+def test_row_stencil_on_degenerate_bin_grids(name, chunks):
+    r_pc, cell, pbc, cut = _edge_scenes()[name]
+    nlist = NeighborList(cut, skin=0.1)
+    nlist.update(r_pc, cell, pbc)
+    e, f, _ = pair_potential_sums(nlist, r_pc, cut, 1.0, KERNEL)  # fused build
+    assert listed(nlist, r_pc, cell, pbc, cut) == set(brute_force_pairs(r_pc, cell, pbc, cut))
+    one_shot = NeighborList(cut)
+    one_shot.update(r_pc, cell, pbc, store=False)
+    e_ref, f_ref, _ = pair_potential_sums(one_shot, r_pc, cut, 1.0, KERNEL)
+    np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * max(np.abs(f_ref).max(), 1e-300))
