@@ -180,3 +180,23 @@ def test_coincident_particles_and_set():
     calc.set(h=3 * dx)
     fresh = BIPICalculator(h=3 * dx, dx=dx, boundary=poly)
     assert atoms.get_potential_energy() == pytest.approx(fresh.get_potential_energy(atoms), rel=1e-12) != e
+
+
+def test_merged_collinear_segments_give_the_same_results():
+    """The calculator integrates over the polygon's segments (collinear runs merged): same values."""
+    from ase_sphrelax.boundary import BoundaryIntegrals
+    from ase_sphrelax.neighbors import NeighborList
+
+    seg = BoundarySegments.from_vertices([[0, 0], [1, 0], [1, 1], [0, 1]]).refine(max_length=0.01)
+    dx = 0.05
+    calc = BIPICalculator(h=4 * dx, dx=dx, boundary=seg)
+    assert len(calc.integrals.boundary) == 4 and len(seg) == 400
+    atoms = fill(seg.domain, dx, jitter=0.3, seed=5)
+    calc.calculate(atoms, ["forces", "wall_gradient"])
+    fine = BoundaryIntegrals(seg, 4 * dx)
+    nlist = NeighborList(4 * dx)
+    nlist.update(atoms.positions, np.zeros((3, 3)), False, store=False)
+    ref = fine.compute(nlist, atoms.positions, band=calc.model.band)
+    np.testing.assert_allclose(calc.results["gamma"], ref.gamma_p, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(calc.results["grad_gamma"], ref.grad_gamma_pc, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(calc.results["wall_gradient"], ref.near_pc, rtol=1e-10, atol=1e-10)
