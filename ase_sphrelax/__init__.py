@@ -30,6 +30,7 @@ _WHERE = {
     "Union": ".domains",
     "Intersection": ".domains",
     "Difference": ".domains",
+    "ParVICalculator": ".calculators.parvi", "sample": ".sampling.sampler",  # SPH-ParVI
 }
 __all__ = list(_WHERE) + ["__version__"]
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

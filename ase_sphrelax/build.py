@@ -92,6 +92,8 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
     else:
         origin = np.asarray(origin, dtype=float).reshape(-1)
         if origin.size == 3 and dim == 2:
+            if origin[2] != 0:
+                raise ValueError(f"origin: a 2D mesh lies at z = 0 (one dimension rule), got z = {origin[2]!r}")
             origin = origin[:2]
         if origin.size != dim or not np.all(np.isfinite(origin)):
             raise ValueError(f"origin must be {dim} finite numbers, got {origin!r}")

@@ -6,7 +6,15 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_positive", "check_dim", "check_skin"]
+__all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
+           "ASE_DEFAULT_FMAX"]
+
+#: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
+ASE_DEFAULT_FMAX = 0.05
+
+
+class SPHScaleWarning(UserWarning):
+    """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
 
 
 def check_positive(name, value, allow_none=False):
@@ -41,3 +49,105 @@ def check_skin(skin, name="skin"):
     if isinstance(skin, bool) or not isinstance(skin, numbers.Real) or not math.isfinite(skin) or skin < 0:
         raise ValueError(f"{name} must be a finite number >= 0, got {skin!r}")
     return float(skin)
+
+
+# -- the one dimension rule ------------------------------------------------------------------
+DIM_RULE = ("2D particles live at z = 0 with pbc (True, True, False) (1D: on the x axis); a cell periodic in z, "
+            "or z that varies, is 3D")
+
+
+def _flat(values, r_pc):
+    """True when every value is 0, to round-off of the size of the coordinates ``r_pc``.
+
+    The common case (exact zeros) costs one pass over ``values`` and allocates nothing large.
+    """
+    if not len(values) or not np.count_nonzero(values):  # the fastest pass over a strided column
+        return True
+    scale = max(1.0, float(np.abs(r_pc).max()))
+    return float(np.abs(values).max()) <= 1e-12 * scale
+
+
+def resolve_dim(atoms, dim=None, domain=None, name="dim"):
+    """The dimension of ``atoms``: one rule for calculators, analysis, build and ``lammps_io``.
+
+    Parameters
+    ----------
+    atoms : ase.Atoms
+    dim : {1, 2, 3} or None
+        The dimension asked for; None infers it (from ``domain``, then ``atoms.info["dim"]``
+        as :func:`ase_sphrelax.build.fill` and ``periodic_box`` set it, then the geometry).
+    domain : Domain or None
+        Its ``dim`` must agree with ``dim``; with ``dim`` None it decides.
+    name : str
+        How the caller calls the parameter, for the messages (e.g. ``"FanCalculator(dim=...)"``).
+
+    Returns
+    -------
+    int
+        1, 2 or 3.
+
+    Raises
+    ------
+    ValueError
+        One line naming the mismatch and the remedy, never a silent projection:
+
+        * inference: a cell periodic in z, or z that varies, is 3D; every z equal and not
+          periodic in z is 2D, but only at z = 0 (every z at another value is ambiguous: an error
+          naming both remedies); 2D with every y = 0 and not periodic in y is 1D;
+        * 2D (1D) asked for or inferred: every z (y and z) must be 0 and the cell not periodic
+          along the unused axes;
+        * 3D asked for with at least two particles that all lie at z = 0 in a cell not periodic
+          in z (2D particles) is an error unless ``atoms.info["dim"] == 3`` or a 3D ``domain``
+          says so;
+        * ``atoms.info["dim"]`` or ``domain.dim`` that disagrees with ``dim``.
+    """
+    if dim is not None:
+        dim = check_dim(dim)
+    domain_dim = getattr(domain, "dim", None) if domain is not None else None
+    if domain_dim is not None and dim is not None and domain_dim != dim:
+        raise ValueError(f"domain is {domain_dim}D but {name}={dim}: pass {name}={domain_dim} or {name}=None")
+    declared = atoms.info.get("dim") if hasattr(atoms, "info") else None
+    if declared is not None:
+        try:
+            declared = check_dim(declared)
+        except ValueError:
+            raise ValueError(f"atoms.info['dim'] must be 1, 2 or 3, got {declared!r}") from None
+        asked = dim if dim is not None else domain_dim
+        if asked is not None and asked != declared:
+            who = f"{name}={asked}" if dim is not None else f"the {asked}D domain"
+            raise ValueError(f"atoms.info['dim'] = {declared} (set when the atoms were built) but {who}: "
+                             f"pass {name}={declared}, or set atoms.info['dim'] = {asked} if the atoms are {asked}D")
+    r_pc = np.asarray(atoms.positions, dtype=float)
+    pbc = np.asarray(atoms.pbc, dtype=bool)
+    n = len(r_pc)
+    target = dim if dim is not None else domain_dim if domain_dim is not None else declared
+    z_flat = _flat(r_pc[:, 2], r_pc) if target != 3 or (n >= 2 and not pbc[2]) else False
+    if target is None:  # infer from the geometry
+        z_equal = z_flat or float(np.ptp(r_pc[:, 2])) <= 1e-12 * max(1.0, float(np.abs(r_pc).max()))
+        if pbc[2] or not z_equal:
+            return 3
+        if not z_flat:
+            raise ValueError(f"atoms: every particle has z = {r_pc[0, 2]:.6g} and the cell is not periodic in z, "
+                             f"so the dimension is ambiguous: 2D particles must lie at z = 0 (shift them: "
+                             f"atoms.positions[:, 2] = 0), a flat 3D set needs {name}=3")
+        if pbc[1] or not _flat(r_pc[:, 1], r_pc):
+            return 2
+        return 1
+    if target < 3:
+        unused = "z" if target == 2 else "y and z"
+        if np.any(pbc[target:]):
+            raise ValueError(f"a {target}D system cannot be periodic along {unused} (atoms.pbc = {pbc.tolist()}): "
+                             f"set atoms.pbc[{target}:] = False, or pass {name}=3 for 3D atoms ({DIM_RULE})")
+        for k in range(target, 3):
+            if not (z_flat if k == 2 else _flat(r_pc[:, k], r_pc)):
+                bad = np.nonzero(np.abs(r_pc[:, k]) > 1e-12 * max(1.0, float(np.abs(r_pc).max())))[0]
+                raise ValueError(f"a {target}D system needs every particle at {'xyz'[k]} = 0, but {len(bad)} have "
+                                 f"{'xyz'[k]} != 0 (e.g. particle {int(bad[0])} at {'xyz'[k]} = "
+                                 f"{r_pc[bad[0], k]:.6g}): pass {name}=3 for 3D atoms, or put 2D particles at "
+                                 f"z = 0; they are never flattened silently")
+        return target
+    if n >= 2 and not pbc[2] and z_flat and declared != 3 and domain_dim != 3:
+        raise ValueError(f"{name}=3 but every particle lies at z = 0 and the cell is not periodic in z (2D atoms): "
+                         f"pass {name}=2 or {name}=None; for a flat layer of a 3D set give a 3D domain or set "
+                         f"atoms.info['dim'] = 3")
+    return target

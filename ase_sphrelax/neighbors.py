@@ -71,10 +71,11 @@ def complete_cell(cell, pbc):
     return cell, np.linalg.inv(cell)
 
 
-def _check_positions(positions, finite=True):
+def _check_positions(positions, columns=3, finite=True):
+    """Positions as a float array (N, columns), N >= 1 (``columns=None``: any D >= 1); finite unless told not."""
     r_pc = np.asarray(positions, dtype=float)
-    if r_pc.ndim != 2 or r_pc.shape[1] != 3:
-        raise ValueError(f"positions must have shape (N, 3), got {r_pc.shape}")
+    if r_pc.ndim != 2 or (r_pc.shape[1] != columns if columns else r_pc.shape[1] < 1):
+        raise ValueError(f"positions must have shape (N, {columns or 'D'}), got {r_pc.shape}")
     if r_pc.shape[0] == 0:
         raise ValueError("positions: need at least one particle, got none")
     if finite and not np.all(np.isfinite(r_pc)):

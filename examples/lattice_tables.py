@@ -2,9 +2,9 @@
 
     python examples/lattice_tables.py --out lattice_out [--dim 2 3] [--relax]
 
-Writes lattice_out/table2d.csv + table2d.png (Table 2: v_c of the five 2D
+Writes lattice_out/table2_2d.csv + table2_2d.png (Table 2: v_c of the five 2D
 patterns in Fan's recovered parameter ranges, the Pattern column with k, r,
-and the symmetry of the global optimum), table3d.csv + table3d.png (sc, bcc,
+and the symmetry of the global optimum), table2_3d.csv + table2_3d.png (sc, bcc,
 fcc, hcp and the best one-atom lattice for h/dx = 1.5..3.5 step 0.05) and
 report.txt: the rows where our diamond/parallelogram columns differ from the
 printed Table 2, and with --relax variable-cell relaxations (random starts,
@@ -15,7 +15,7 @@ import argparse
 import os
 
 from ase_sphrelax.analysis import characteristic_volume, predict_pattern
-from ase_sphrelax.analysis.patterns import relax_lattice, write_table
+from ase_sphrelax.analysis.patterns import relax_lattice, table_path, write_table
 from ase_sphrelax.analysis.symmetry import classify_lattice, pattern_name_3d
 
 # printed Table 2 of Fan et al. (h, diamond, parallelogram), only to list the differences
@@ -42,7 +42,7 @@ def main(argv=None):
     os.makedirs(args.out, exist_ok=True)
     report = []
     if 2 in args.dim:
-        rows = write_table(os.path.join(args.out, "table2d.csv"), os.path.join(args.out, "table2d.png"), dim=2)
+        rows = write_table(table_path(2, args.out), table_path(2, args.out).with_suffix(".png"), dim=2, progress=None)
         report.append("2D: rows where our value, rounded to 4 digits, differs from the printed Table 2")
         for row in rows:
             dia, par = PAPER_DIAMOND_PARALLELOGRAM[row["h"]]
@@ -55,7 +55,7 @@ def main(argv=None):
             report.append(f"  h={row['h']:.2f} {row['pattern']:13s} k={row['k']:.3f} r={row['r']:.3f} | "
                           f"{row['pattern_bravais']:13s} v_best={row['v_best']:.7f}")
     if 3 in args.dim:
-        rows = write_table(os.path.join(args.out, "table3d.csv"), os.path.join(args.out, "table3d.png"), dim=3)
+        rows = write_table(table_path(3, args.out), table_path(3, args.out).with_suffix(".png"), dim=3, progress=None)
         report.append("3D: predicted pattern per h")
         for row in rows:
             report.append(f"  h={row['h']:.2f} {row['pattern']:5s} (best one-atom lattice {row['bravais_general']}, "

@@ -27,24 +27,21 @@ from dataclasses import dataclass
 import numpy as np
 from ase.calculators.lammps import Prism
 
+from ase_sphrelax.checks import resolve_dim
+
 __all__ = ["LammpsBox", "lammps_box", "infer_dim"]
 
 _TOL = 1e-10
 
 
 def infer_dim(atoms) -> int:
-    """Dimension of a particle set following the project convention.
+    """Dimension of a particle set by the package's one rule, :func:`ase_sphrelax.checks.resolve_dim`.
 
-    3 if z is periodic or any z differs from 0; 2 if all z == 0 and y is used
-    (periodic or non-zero); 1 if all particles lie on the x axis.
+    3 if z is periodic or varies; 2 if every z = 0 (not periodic in z) and y is used (periodic
+    or non-zero); 1 if every particle lies on the x axis. Every z equal but not 0 is ambiguous:
+    a ValueError names the remedies.
     """
-    pbc = np.asarray(atoms.pbc, bool)
-    r_pc = atoms.positions
-    if pbc[2] or (len(r_pc) and np.ptp(r_pc[:, 2]) > 0) or (len(r_pc) and np.any(r_pc[:, 2] != 0)):
-        return 3
-    if pbc[1] or (len(r_pc) and np.any(r_pc[:, 1] != 0)):
-        return 2
-    return 1
+    return resolve_dim(atoms)
 
 
 @dataclass
@@ -118,11 +115,10 @@ class LammpsBox:
 
 
 def _check_dim_arg(dim, atoms):
-    if dim is None:
-        return infer_dim(atoms)
-    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
+    if dim is not None and (isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer))
+                            or dim not in (1, 2, 3)):
         raise ValueError(f"dim must be 1, 2, 3 or None (infer from atoms), got {dim!r}")
-    return int(dim)
+    return resolve_dim(atoms, dim)
 
 
 def lammps_box(atoms, dim=None, margin=None, thickness=1.0, wrap=True) -> LammpsBox:

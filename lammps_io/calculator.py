@@ -46,7 +46,9 @@ class FanLammpsCalculator(SPHCalculator):
     dx : float or None
         Particle spacing: v0 = vt = dx^dim. None: v0 = vt = V/N, V the domain volume
         or the periodic cell measure (:meth:`ase_sphrelax.models.fan.FanModel.volumes`).
-    dim : {1, 2, 3}
+    dim : {1, 2, 3} or None
+        None (default): the domain's, else inferred from the atoms by
+        :func:`ase_sphrelax.checks.resolve_dim`, as :class:`~ase_sphrelax.FanCalculator`.
     style : {"lepton", "table"}
         Exact expression or a spline table of ``n_table`` points (piecewise kernels need ``"table"``).
     domain : Domain or None
@@ -66,10 +68,10 @@ class FanLammpsCalculator(SPHCalculator):
     """
 
     implemented_properties = ["energy", "free_energy", "forces", "stress"]
-    default_parameters = dict(h=None, dx=None, domain=None, dim=2, kernel="wendland_c2", skin=None, style="lepton",
-                              n_table=20000, nthreads=1, reuse_neighbors=False)
+    default_parameters = dict(h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None,
+                              style="lepton", n_table=20000, nthreads=1, reuse_neighbors=False)
 
-    def __init__(self, h=None, dx=None, dim=2, style="lepton", domain=None, kernel="wendland_c2", n_table=20000,
+    def __init__(self, h=None, dx=None, dim=None, style="lepton", domain=None, kernel="wendland_c2", n_table=20000,
                  nthreads=1, skin=None, reuse_neighbors=False, **kwargs):
         self._lmp = None
         self._key = None
@@ -173,19 +175,17 @@ class FanLammpsCalculator(SPHCalculator):
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
-        model = self.model
         atoms = self.atoms
         n = len(atoms)
-        if n and not np.all(np.isfinite(atoms.positions)):
-            bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
-            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        self.model = model = self.model.with_dim(self.resolve_dim(atoms))  # also: finite positions
+        check_pair_style(self.parameters.style, model.kernel, model.dim)
         vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
         want_stress = "stress" in properties
         if want_stress:
             model.check_stress(vols, atoms.cell.volume)
         periodic = vols.measure is not None
         box = lammps_box(atoms, dim=model.dim, margin=model.h)
-        key = (n, tuple(atoms.pbc), atoms.cell[:].tobytes(), vols.v0, box.lo_c.tobytes() if periodic else None)
+        key = (model.dim, n, tuple(atoms.pbc), atoms.cell[:].tobytes(), vols.v0, box.lo_c.tobytes() if periodic else None)
         rebuilt = False
         if self._lmp is None or key != self._key:
             self._build(box, vols.v0)
@@ -212,6 +212,8 @@ class FanLammpsCalculator(SPHCalculator):
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["forces"] = f_pc
+        if "forces" in properties:
+            self.hint_force_scale(f_pc)
         if want_stress:
             v = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
             pressure_cc = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
@@ -220,7 +222,7 @@ class FanLammpsCalculator(SPHCalculator):
             self.results["stress"] = model.stress(pair_virial_cc, energy, vols, atoms.cell.volume)
 
 
-def fan_calculator(h=None, dx=None, dim=2, style="lepton", **kwargs):
+def fan_calculator(h=None, dx=None, dim=None, style="lepton", **kwargs):
     """An ASE calculator for Fan's total error evaluated in LAMMPS.
 
     See :class:`FanLammpsCalculator` for the parameters.

@@ -18,6 +18,8 @@ from ase_sphrelax.cli.usage import UsageError, positive, usage_errors
 from .box import infer_dim
 from .data_file import ATOM_STYLES, UNIT_STYLES, write_data
 
+MIN_STYLES = ("fire", "cg", "sd", "quickmin")  # the LAMMPS min_style values the relaxation deck accepts
+
 __all__ = ["EXPORT_FORMATS", "ENGINES", "ExportCommand", "LammpsEngine", "add_export_arguments",
            "add_engine_arguments", "cli_export", "cli_relax", "write_vtk", "export_format_from_path"]
 
@@ -54,19 +56,28 @@ def add_export_arguments(parser):
     return parser
 
 
-def _add_lammps_options(parser):
-    parser.add_argument("--nprocs", type=positive(int), default=1, help="MPI processes for --engine lammps (default 1)")
-    parser.add_argument("--nthreads", type=positive(int), default=1,
+LAMMPS_DEFAULTS = dict(nprocs=1, nthreads=1, lammps_style="table", min_style=None)
+
+
+def _add_lammps_options(parser, defaults=LAMMPS_DEFAULTS):
+    """The LAMMPS engine's options. ``sphrelax relax`` adds them with None defaults (to tell an option
+    given with another engine, an error); :meth:`LammpsEngine.check` fills in :data:`LAMMPS_DEFAULTS`."""
+    parser.add_argument("--nprocs", type=positive(int), default=defaults["nprocs"],
+                        help="MPI processes for --engine lammps (default 1)")
+    parser.add_argument("--nthreads", type=positive(int), default=defaults["nthreads"],
                         help="OpenMP threads per LAMMPS process (default 1)")
-    parser.add_argument("--lammps-style", choices=("table", "lepton"), default="table",
-                        help="pair style for --engine lammps: spline table (fast) or exact lepton expression")
+    parser.add_argument("--lammps-style", choices=("table", "lepton"), default=defaults["lammps_style"],
+                        help="pair style for --engine lammps: spline table (fast, default) or exact lepton expression")
+    parser.add_argument("--min-style", choices=MIN_STYLES, default=defaults["min_style"],
+                        help="LAMMPS minimiser (min_style): fire (default; also --optimizer fire), cg (conjugate "
+                             "gradient, the nearest to bfgs/lbfgs), sd (steepest descent) or quickmin")
     return parser
 
 
 def add_engine_arguments(parser):
     """``--engine {ase,lammps}`` and the LAMMPS engine's options, for a parser of your own."""
     parser.add_argument("--engine", choices=ENGINES, default="ase",
-                        help="ase: FanCalculator + optimiser in Python; lammps: FIRE minimisation in LAMMPS")
+                        help="ase: FanCalculator + optimiser in Python; lammps: minimisation in LAMMPS")
     return _add_lammps_options(parser)
 
 
@@ -74,14 +85,27 @@ def _read(atoms_or_path):
     if isinstance(atoms_or_path, (str, Path)):
         from ase.io import read  # noqa: PLC0415
 
+        from ase.io.formats import UnknownFileTypeError  # noqa: PLC0415
+
         path = Path(atoms_or_path)
         if not path.exists():
             raise FileNotFoundError(f"input file {str(path)!r} does not exist")
-        return read(path)
-    return atoms_or_path
+        try:
+            atoms = read(path)
+        except (UnknownFileTypeError, ValueError, KeyError, IndexError, StopIteration) as error:
+            detail = " ".join(str(error).split()) or type(error).__name__
+            raise ValueError(f"input file {str(path)!r} is not a particle file ase.io.read understands ({detail}); "
+                             "give e.g. relaxed.extxyz from sphrelax relax") from None
+    else:
+        atoms = atoms_or_path
+    if len(atoms) == 0:
+        raise ValueError("input: need at least one particle, got an empty Atoms")
+    return atoms
 
 
 def _spacing(atoms, dim, dx):
+    if len(atoms) == 0:
+        raise ValueError("atoms: need at least one particle, got an empty Atoms")
     if dx is not None:
         if not (np.isscalar(dx) and dx > 0):
             raise ValueError(f"dx must be a positive float, got {dx!r}")
@@ -179,16 +203,16 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
 
 
 def cli_relax(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, nthreads=1, style="table", output=None,
-              workdir=None):
+              workdir=None, min_style="fire", fmax=None, progress=False):
     """``sphrelax relax --engine lammps``: Fan relaxation in LAMMPS (:func:`lammps_io.run`).
 
     Writes ``output`` (extxyz) if given and returns the relaxed Atoms; a
-    one-line summary is in ``atoms.info['lammps']``.
+    one-line summary is in ``atoms.info['lammps']`` (iterations, stop reason, energies).
     """
     from .relaxation import run  # noqa: PLC0415
 
     relaxed = run(atoms, h, dx=dx, domain=domain, steps=steps, nprocs=nprocs, nthreads=nthreads, style=style,
-                  workdir=workdir)
+                  workdir=workdir, min_style=min_style, fmax=fmax, progress=progress)
     if output is not None:
         from ase.io import write  # noqa: PLC0415
 
@@ -224,31 +248,64 @@ class ExportCommand:
 
 
 class LammpsEngine:
-    """FIRE minimisation of Fan's model in LAMMPS (lammps_io.run; needs the lammps extra)
+    """minimisation of Fan's model in LAMMPS (min_style fire, cg, sd or quickmin; needs the lammps extra)
 
     The ``sphrelax relax --engine lammps`` plug-in (see :class:`ase_sphrelax.cli.relax.AseEngine`
-    for what an engine provides).
+    for what an engine provides). ``--optimizer fire`` is LAMMPS' ``min_style fire``; the other
+    ``--optimizer`` names have no LAMMPS counterpart and are refused (``--min-style cg`` is the
+    nearest to bfgs/lbfgs). ``--steps`` is the minimiser's iteration limit; ``--fmax`` /
+    ``--fmax-rel`` its force tolerance on the largest per-particle force (``min_modify norm
+    max``); without them it stops at a round-off tolerance. The reported steps and stop reason
+    are those LAMMPS prints (``Iterations``, ``Stopping criterion``). Particles are not held
+    inside the domain by a constraint here: a run that ends with particles outside says so.
     """
 
     methods = ("fan",)
-    add_arguments = staticmethod(_add_lammps_options)
+    optimizers = None  # checked in check(), with a message that names the LAMMPS min_styles
+    default_optimizer = "fire"
+
+    @staticmethod
+    def add_arguments(parser):
+        return _add_lammps_options(parser, defaults={name: None for name in LAMMPS_DEFAULTS})
 
     @staticmethod
     def check(args):
         from ._library import import_lammps
 
+        for name, value in LAMMPS_DEFAULTS.items():
+            if getattr(args, name, None) is None:
+                setattr(args, name, value)
+        if args.optimizer not in ("fire", None):
+            raise UsageError(f"--engine lammps minimises with a LAMMPS min_style: --optimizer {args.optimizer} has "
+                             "no LAMMPS counterpart; use --optimizer fire or --min-style "
+                             f"{'|'.join(MIN_STYLES)} (cg is the nearest to bfgs/lbfgs)")
+        if args.optimizer == "fire" and args.min_style not in (None, "fire"):
+            raise UsageError(f"--optimizer fire and --min-style {args.min_style} disagree: give one of them")
+        if args.min_style is None:
+            args.min_style = "fire"
         try:
             import_lammps()
         except ImportError as error:
             raise UsageError(f"--engine lammps: {error}") from error
+        return []
 
     @staticmethod
     def describe(args):
-        return "lammps fire"
+        return f"lammps {args.min_style or 'fire'}"
 
     @staticmethod
     def relax(atoms, scene, h, args):
-        relaxed = cli_relax(atoms, h, dx=scene.dx, domain=scene.domain, steps=args.steps, nprocs=args.nprocs,
-                            nthreads=args.nthreads, style=args.lammps_style)
-        steps = int(relaxed.info["lammps"].get("iterations", args.steps))
-        return relaxed, steps, "LAMMPS minimisation finished"
+        from ase_sphrelax.cli.relax import absolute_fmax, particle_dx
+
+        f0 = float(np.linalg.norm(atoms.get_forces(), axis=1).max())
+        given = getattr(args, "fmax", None) is not None or getattr(args, "fmax_rel", None) is not None
+        fmax = absolute_fmax(args, f0) if given else None
+        relaxed = cli_relax(atoms, h, dx=particle_dx(scene, args), domain=scene.domain, steps=args.steps,
+                            nprocs=args.nprocs, nthreads=args.nthreads, style=args.lammps_style,
+                            min_style=args.min_style, fmax=fmax, progress=True)
+        info = relaxed.info["lammps"]
+        steps = int(info["iterations"])
+        reason = info.get("stop_reason", "unknown (no 'Stopping criterion' in the LAMMPS log)")
+        criterion = f"max |F| < {fmax:.3g}" if fmax is not None else "round-off force tolerance"
+        return relaxed, steps, (f"LAMMPS min_style {args.min_style}: {reason} ({criterion}, at most {args.steps} "
+                                f"iterations; {info.get('force_evaluations', '?')} force evaluations)")

@@ -26,17 +26,18 @@ from pathlib import Path
 import numpy as np
 
 from ase_sphrelax.calculators.base import periodic_measure
+from ase_sphrelax.checks import resolve_dim
 from ase_sphrelax.models.fan import FanModel, verlet_skin
 
 from ._library import allreduce_sum, check_threads, import_lammps, mpiexec_path, new_lammps
-from .box import infer_dim
 from .data_file import write_data
 from .dump import read_dump
 from .potential import check_pair_style, check_table_points, pair_commands
 
-__all__ = ["write_relaxation_input", "run", "default_timestep", "CALLBACK_MARKER"]
+__all__ = ["write_relaxation_input", "run", "default_timestep", "minimize_report", "CALLBACK_MARKER", "LOG_NAME"]
 
 CALLBACK_MARKER = "# lammps_io: python fix external callback"
+LOG_NAME = "log.lammps"
 MIN_STYLES = ("fire", "cg", "sd", "quickmin")
 
 
@@ -58,7 +59,8 @@ def default_timestep(h, v0, dim, kernel="wendland_c2", mass=1.0):
 
 def _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nprocs, style, min_style):
     """The model and skin of a run, parameters checked as by the calculators, then the deck's own checks."""
-    model = FanModel(h, dx, domain, infer_dim(atoms) if dim is None else dim, kernel)
+    model = FanModel(h, dx, domain, getattr(domain, "dim", 2) if dim is None else dim, kernel)  # as the calculators
+    model = model.with_dim(resolve_dim(atoms, dim, domain))
     skin = verlet_skin(skin, model.h)
     check_table_points(n_table)
     if not (isinstance(steps, (int, np.integer)) and steps >= 0):
@@ -73,7 +75,7 @@ def _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nproc
 
 def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, style="lepton", kernel="wendland_c2",
                            dim=None, ftol=None, dt=None, min_style="fire", skin=None, n_table=20000,
-                           data_name="relax.data", dump_name="relaxed.dump", thermo_every=100):
+                           data_name="relax.data", dump_name="relaxed.dump", thermo_every=100, fmax=None):
     """Write a LAMMPS input deck (and its data/table files) relaxing ``atoms``.
 
     Parameters
@@ -94,7 +96,10 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     style : {"lepton", "table"}
     ftol : float or None
         LAMMPS force tolerance (2-norm of the global force vector); default
-        ``1e-10 * C / h * sqrt(N)`` with ``C = 2 v0 vt sigma / h^d``.
+        ``1e-10 * C / h * sqrt(N)`` with ``C = 2 v0 vt sigma / h^d`` (round-off).
+    fmax : float or None
+        Stop when the largest force on a particle is below ``fmax`` (``min_modify norm max``),
+        as ASE's ``Optimizer.run(fmax=...)``; replaces ``ftol``. 0 disables the force criterion.
     dt : float or None
         Initial FIRE time step (unit masses); default :func:`default_timestep`.
     min_style : {"fire", "cg", "sd", "quickmin"}
@@ -107,6 +112,8 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
         ``ftol``, ``dt`` and ``model`` (the :class:`~ase_sphrelax.models.fan.FanModel`).
     """
     model, skin = _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, 1, style, min_style)
+    if fmax is not None and not (isinstance(fmax, (int, float, np.floating)) and math.isfinite(fmax) and fmax >= 0):
+        raise ValueError(f"fmax must be a finite number >= 0 or None, got {fmax!r}")
     h, dim = model.h, model.dim
     n = len(atoms)
     vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, dim))
@@ -120,6 +127,8 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     box = write_data(atoms, folder / data_name, atom_style="atomic", units="lj", dim=dim, masses=1.0, margin=margin)
     if domain is not None and not np.allclose(box.rot_cc, np.eye(3)):
         raise ValueError("a domain needs an axis-aligned cell (the callback sees LAMMPS coordinates)")
+    if fmax is not None:
+        ftol = float(fmax)
     ftol = 1e-10 * model.pair_prefactor(v0) / h * math.sqrt(n) if ftol is None else float(ftol)
     dt = default_timestep(h, v0, dim, model.kernel) if dt is None else float(dt)
     boundary = " ".join("p" if p else "m" for p in box.pbc)
@@ -155,13 +164,95 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     cmds += [
         f"timestep {dt:.17g}",
         f"min_style {min_style}",
+    ]
+    if fmax is not None:
+        cmds.append("min_modify norm max")  # ftol on the largest per-particle |F|, as ASE's fmax
+    cmds += [
         f"minimize 0.0 {ftol:.17g} {int(steps)} {10 * int(steps) + 10}",
         f"write_dump all custom {dump_name} id type x y z fx fy fz modify sort id format float %.17g",
     ]
     path.write_text("\n".join(cmds) + "\n")
     return dict(deck=path, data=folder / data_name, dump=folder / dump_name, v0=v0, volume=volume,
                 self_energy=self_energy, dim=dim, commands=cmds, h=h, kernel=model.kernel.name, ftol=ftol, dt=dt,
-                model=model)
+                model=model, fmax=fmax)
+
+
+def minimize_report(log_path):
+    """``stop_reason``, ``iterations`` and ``force_evaluations`` of the last ``minimize`` in a LAMMPS log.
+
+    LAMMPS prints ``Stopping criterion = force tolerance`` (or ``max iterations``, ``energy
+    tolerance``, ``linesearch alpha is zero``, ...) and ``Iterations, force evaluations = 2665
+    2701``; keys it did not print are left out.
+    """
+    out = {}
+    try:
+        text = Path(log_path).read_text(errors="replace")
+    except OSError:
+        return out
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("Stopping criterion ="):
+            out["stop_reason"] = stripped.split("=", 1)[1].strip()
+        elif stripped.startswith("Iterations, force evaluations ="):
+            numbers = stripped.split("=", 1)[1].split()
+            if len(numbers) == 2 and all(x.isdigit() for x in numbers):
+                out["iterations"], out["force_evaluations"] = int(numbers[0]), int(numbers[1])
+    return out
+
+
+def _thermo_steps(log_path, position):
+    """New thermo steps in a growing LAMMPS log from byte ``position``: (last step or None, new position)."""
+    try:
+        with open(log_path, "rb") as fh:
+            fh.seek(position)
+            chunk = fh.read()
+    except OSError:
+        return None, position
+    end = chunk.rfind(b"\n")
+    if end < 0:
+        return None, position
+    last = None
+    for line in chunk[: end].decode(errors="replace").splitlines():
+        fields = line.split()
+        if len(fields) >= 2 and fields[0].isdigit():
+            try:
+                float(fields[1])
+            except ValueError:
+                continue
+            last = int(fields[0])
+    return last, position + end + 1
+
+
+class _LogProgress:
+    """A tqdm bar that follows the thermo steps LAMMPS writes to its log (a thread polls the file)."""
+
+    def __init__(self, log_path, total, label="lammps minimize"):
+        import threading
+
+        from tqdm.auto import tqdm
+
+        self.path, self.position = Path(log_path), 0
+        self.bar = tqdm(total=total, desc=label, unit="step", disable=None, mininterval=0.5)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._poll, daemon=True)
+        self._thread.start()
+
+    def _poll(self):
+        while not self._stop.wait(0.25):
+            self._advance()
+
+    def _advance(self):
+        step, self.position = _thermo_steps(self.path, self.position)
+        if step is not None and step > self.bar.n:
+            self.bar.update(min(step, self.bar.total) - self.bar.n)
+
+    def close(self, iterations=None):
+        self._stop.set()
+        self._thread.join()
+        self._advance()
+        if iterations is not None and iterations > self.bar.n:
+            self.bar.update(min(iterations, self.bar.total) - self.bar.n)
+        self.bar.close()
 
 
 def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, result_name="result.json"):
@@ -169,13 +260,15 @@ def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, resul
 
     ``model`` (a :class:`~ase_sphrelax.models.fan.FanModel` with a domain) and ``v0`` give
     the boundary force of decks with a ``fix external`` callback. Returns the result dict
-    (final pe, iterations, wall time), also written as JSON by rank 0.
+    (final pe, fnorm, fmax, ``iterations`` and ``force_evaluations`` of the minimiser,
+    ``stop_reason`` as LAMMPS states it, wall time), also written as JSON by rank 0. LAMMPS
+    writes its log (thermo lines, stopping criterion) to ``LOG_NAME`` in ``folder``.
     """
     folder = Path(folder)
     cwd = os.getcwd()
     os.chdir(folder)
     try:
-        lmp = new_lammps(nthreads=nthreads)
+        lmp = new_lammps(nthreads=nthreads, log=LOG_NAME)
         rank = lmp.extract_setting("world_rank")
         nprocs = lmp.extract_setting("world_size")
 
@@ -204,6 +297,7 @@ def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, resul
                       fmax=float(lmp.get_thermo("fmax")), iterations=int(lmp.extract_global("ntimestep")),
                       wall_time=wall, nprocs=int(nprocs), nthreads=int(nthreads))
         lmp.close()
+        result.update(minimize_report(Path(LOG_NAME)))
         if rank == 0:
             Path(result_name).write_text(json.dumps(result))
         return result
@@ -212,15 +306,18 @@ def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, resul
 
 
 def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", kernel="wendland_c2", dim=None,
-        ftol=None, dt=None, min_style="fire", nthreads=1, skin=None, n_table=20000, workdir=None, timeout=None):
+        ftol=None, dt=None, min_style="fire", nthreads=1, skin=None, n_table=20000, workdir=None, timeout=None,
+        fmax=None, progress=False):
     """Relax ``atoms`` with Fan's total error in LAMMPS and return the relaxed copy.
 
     Parameters
     ----------
     atoms : ase.Atoms
         Periodic interior set, or open set (pbc False) inside ``domain``.
-    h, dx, domain, steps, style, kernel, dim, ftol, dt, min_style, skin, n_table
+    h, dx, domain, steps, style, kernel, dim, ftol, dt, min_style, skin, n_table, fmax
         See :func:`write_relaxation_input`.
+    progress : bool
+        Show a tqdm bar of the minimiser's thermo steps (read from LAMMPS' log while it runs).
     nprocs : int
         MPI processes; > 1 runs ``mpiexec -n nprocs python -m lammps_io._worker``
         with the mpich wheel's mpiexec (``sys.prefix/bin``).
@@ -233,7 +330,8 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
     -------
     ase.Atoms
         Relaxed positions (ASE frame); ``info['lammps']`` holds the final
-        LAMMPS pe, Fan's E (``energy`` = pe + self term), iterations and wall time.
+        LAMMPS pe, Fan's E (``energy`` = pe + self term), the minimiser's ``iterations``,
+        ``force_evaluations`` and ``stop_reason`` (as LAMMPS states them) and wall time.
 
     Raises
     ------
@@ -245,30 +343,25 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
     check_threads(nthreads)
     import_lammps()
     if nprocs > 1:
-        mpiexec = mpiexec_path()
+        mpiexec_path()  # fail before any file is written
     tmp = None
     if workdir is None:
         tmp = tempfile.TemporaryDirectory(prefix="lammps_io_relax_")
         workdir = tmp.name
     folder = Path(workdir)
     try:
+        thermo_every = max(1, min(100, steps // 100)) if progress else 100
         info = write_relaxation_input(atoms, folder / "relax.in", h, dx=dx, domain=domain, steps=steps, style=style,
                                       kernel=kernel, dim=dim, ftol=ftol, dt=dt, min_style=min_style, skin=skin,
-                                      n_table=n_table)
+                                      n_table=n_table, fmax=fmax, thermo_every=thermo_every)
         kwargs = dict(model=info["model"], v0=info["v0"], nthreads=nthreads)
         t0 = time.perf_counter()
-        if nprocs == 1:
-            result = execute_deck(folder, **kwargs)
-        else:
-            with open(folder / "worker.pkl", "wb") as fh:
-                pickle.dump(kwargs, fh)
-            cmd = [mpiexec, "-n", str(int(nprocs)), sys.executable, "-m", "lammps_io._worker", str(folder)]
-            env = dict(os.environ)
-            env.setdefault("OMP_NUM_THREADS", str(int(nthreads)))
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-            if proc.returncode != 0:
-                raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}")
-            result = json.loads((folder / "result.json").read_text())
+        bar = _LogProgress(folder / LOG_NAME, steps, f"lammps {min_style}") if progress else None
+        try:
+            result = _execute(folder, kwargs, nprocs, nthreads, timeout)
+        finally:
+            if bar is not None:
+                bar.close()
         result["total_wall_time"] = time.perf_counter() - t0
         relaxed = read_dump(info["dump"], dim=2 if info["dim"] == 2 else 3, reference=atoms)
         out = atoms.copy()
@@ -282,3 +375,18 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
     finally:
         if tmp is not None:
             tmp.cleanup()
+
+
+def _execute(folder, kwargs, nprocs, nthreads, timeout):
+    """Run the deck in this process (1 rank) or under mpiexec; return the result dict."""
+    if nprocs == 1:
+        return execute_deck(folder, **kwargs)
+    with open(folder / "worker.pkl", "wb") as fh:
+        pickle.dump(kwargs, fh)
+    cmd = [mpiexec_path(), "-n", str(int(nprocs)), sys.executable, "-m", "lammps_io._worker", str(folder)]
+    env = dict(os.environ)
+    env.setdefault("OMP_NUM_THREADS", str(int(nthreads)))
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout[-2000:]}\n{proc.stderr[-4000:]}")
+    return json.loads((folder / "result.json").read_text())

@@ -36,6 +36,22 @@ def bounded_atoms(domain, n, rng, spread=1.3):
     return Atoms(numbers=np.zeros(n, int), positions=r_pc, pbc=False)
 
 
+def in_plane_numerical_stress(atoms, eps):
+    """Central differences of E over the in-plane strains of a 2D cell: Voigt xx, yy, xy (as ASE's helper)."""
+    cell0, volume = atoms.cell.array.copy(), atoms.get_volume()
+    out = []
+    for i, j in ((0, 0), (1, 1), (0, 1)):
+        energies = []
+        for sign in (1, -1):
+            strain = np.eye(3)
+            strain[i, j] += sign * eps
+            atoms.set_cell(cell0 @ strain, scale_atoms=True)
+            energies.append(atoms.get_potential_energy())
+        out.append((energies[0] - energies[1]) / (2 * eps * volume))
+    atoms.set_cell(cell0, scale_atoms=True)
+    return np.array(out)
+
+
 @pytest.mark.parametrize("dim", [1, 2, 3])
 @pytest.mark.parametrize("dx", [0.9, None])
 def test_periodic_forces_and_stress_are_exact_derivatives(dim, dx):
@@ -46,11 +62,18 @@ def test_periodic_forces_and_stress_are_exact_derivatives(dim, dx):
         atoms.pbc = (True, False, False)
     atoms.calc = FanCalculator(h=2.6, dx=dx, dim=dim)
     forces = atoms.get_forces()
-    np.testing.assert_allclose(forces, calculate_numerical_forces(atoms, eps=1e-6), atol=1e-7)
+    # finite differences along the dim axes only: moving a 2D particle off z = 0 is an error
+    numeric = calculate_numerical_forces(atoms, eps=1e-6, icarts=range(dim))
+    np.testing.assert_allclose(forces[:, :dim], numeric[:, :dim], atol=1e-7)
+    assert np.all(forces[:, dim:] == 0.0)
     assert np.abs(forces).max() > 1e-2  # not a trivially zero comparison
-    if dim > 1:
+    if dim == 3:
         stress = atoms.get_stress()
         np.testing.assert_allclose(stress, calculate_numerical_stress(atoms, eps=1e-6), atol=1e-7)
+    elif dim == 2:  # in-plane strains only: a strain with a z component moves 2D particles off z = 0
+        stress = atoms.get_stress()
+        np.testing.assert_allclose(stress[[0, 1, 5]], in_plane_numerical_stress(atoms, 1e-6), atol=1e-7)
+        assert np.all(stress[[2, 3, 4]] == 0.0)
     assert atoms.get_potential_energy() == pytest.approx(atoms.calc.results["free_energy"])
     assert atoms.calc.results["energies"].sum() == pytest.approx(atoms.get_potential_energy())
 
@@ -72,9 +95,10 @@ def test_bounded_forces_are_exact_derivatives_inside_and_outside(domain):
     phi_p = domain.phi(atoms.positions)
     assert (phi_p > 0).sum() >= 3 and (phi_p < 0).sum() >= 3
     forces = atoms.get_forces()
-    numeric = calculate_numerical_forces(atoms, eps=1e-7)
+    numeric = calculate_numerical_forces(atoms, eps=1e-7, icarts=range(domain.dim))
     scale = np.abs(forces).max()
-    np.testing.assert_allclose(forces, numeric, atol=1e-6 * scale)
+    np.testing.assert_allclose(forces[:, : domain.dim], numeric[:, : domain.dim], atol=1e-6 * scale)
+    assert np.all(forces[:, domain.dim:] == 0.0)
     assert atoms.get_potential_energy() == pytest.approx(
         brute_force_energy(atoms, 2.6 * dx, dx**domain.dim, domain.volume, domain.dim, domain), rel=1e-12)
 
@@ -104,14 +128,15 @@ def test_coincident_particles_give_finite_forces():
     assert np.all(np.isfinite(forces)) and np.isfinite(atoms.get_potential_energy())
 
 
-def test_two_dimensional_energy_ignores_z_and_gives_no_z_force():
+def test_two_dimensional_atoms_off_the_plane_are_an_error_never_flattened():
+    """Issue 10 item 1: a 2D particle at z != 0 is refused (it used to be projected silently)."""
     rng = np.random.default_rng(2)
     atoms = random_periodic(20, 2, rng)
-    atoms.calc = FanCalculator(h=2.6, dx=1.0)
-    e0 = atoms.get_potential_energy()
+    atoms.calc = FanCalculator(h=2.6, dx=1.0, dim=2)
     assert np.all(atoms.get_forces()[:, 2] == 0.0)
     atoms.positions[3, 2] = 0.4
-    assert atoms.get_potential_energy() == pytest.approx(e0, rel=1e-14)
+    with pytest.raises(ValueError, match=r"2D system needs every particle at z = 0.*particle 3 at z = 0.4"):
+        atoms.get_potential_energy()
 
 
 def test_stress_is_refused_for_bounded_domains():

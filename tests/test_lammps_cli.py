@@ -115,3 +115,68 @@ def test_relax_engine_lammps_without_lammps_is_a_usage_error(tmp_path, capsys, m
     err = capsys.readouterr().err
     assert err.startswith("sphrelax relax: error: --engine lammps: the LAMMPS Python module is not usable")
     assert lammps_io.INSTALL_HINT in err and err.count("\n") == 1
+
+
+# -- issue 10 item 2: the LAMMPS engine reports what LAMMPS did ---------------------------------------------
+LOG = """minimize 0.0 1e-10 50000 500010
+   Step          PotEng         Fnorm          Fmax
+         0   0.010230510     0.0123         0.0041
+       100   0.009300000     0.0012         0.0004
+      2665   0.009163317     1e-12          1e-13
+Loop time of 1.2 on 1 procs for 2665 steps with 316 atoms
+
+Minimization stats:
+  Stopping criterion = force tolerance
+  Energy initial, next-to-last, final =
+  Iterations, force evaluations = 2665 2674
+"""
+
+
+def test_minimize_report_and_thermo_steps_are_read_from_the_log(tmp_path):
+    from lammps_io.relaxation import _thermo_steps, minimize_report
+
+    log = tmp_path / "log.lammps"
+    log.write_text(LOG)
+    assert minimize_report(log) == dict(stop_reason="force tolerance", iterations=2665, force_evaluations=2674)
+    assert minimize_report(tmp_path / "missing") == {}
+    step, position = _thermo_steps(log, 0)
+    assert step == 2665 and position == len(LOG.encode())
+    assert _thermo_steps(log, position) == (None, position)
+
+
+def _lammps_relax(tmp_path, *args):
+    from ase_sphrelax.cli import main
+
+    code = main(["relax", "--engine", "lammps", "--dx", "0.02", "--out", str(tmp_path)] + list(args))
+    return code, (json.loads((tmp_path / "summary.json").read_text()) if code == 0 else None)
+
+
+@needs_lammps
+def test_lammps_engine_reports_real_iterations_and_the_stop_reason(tmp_path):
+    """--steps 50000 on the 316-particle circle: LAMMPS converges after some 2700 iterations, and says so."""
+    code, summary = _lammps_relax(tmp_path / "a", "--steps", "50000")
+    assert code == 0 and 100 < summary["steps"] < 50000
+    assert "force tolerance" in summary["stop_reason"] and "min_style fire" in summary["stop_reason"]
+    code, summary = _lammps_relax(tmp_path / "b", "--steps", "30")
+    assert code == 0 and summary["steps"] == 30 and "max iterations" in summary["stop_reason"]
+
+
+@needs_lammps
+def test_lammps_engine_passes_fmax_to_the_minimiser(tmp_path):
+    code, full = _lammps_relax(tmp_path / "full", "--steps", "2000")
+    code, early = _lammps_relax(tmp_path / "early", "--steps", "2000", "--fmax-rel", "0.5")
+    assert code == 0 and early["steps"] < full["steps"] / 10
+    assert "force tolerance (max |F| <" in early["stop_reason"]
+    assert full["energy_after"] < early["energy_after"] < early["energy_before"]
+
+
+@needs_lammps
+def test_lammps_engine_maps_optimizers_to_min_styles_or_refuses(tmp_path, capsys):
+    code, summary = _lammps_relax(tmp_path / "cg", "--steps", "200", "--min-style", "cg")
+    assert code == 0 and summary["optimizer"] == "lammps cg" and "min_style cg" in summary["stop_reason"]
+    for args, message in ((["--optimizer", "bfgs"], "--optimizer bfgs has no LAMMPS counterpart"),
+                          (["--optimizer", "fire", "--min-style", "sd"], "disagree"),
+                          (["--c", "0.1"], "--c applies to --engine ase only")):
+        assert _lammps_relax(tmp_path / "x", *args)[0] == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1

@@ -23,6 +23,8 @@ import numpy as np
 from ase.filters import Filter
 from ase.stress import voigt_6_to_full_3x3_stress
 
+from ..checks import resolve_dim
+
 __all__ = ["ConstantMeasureCellFilter", "traceless_symmetric_basis", "sym_expm", "sym_expm_frechet"]
 
 
@@ -70,7 +72,8 @@ class ConstantMeasureCellFilter(Filter):
     ----------
     atoms : ase.Atoms
         With a calculator that gives ``stress``; periodic along the first ``dim`` axes.
-    dim : {2, 3}
+    dim : {2, 3} or None
+        None: inferred from the atoms (:func:`ase_sphrelax.checks.resolve_dim`).
         2D systems live at z = 0 with c-vector ``(0, 0, c)``; only the in-plane
         block of the cell is deformed.
     cell_factor : float, optional
@@ -82,9 +85,12 @@ class ConstantMeasureCellFilter(Filter):
     measure is fixed). Use with any ASE optimiser.
     """
 
-    def __init__(self, atoms, dim=2, cell_factor=None):
-        if dim not in (2, 3) or isinstance(dim, bool):
-            raise ValueError(f"dim must be 2 or 3, got {dim!r}")
+    def __init__(self, atoms, dim=None, cell_factor=None):
+        if dim is not None and (dim not in (2, 3) or isinstance(dim, bool)):
+            raise ValueError(f"dim must be 2, 3 or None, got {dim!r}")
+        dim = resolve_dim(atoms, dim)  # the package's one rule (None: inferred from the atoms)
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3, got atoms that are {dim}D")
         if not all(atoms.pbc[:dim]):
             raise ValueError(f"atoms must be periodic along the first {dim} axes, got pbc={atoms.pbc}")
         if dim == 2 and (np.any(np.abs(atoms.cell.array[:2, 2]) > 0) or np.any(np.abs(atoms.cell.array[2, :2]) > 0)):

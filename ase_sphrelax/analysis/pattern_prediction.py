@@ -316,8 +316,10 @@ def predict_pattern(h_over_dx, dim=2, kernel="wendland_c2", convention="fan", re
     return (winner, values) if return_values else winner
 
 
-def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
+def pattern_table(h_values=None, dim=2, kernel="wendland_c2", progress=False):
     """Rows of Table 2 (2D, both conventions) or its 3D analogue.
+
+    ``progress``: a tqdm bar over the rows (None: only on a terminal; 3D takes about 20 s).
 
     Returns
     -------
@@ -332,6 +334,11 @@ def pattern_table(h_values=None, dim=2, kernel="wendland_c2"):
     if h_values is None:
         h_values = np.round(np.arange(1.5, 3.5 + 1e-9, 0.05), 2)
     rows = []
+    if progress is not False:
+        from tqdm.auto import tqdm
+
+        h_values = tqdm(h_values, desc=f"Table 2 ({dim}D)", unit="row", disable=None if progress is None else False,
+                        mininterval=0.5)
     for h in h_values:
         h = float(h)
         row = {"h": h}

@@ -25,7 +25,28 @@ from .cell_filter import ConstantMeasureCellFilter
 from .pattern_cells import PATTERNS_2D, PATTERNS_3D, pattern_cell
 from .pattern_prediction import characteristic_volume, pattern_table, predict_pattern
 
-__all__ = ["relax_lattice", "lattice_supercell", "random_start", "lattice_report", "write_table"]
+__all__ = ["relax_lattice", "lattice_supercell", "random_start", "lattice_report", "write_table", "table_path",
+           "TABLE_NAME"]
+
+#: the one file name of Table 2 (2D) and its 3D analogue, for ``sphrelax table`` and the examples
+TABLE_NAME = "table2_{dim}d.csv"
+
+
+def table_path(dim, folder="."):
+    """``folder / table2_<dim>d.csv``, the CSV of :func:`write_table` (the PNG goes beside it)."""
+    from pathlib import Path
+
+    return Path(folder) / TABLE_NAME.format(dim=dim)
+
+
+def _bar(iterable, total, label, progress):
+    """``iterable`` wrapped in a tqdm bar when ``progress`` (None: only on a terminal)."""
+    if progress is False:
+        return iterable
+    from tqdm.auto import tqdm
+
+    return tqdm(iterable, total=total, desc=label, unit="start" if "relax" in label else "row",
+                disable=None if progress is None else False, mininterval=0.5)
 
 
 def _factor_near_square(n, dim):
@@ -113,7 +134,7 @@ def _relax_one(atoms, h, dim, kernel, optimizer, fmax, steps):
 
 
 def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_starts=4, lattice_starts=True,
-                  noise=0.05, fmax=1e-6, steps=4000, kernel="wendland_c2", return_all=False):
+                  noise=0.05, fmax=1e-6, steps=4000, kernel="wendland_c2", return_all=False, progress=False):
     """Relax ``n_atoms`` periodic particles in position and cell shape; return the lowest-E result.
 
     Parameters
@@ -143,6 +164,8 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
         Maximum optimiser steps per start.
     return_all : bool
         Also return the list of all relaxed starts.
+    progress : bool or None
+        A tqdm bar over the starts (None: only on a terminal).
 
     Returns
     -------
@@ -176,7 +199,7 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
     for i in range(n_starts):
         starts.append((f"random:{i}", random_start(n_atoms, dim, rng)))
     results = []
-    for label, atoms in starts:
+    for label, atoms in _bar(starts, len(starts), f"relax {len(starts)} starts", progress):
         out = _relax_one(atoms, h, dim, kernel, optimizer, fmax, steps)
         out.info["start"] = label
         results.append(out)
@@ -185,14 +208,16 @@ def relax_lattice(h_over_dx, n_atoms, dim=2, optimizer="fire", seed=None, n_star
 
 
 # -- CLI bodies -----------------------------------------------------------------------------
-def lattice_report(h_over_dx, dim=2, n_atoms=None, seed=0, n_starts=2):
-    """Text for ``sphrelax lattice --h H [--dim 3]``.
+def lattice_report(h_over_dx, dim=2, n_atoms=None, seed=0, n_starts=2, progress=False):
+    """Text for ``sphrelax lattice --h-over-dx H [--dim 3]``.
 
     Prints the predicted pattern (Fan's Table 1 convention and the symmetry of
     the optimum), ``v_c`` of every pattern with its parameters, and the
-    pattern of a variable-cell relaxation identified by spglib.
+    pattern of a variable-cell relaxation identified by spglib (or that spglib
+    found none: a line of the report, not an error). ``progress``: a bar over the
+    relaxation starts (None: only on a terminal).
     """
-    from .symmetry import classify_lattice, pattern_name_3d
+    from .symmetry import LatticeNotFoundError, classify_lattice, pattern_name_3d
 
     lines = [f"h/dx = {h_over_dx:g}, dim = {dim}, kernel wendland_c2, unit particle volume"]
     if dim == 2:
@@ -218,8 +243,11 @@ def lattice_report(h_over_dx, dim=2, n_atoms=None, seed=0, n_starts=2):
                 extra = f"  Bravais {classify_cell(p['cell'])}"
             lines.append(f"{name:8s} {v:.6f}{extra}")
         n_atoms = n_atoms or 4
-    relaxed = relax_lattice(h_over_dx, n_atoms, dim, seed=seed, n_starts=n_starts)
-    label = classify_lattice(relaxed) if dim == 2 else pattern_name_3d(relaxed)
+    relaxed = relax_lattice(h_over_dx, n_atoms, dim, seed=seed, n_starts=n_starts, progress=progress)
+    try:
+        label = classify_lattice(relaxed) if dim == 2 else pattern_name_3d(relaxed)
+    except LatticeNotFoundError:
+        label = "no periodic lattice identified by spglib (up to symprec 0.1)"
     lines.append(f"relaxed {n_atoms} particles (variable cell, constant {'area' if dim == 2 else 'volume'}): "
                  f"{label}, v_c = {relaxed.info['v_c']:.6f} (start {relaxed.info['start']})")
     return "\n".join(lines)
@@ -229,7 +257,7 @@ def _fmt(params):
     return " ".join(f"{k}={v:.3f}" for k, v in params.items() if k in ("k", "r", "c_over_a"))
 
 
-def write_table(path_csv, path_png=None, dim=2, h_values=None):
+def write_table(path_csv, path_png=None, dim=2, h_values=None, progress=False):
     """Write Table 2 (2D) or its 3D analogue as CSV, and a plot of v_c against h/dx per pattern.
 
     2D columns: ``h``, ``v_<pattern>`` for the five patterns (Fan ranges),
@@ -239,12 +267,15 @@ def write_table(path_csv, path_png=None, dim=2, h_values=None):
     general cell. The plot shows ``v_c - v_hexagonal`` (2D) or ``v_c - v_fcc``
     (3D) so that the small differences are visible, with the winner marked.
 
+    ``progress``: a tqdm bar over the rows (None: only on a terminal). The CLI and the
+    examples name the file :func:`table_path` (``table2_<dim>d.csv``).
+
     Returns
     -------
     list of dict
         The rows written.
     """
-    rows = pattern_table(h_values, dim)
+    rows = pattern_table(h_values, dim, progress=progress)
     # Table 2's column order
     names = ("hexagonal", "square", "diamond", "rectangular", "parallelogram") if dim == 2 else PATTERNS_3D
     if dim == 2:

@@ -13,12 +13,18 @@ for bounded domains the distances of the boundary-layer particles
 (``-phi_i < 0.75 dp``, ``dp = v0^(1/d)``) to the boundary, which Fan Sec. 4.2
 expects at half a layer spacing (``dp/2`` for a square lattice, ``sqrt(3)/4``
 times the neighbour distance for a hexagonal one).
+
+The dimension follows the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`):
+``dim=None`` takes the domain's, else infers it from the atoms; a mismatch is an error.
+A metric over an empty set of particles (no interior particle, no boundary layer) is None,
+never NaN.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..calculators.base import periodic_measure
+from ..checks import resolve_dim
 from ..kernel_sums import kernel_sums
 from ..models.fan import FanModel
 from ..neighbors import NeighborList
@@ -40,11 +46,14 @@ class Quality:
         Parameters are checked as by :class:`~ase_sphrelax.FanCalculator` (one model,
         :class:`~ase_sphrelax.models.fan.FanModel`).
     domain : Domain or None
-    dim : {1, 2, 3}
+    dim : {1, 2, 3} or None
+        None: the domain's dimension, else that of the atoms (:func:`ase_sphrelax.checks.resolve_dim`).
     kernel : str
 
     Attributes (after :meth:`compute`)
     ----------------------------------
+    dim : int
+        The dimension of the atoms computed.
     kernel_sum_p : ndarray
         ``sum_j V_j W_ij`` per particle (including j = i).
     kernel_sum_error_p : ndarray
@@ -61,17 +70,22 @@ class Quality:
         ``-phi / dp`` of the boundary-layer particles (empty without a domain).
     """
 
-    def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
-        self.model = FanModel(h, dx, domain, dim, kernel)
+    def __init__(self, h, dx=None, domain=None, dim=None, kernel="wendland_c2"):
+        self._dim = dim
+        self.model = FanModel(h, dx, domain, getattr(domain, "dim", 2) if dim is None else dim, kernel)
         self.h, self.dx, self.domain, self.dim = self.model.h, self.model.dx, self.model.domain, self.model.dim
         self.kernel = self.model.kernel
 
     def compute(self, atoms):
         """Compute the metrics for ``atoms``; returns self."""
         n = len(atoms)
+        if n == 0:
+            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        self.model = self.model.with_dim(resolve_dim(atoms, self._dim, self.domain))
+        self.dim, self.kernel = self.model.dim, self.model.kernel
         v0 = self.model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, self.dim)).v0
         r_pc = np.array(atoms.positions, dtype=float)
-        r_pc[:, self.dim:] = 0.0
+        r_pc[:, self.dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[self.dim:] = False
         nlist = NeighborList(self.h)
@@ -95,15 +109,21 @@ class Quality:
         return self
 
     def summary(self):
-        """Dictionary of the headline numbers (means and maxima over interior particles)."""
+        """Dictionary of the headline numbers (means and maxima over interior particles).
+
+        A statistic of an empty set (no interior particle, no boundary-layer particle) is None.
+        ``kernel_sum_mean`` is the mean ``sum_j V_j W_ij``, which a relaxed lattice puts at
+        ``1 / v_c`` (Fan Sec. 5), not at 1.
+        """
         inside = self.interior_p
         out = {
             "n_particles": int(len(self.kernel_sum_error_p)),
             "n_interior": int(inside.sum()),
+            "kernel_sum_mean": _mean(self.kernel_sum_p[inside]),
             "kernel_sum_error_mean": _mean(self.kernel_sum_error_p[inside]),
             "kernel_sum_error_max": _max(self.kernel_sum_error_p[inside]),
             # spread of sum_j V_j W_ij: uniformity, independent of a global density offset
-            "kernel_sum_std": float(np.std(self.kernel_sum_p[inside])) if inside.any() else float("nan"),
+            "kernel_sum_std": float(np.std(self.kernel_sum_p[inside])) if inside.any() else None,
             "gradient_error_mean": _mean(self.gradient_error_p[inside]),
             "gradient_error_max": _max(self.gradient_error_p[inside]),
         }
@@ -120,17 +140,17 @@ class Quality:
 
 
 def _mean(x):
-    return float(np.mean(x)) if len(x) else float("nan")
+    return float(np.mean(x)) if len(x) else None
 
 
 def _max(x):
-    return float(np.max(x)) if len(x) else float("nan")
+    return float(np.max(x)) if len(x) else None
 
 
 def _min(x):
-    return float(np.min(x)) if len(x) else float("nan")
+    return float(np.min(x)) if len(x) else None
 
 
-def quality_summary(atoms, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
+def quality_summary(atoms, h, dx=None, domain=None, dim=None, kernel="wendland_c2"):
     """Shortcut: ``Quality(h, dx, domain, dim, kernel).compute(atoms).summary()``."""
     return Quality(h, dx=dx, domain=domain, dim=dim, kernel=kernel).compute(atoms).summary()

@@ -25,6 +25,8 @@ import numbers
 import numpy as np
 import spglib
 
+from ..checks import resolve_dim
+
 __all__ = [
     "LatticeNotFoundError",
     "SYMPREC_LADDER",
@@ -96,10 +98,11 @@ def _check_atoms(atoms, dim):
         raise TypeError(f"atoms must be an ase.Atoms, got {type(atoms).__name__}")
     if len(atoms) == 0:
         raise ValueError("atoms is empty")
-    if dim is None:
-        dim = 2 if (atoms.pbc[0] and atoms.pbc[1] and not atoms.pbc[2]) else 3
-    if isinstance(dim, bool) or dim not in (2, 3):
+    if dim is not None and (isinstance(dim, bool) or dim not in (2, 3)):
         raise ValueError(f"dim must be 2, 3 or None, got {dim!r}")
+    dim = resolve_dim(atoms, dim)  # the package's one rule (None: inferred from the atoms)
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2, 3 or None, got atoms that are {dim}D")
     if not all(atoms.pbc[:dim]):
         raise ValueError(f"atoms must be periodic along the first {dim} axes for dim={dim}, got pbc={atoms.pbc}")
     return int(dim)

@@ -147,9 +147,19 @@ class ALARICCalculator(SPHCalculator):
         """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""
         d = self.parameters.dim
         if np.any(atoms.pbc[:d]):
-            frac = np.linalg.solve(atoms.cell.complete().T, r_pc.T).T
-            frac[:, :d] = np.where(atoms.pbc[:d], frac[:, :d] % 1.0, frac[:, :d])
-            return np.ascontiguousarray((frac @ atoms.cell.complete())[:, :d] + self.origin)
+            # elementwise products, not a BLAS solve or matmul: those cost 30 ms at 1e5 particles
+            # on a loaded 2-core machine (BLAS threads), 30 times more than this
+            cell = atoms.cell.complete()
+            inverse = np.linalg.inv(cell)
+            frac = [r_pc[:, 0] * inverse[0, c] + r_pc[:, 1] * inverse[1, c] + r_pc[:, 2] * inverse[2, c]
+                    for c in range(3)]
+            for c in range(d):
+                if atoms.pbc[c]:
+                    frac[c] = frac[c] % 1.0
+            out = np.empty((len(r_pc), d))
+            for c in range(d):
+                out[:, c] = frac[0] * cell[0, c] + frac[1] * cell[1, c] + frac[2] * cell[2, c] + self.origin[c]
+            return out
         return np.ascontiguousarray(r_pc[:, :d] + self.origin)
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):

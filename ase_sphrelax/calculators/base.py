@@ -1,8 +1,9 @@
 """Shared plumbing for the SPH relaxation calculators.
 
 :class:`SPHCalculator` validates parameters (ASE's ``Calculator.set`` would
-store unknown keywords silently), validates Atoms before any work, projects
-positions onto the first ``dim`` axes and keeps one Verlet neighbour list per
+store unknown keywords silently), validates Atoms before any work, resolves
+their dimension by the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`: a
+mismatch is an error, never a silent projection) and keeps one Verlet neighbour list per
 calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
 """
 from __future__ import annotations
@@ -11,11 +12,11 @@ import numba
 import numpy as np
 from ase.calculators.calculator import Calculator, Parameters, all_changes
 
-from ..checks import check_dim
+from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
 
-__all__ = ["SPHCalculator", "periodic_measure"]
+__all__ = ["SPHCalculator", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX"]
 
 
 def periodic_measure(cell, pbc, dim):
@@ -79,6 +80,25 @@ class SPHCalculator(Calculator):
         """The neighbour list of the last :meth:`prepare` (an alias of ``nlist``)."""
         return self.nlist
 
+    def todict(self, skip_default=True):
+        """Parameters for ASE's trajectory and JSON writers.
+
+        Values that are not plain data (a domain, a target density as a Python callable) are
+        written as their ``repr``: writing a ``.traj`` must not fail because of them.
+        """
+        import json
+
+        from ase.io.jsonio import MyEncoder
+
+        out = {}
+        for key, value in Calculator.todict(self, skip_default=skip_default).items():
+            try:
+                json.dumps(value, cls=MyEncoder)
+            except TypeError:
+                value = repr(value)
+            out[key] = value
+        return out
+
     def _check_keys(self, kwargs):
         unknown = set(kwargs) - set(self.default_parameters)
         if unknown:
@@ -108,32 +128,43 @@ class SPHCalculator(Calculator):
 
     def _validate_parameters(self):
         p = self.parameters
-        p.dim = check_dim(p.dim)
+        p.dim = None if p.get("dim") is None else check_dim(p.dim)
         if "kernel" in p and p.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {p.kernel!r}")
 
     # -- per-call preparation ---------------------------------------------------
-    def prepare(self, atoms, cutoff, skin):
+    def resolve_dim(self, atoms):
+        """The dimension of ``atoms`` for this calculator: ``parameters.dim`` (None: inferred) checked
+        against the atoms and ``parameters.domain`` by :func:`ase_sphrelax.checks.resolve_dim`.
+
+        Every calculator calls it (directly or through :meth:`prepare`) before any work: 3D atoms
+        with ``dim=2``, 2D atoms with ``dim=3`` and 2D atoms off z = 0 are one-line errors.
+        """
+        if atoms is None or len(atoms) == 0:
+            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        if not np.isfinite(atoms.positions).all():
+            bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
+            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        p = self.parameters
+        return resolve_dim(atoms, p.get("dim"), p.get("domain"))
+
+    def prepare(self, atoms, cutoff, skin, dim=None):
         """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
         ``cutoff`` (a number or one per particle) is taken on every call. The first
         evaluation leaves the list in its one-shot state (pair sums fused into the bin
         scan); the Verlet list is built from the second evaluation on, when it can be
-        reused. Coordinates beyond ``dim`` are ignored (set to zero) and treated as non-periodic.
+        reused. ``dim`` is the result of :meth:`resolve_dim` (None: resolved here); the
+        coordinates beyond it are zero and not periodic, or :meth:`resolve_dim` raised.
 
         ``r_pc`` is ``atoms.positions`` itself when no coordinate needs zeroing (2D atoms at
         z = 0, 3D): do not modify it in place.
         """
-        dim = self.parameters.dim
-        if atoms is None or len(atoms) == 0:
-            raise ValueError("atoms: need at least one particle, got an empty Atoms")
+        dim = self.resolve_dim(atoms) if dim is None else dim  # also: not empty, finite
         r_pc = atoms.positions
-        if not np.isfinite(r_pc).all():
-            bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
-            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
         if r_pc.dtype != np.float64 or (dim < 3 and r_pc[:, dim:].any()):
             r_pc = np.array(r_pc, dtype=float)  # a copy: the caller's positions stay as they are
-            r_pc[:, dim:] = 0.0
+            r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if self.nlist is None or self.nlist.skin != skin:
@@ -141,6 +172,26 @@ class SPHCalculator(Calculator):
         self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
         self._evaluations += 1
         return r_pc, pbc
+
+    def hint_force_scale(self, f_pc):
+        """Warn once per calculator (:class:`SPHScaleWarning`) when 0 < max |F| < ASE's default fmax.
+
+        A user who follows ASE's habits (``FIRE(atoms).run(fmax=0.05)``) would otherwise get an
+        unrelaxed result without a word (issue 10 item 8). The message is constant, so Python
+        shows it once per place; silence it with ``warnings.simplefilter("ignore", SPHScaleWarning)``.
+        """
+        if getattr(self, "_scale_hinted", False):
+            return
+        self._scale_hinted = True
+        f_max = float(np.sqrt((np.asarray(f_pc) ** 2).sum(axis=1)).max()) if len(f_pc) else 0.0
+        if 0.0 < f_max < ASE_DEFAULT_FMAX:
+            import warnings
+
+            warnings.warn(f"{type(self).__name__}: every force is below 0.05, ASE's default fmax (eV/Angstrom): "
+                          "an ASE optimiser run with its defaults, e.g. FIRE(atoms).run(fmax=0.05), stops at "
+                          "step 0 and relaxes nothing. Use ase_sphrelax.drivers.make_optimizer(name, atoms) and "
+                          "run(fmax=...) with fmax relative to the forces (README: 'ASE optimisers at SPH "
+                          "scales')", SPHScaleWarning, stacklevel=4)
 
     def check_state(self, atoms, tol=1e-15):
         """Which of positions, numbers, cell, pbc (and momenta, for velocity-dependent

@@ -44,8 +44,11 @@ class FanCalculator(SPHCalculator):
     domain : Domain or None
         Level set ``phi`` (negative inside) with ``phi_and_normal``; adds the
         boundary term of Eq. 3.8 / 4.4. None is the interior case (periodic or free).
-    dim : {1, 2, 3}
-        Coordinates beyond ``dim`` are ignored; 2D particles live at z = 0.
+    dim : {1, 2, 3} or None
+        None (default): the domain's dimension, else inferred from the atoms at each
+        evaluation by :func:`ase_sphrelax.checks.resolve_dim` (2D: every z = 0 and the cell
+        not periodic in z). Atoms that do not match ``dim`` (3D atoms with ``dim=2``, 2D atoms
+        with ``dim=3``, 2D atoms off z = 0) raise a ValueError naming the remedy.
     kernel : str
         Kernel name (:data:`ase_sphrelax.kernels.KERNEL_NAMES`); Fan uses ``"wendland_c2"``.
     skin : float or None
@@ -59,9 +62,9 @@ class FanCalculator(SPHCalculator):
     """
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
-    default_parameters = dict(h=None, dx=None, domain=None, dim=2, kernel="wendland_c2", skin=None)
+    default_parameters = dict(h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None)
 
-    def __init__(self, h=None, dx=None, domain=None, dim=2, kernel="wendland_c2", skin=None, **kwargs):
+    def __init__(self, h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None, **kwargs):
         super().__init__(h=h, dx=dx, domain=domain, dim=dim, kernel=kernel, skin=skin, **kwargs)
 
     def _validate_parameters(self):
@@ -70,19 +73,26 @@ class FanCalculator(SPHCalculator):
         self.skin = verlet_skin(self.parameters.skin, self.model.h)  # None: 0.1 h of the current h
         self.kernel = self.model.kernel
 
+    def model_for(self, atoms):
+        """The :class:`~ase_sphrelax.models.fan.FanModel` in the dimension of ``atoms`` (:meth:`resolve_dim`)."""
+        self.model = self.model.with_dim(self.resolve_dim(atoms))
+        self.kernel = self.model.kernel
+        return self.model
+
     def volumes(self, atoms):
         """:class:`~ase_sphrelax.models.fan.FanVolumes` (V, v0, measure) of ``atoms``."""
-        return self.model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, self.model.dim))
+        model = self.model_for(atoms)
+        return model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         super().calculate(atoms, properties, system_changes)
-        model = self.model
         atoms = self.atoms
+        model = self.model_for(atoms)
         want_stress = "stress" in properties
-        vols = self.volumes(atoms)
+        vols = model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
         if want_stress:
             model.check_stress(vols, atoms.cell.volume)
-        r_pc, _ = self.prepare(atoms, model.h, self.skin)
+        r_pc, _ = self.prepare(atoms, model.h, self.skin, dim=model.dim)
         n = len(atoms)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, model.h, model.pair_prefactor(vols.v0),
@@ -92,11 +102,15 @@ class FanCalculator(SPHCalculator):
             boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
             energies_p += boundary_e_p
             f_pc += boundary_f_pc
+            if self._evaluations == 1:  # the first evaluation of these atoms: say so if some are far outside
+                model.warn_far_outside(r_pc, type(self).__name__)
         f_pc[:, model.dim:] = 0.0
         energy = float(energies_p.sum())
         self.results["energy"] = energy
         self.results["free_energy"] = energy
         self.results["energies"] = energies_p
         self.results["forces"] = f_pc
+        if "forces" in properties:
+            self.hint_force_scale(f_pc)
         if want_stress:
             self.results["stress"] = model.stress(virial, energy, vols, atoms.cell.volume)

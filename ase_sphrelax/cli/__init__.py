@@ -47,7 +47,11 @@ Add a relax engine
 :data:`~.registry.ENGINES` or the entry-point group ``ase_sphrelax.engines`` (``lammps_io``
 registers ``lammps`` there, so nothing in ``ase_sphrelax`` imports ``lammps_io``).
 """
-from .main import build_parser, main
+import time
+
+STARTED = time.perf_counter()  # the command's wall time is measured from here (``relax`` prints both)
+
+from .main import build_parser, main  # noqa: E402
 from .usage import UsageError, usage_errors
 
 __all__ = ["main", "build_parser", "UsageError", "usage_errors"]

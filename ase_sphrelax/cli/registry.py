@@ -38,6 +38,7 @@ COMMANDS = {
     "relax": "ase_sphrelax.cli.relax",
     "lattice": "ase_sphrelax.cli.lattice",
     "table": "ase_sphrelax.cli.table",
+    "sample": "ase_sphrelax.cli.sample",
     "density": "ase_sphrelax.cli.density",
     "pack": "ase_sphrelax.cli.pack",
 }

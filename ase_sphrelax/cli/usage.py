@@ -18,7 +18,7 @@ import argparse
 import math
 from contextlib import contextmanager
 
-__all__ = ["UsageError", "usage_errors", "positive", "non_negative_int"]
+__all__ = ["UsageError", "usage_errors", "positive", "non_negative_int", "non_negative_float"]
 
 #: exceptions of the set-up phase that are the user's input, not our bug
 SETUP_ERRORS = (ValueError, TypeError, FileNotFoundError)
@@ -57,4 +57,12 @@ def non_negative_int(text):
     value = int(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
+    return value
+
+
+def non_negative_float(text):
+    """argparse ``type``: a finite number >= 0."""
+    value = float(text)
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
     return value

@@ -257,27 +257,59 @@ class EdgeLoop:
         self.forward_k = forward_k
 
 
-def _segment_name(path, s):
-    return f"{path}: segment {s} (line {s + 1} of data)"
+def _segment_name(path, s, line_s=None):
+    line = f"line {line_s[s]}" if line_s is not None else f"data line {s + 1}"
+    return f"{path}: segment {s} ({line})"
+
+
+def _load_edge_file(path):
+    """Segments ``x1 y1 x2 y2`` of an edge file, shape (n, 4), and the file line of each (1-based).
+
+    Blank lines and ``#`` comments are skipped. Every error is one line naming the file and,
+    for a malformed line, its number and what is accepted.
+    """
+    from pathlib import Path
+
+    name = str(path)
+    try:
+        text = Path(path).read_text()
+    except FileNotFoundError:
+        raise ValueError(f"cannot read the edge file {name!r}: no such file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise ValueError(f"cannot read the edge file {name!r}: {err}") from None
+    rows, line_s = [], []
+    for number, line in enumerate(text.splitlines(), 1):
+        content = line.split("#", 1)[0].strip()
+        if not content:
+            continue
+        fields = content.split()
+        try:
+            values = [float(f) for f in fields]
+        except ValueError:
+            values = None
+        if values is None or len(values) != 4:
+            raise ValueError(f"{name}: line {number}: expected 4 numbers 'x1 y1 x2 y2' (one segment per line), "
+                             f"got {content[:60]!r}")
+        rows.append(values)
+        line_s.append(number)
+    if len(rows) < 3:
+        what = "the file has no segment" if not rows else f"got {len(rows)}"
+        raise ValueError(f"{name}: an edge file needs at least 3 lines 'x1 y1 x2 y2' (a closed loop); {what}")
+    return np.array(rows, dtype=float), line_s
 
 
 def _read_edge_loops(path, tol, strict=False):
     """Read ``x1 y1 x2 y2`` lines and chain the segments into closed loops (list of :class:`EdgeLoop`).
 
-    Errors name the file and the segment index. Zero-length segments are skipped, or with
+    Errors name the file, the segment index and its line. Zero-length segments are skipped, or with
     ``strict`` rejected.
     """
     from scipy.spatial import cKDTree
 
-    try:
-        e = np.loadtxt(path, ndmin=2, dtype=float)
-    except (OSError, ValueError) as err:
-        raise ValueError(f"path: cannot read edges from {path!r}: {err}") from None
-    if e.ndim != 2 or e.shape[1] != 4 or len(e) < 3:
-        raise ValueError(f"path: {path!r} must have >= 3 lines 'x1 y1 x2 y2', got shape {e.shape}")
+    e, line_s = _load_edge_file(path)
     if not np.all(np.isfinite(e)):
         s = int(np.nonzero(~np.all(np.isfinite(e), axis=1))[0][0])
-        raise ValueError(f"path: {_segment_name(path, s)} has non-finite coordinates")
+        raise ValueError(f"{_segment_name(path, s, line_s)} has non-finite coordinates")
     a, b = e[:, :2], e[:, 2:]
     if tol is None:
         tol = 1e-9 * max(1.0, float(np.ptp(e.reshape(-1, 2), axis=0).max()))
@@ -295,7 +327,7 @@ def _read_edge_loops(path, tol, strict=False):
     zero = np.nonzero(va == vb)[0]
     if strict and len(zero):
         s = int(zero[0])
-        raise ValueError(f"path: {_segment_name(path, s)} has zero length (its end points coincide within "
+        raise ValueError(f"{_segment_name(path, s, line_s)} has zero length (its end points coincide within "
                          f"{tol:g}); {len(zero)} such segment(s)")
     adj = [[] for _ in range(n_v)]
     for s in range(len(e)):
@@ -309,8 +341,9 @@ def _read_edge_loops(path, tol, strict=False):
             x, y = pts[idx]
             what = "is not closed" if len(adj[v]) == 1 else "branches"
             segs = ", ".join(str(s) for s in adj[v])
-            raise ValueError(f"path: the boundary {what} at ({x:.10g}, {y:.10g}): {len(adj[v])} segment end(s) "
-                             f"meet there (tolerance {tol:g}); {path}: segment(s) {segs} (0-based data lines)")
+            lines = ", ".join(str(line_s[s]) for s in adj[v])
+            raise ValueError(f"the boundary {what} at ({x:.10g}, {y:.10g}): {len(adj[v])} segment end(s) meet there "
+                             f"(tolerance {tol:g}); {path}: segment(s) {segs} (line(s) {lines})")
     used = np.zeros(len(e), bool)
     used[va == vb] = True
     loops = []
@@ -403,6 +436,9 @@ class Polygon(SearchedDomain):
     def __init__(self, loops, holes=None, grid_spacing=None, tol=None):
         if isinstance(loops, np.ndarray) and loops.ndim == 2:
             loops = [loops]
+        if isinstance(loops, (str, bytes)) or hasattr(loops, "__fspath__"):
+            raise TypeError(f"loops must be vertex arrays, got the path {str(loops)!r}: read an edge file with "
+                            f"Polygon.from_edges({str(loops)!r})")
         if not isinstance(loops, (list, tuple)) or len(loops) == 0:
             raise TypeError("loops must be a non-empty list of (k, 2) vertex arrays")
         holes = [] if holes is None else list(holes)

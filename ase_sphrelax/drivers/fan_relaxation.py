@@ -15,6 +15,8 @@ import numpy as np
 from ase.optimize.optimize import DEFAULT_MAX_STEPS, Optimizer
 
 from ..checks import check_positive
+from .keep_inside import attach_keep_inside
+from .optimizers import ASE_DEFAULT_FMAX, check_c, mark_scaled, warn_if_nothing_relaxed
 
 __all__ = ["FanRelaxation"]
 
@@ -35,9 +37,12 @@ class FanRelaxation(Optimizer):
     atoms : Atoms or Filter
         With a calculator whose forces are ``-dE/dx`` (e.g. :class:`~ase_sphrelax.FanCalculator`).
     c : float
-        Step coefficient of Eq. 2.4/2.5; the largest displacement per step is ``c h``.
+        Step coefficient of Eq. 2.4/2.5, ``0 < c < 1``; the largest displacement per step is ``c h``.
     h : float or None
         Kernel cut-off radius; by default the calculator's parameter ``h``.
+    keep_inside : bool
+        With a calculator that has a ``domain``, attach
+        :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain`: no step leaves the domain.
     **kwargs
         Passed to :class:`ase.optimize.optimize.Optimizer` (logfile, trajectory, ...).
 
@@ -48,13 +53,15 @@ class FanRelaxation(Optimizer):
         or 0 when all forces vanish).
     """
 
-    def __init__(self, atoms, c=0.01, h=None, logfile="-", **kwargs):
-        self.c = check_positive("c", c)  # Eq. 2.4 step coefficient
+    def __init__(self, atoms, c=0.01, h=None, logfile="-", keep_inside=True, **kwargs):
+        self.c = check_c(c)  # Eq. 2.4 step coefficient
         h = _calculator_h(atoms) if h is None else h
         if h is None:
             raise ValueError("h must be given, or the calculator must have a parameter 'h'")
         self.h = check_positive("h", h)
         self.last_step = 0.0
+        self.keep_inside = attach_keep_inside(atoms) if keep_inside else None
+        mark_scaled(atoms)  # Eq. 2.4 scales its own step: the ASE-defaults hint is not for it
         Optimizer.__init__(self, atoms, logfile=logfile, **kwargs)
 
     def initialize(self):
@@ -67,11 +74,17 @@ class FanRelaxation(Optimizer):
     # ASE's loop asks for the forces three times per step and computes the energy and the
     # force norm for its log even without a log file: for 8224 particles that was a third
     # of a step on top of the force evaluation (issue 9, item 3).
-    def run(self, fmax=0.05, steps=DEFAULT_MAX_STEPS):
-        """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`)."""
+    def run(self, fmax=ASE_DEFAULT_FMAX, steps=DEFAULT_MAX_STEPS):
+        """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
+
+        Warns (:class:`~ase_sphrelax.drivers.optimizers.NothingRelaxedWarning`) when ``fmax > 0``
+        stopped it at step 0: SPH forces are small, pass ``fmax=0`` to run all ``steps`` or an
+        fmax relative to the forces.
+        """
         converged = False
         for converged in self.irun(fmax=fmax, steps=steps):
             pass
+        warn_if_nothing_relaxed(self, fmax, converged)
         return converged
 
     def irun(self, fmax=0.05, steps=DEFAULT_MAX_STEPS):

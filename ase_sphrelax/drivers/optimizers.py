@@ -8,12 +8,69 @@ that the first step moves the fastest particle by ``c h``, the step of Eq. 2.4.
 """
 from __future__ import annotations
 
+import math
+import numbers
+import warnings
+
 import numpy as np
 
-from ..checks import check_positive
+from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_positive  # noqa: F401 (SPHScaleWarning re-exported)
 from .blas import limit_blas_in_steps, resolve_blas_threads
+from .keep_inside import attach_keep_inside
 
-__all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer"]
+__all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer", "check_c", "NothingRelaxedWarning", "SPHScaleWarning",
+           "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
+
+
+class NothingRelaxedWarning(UserWarning):
+    """An optimiser run stopped at step 0 because ``fmax`` exceeded every force: nothing was relaxed."""
+
+
+def check_c(c, name="c"):
+    """The step scale ``c`` of Eq. 2.4 (step ``c h``) as a float in (0, 1).
+
+    ``c >= 1`` moves a particle by more than the kernel support per step: it jumps over its
+    neighbours and out of the domain (``--c 5`` left 298 particles outside), so it is refused.
+    """
+    c = check_positive(name, c)
+    if c >= 1.0:
+        raise ValueError(f"{name} must be < 1 (a step of c h >= h jumps over the kernel support; Fan uses 0.01), "
+                         f"got {c!r}")
+    return c
+
+
+def warn_if_nothing_relaxed(optimizer, fmax, converged):
+    """Warn (:class:`NothingRelaxedWarning`) when a run with ``fmax > 0`` converged at step 0."""
+    if converged and optimizer.nsteps == 0 and isinstance(fmax, numbers.Real) and fmax > 0 and math.isfinite(fmax):
+        warnings.warn(f"{type(optimizer).__name__}.run(fmax={fmax:g}) stopped at step 0: every force is below fmax, "
+                      "so nothing was relaxed. SPH forces are small (Fan's are about 4e-3 on the default circle, "
+                      "while ASE's default fmax = 0.05 is for eV/Angstrom): give fmax relative to the forces, e.g. "
+                      "1e-3 * max |F|, or fmax=0 to run all steps", NothingRelaxedWarning, stacklevel=3)
+
+
+def mark_scaled(atoms):
+    """Tell the calculator of ``atoms`` that a scaled driver runs it: no :class:`SPHScaleWarning` hint."""
+    calc = getattr(atoms, "calc", None)
+    if calc is None and hasattr(atoms, "atoms"):
+        calc = getattr(atoms.atoms, "calc", None)
+    if calc is not None:
+        calc._scale_hinted = True
+
+
+_CHECKED = {}
+
+
+def _checked(cls):
+    """``cls`` with a ``run`` that warns when it converged at step 0 (:func:`warn_if_nothing_relaxed`)."""
+    if cls not in _CHECKED:
+        def run(self, fmax=ASE_DEFAULT_FMAX, steps=None, **kwargs):
+            converged = cls.run(self, fmax=fmax, **({} if steps is None else {"steps": steps}), **kwargs)
+            warn_if_nothing_relaxed(self, fmax, converged)
+            return converged
+
+        _CHECKED[cls] = type(cls.__name__, (cls,), {"run": run, "__doc__": cls.__doc__,
+                                                    "__module__": cls.__module__})
+    return _CHECKED[cls]
 
 # the one list of optimiser names (CLI choices, relax_lattice); importing it loads no ASE optimiser
 OPTIMIZERS = ("fan", "fire", "bfgs", "lbfgs")
@@ -24,8 +81,14 @@ OPTIMIZERS = ("fan", "fire", "bfgs", "lbfgs")
 DEFAULT_C = {"fan": 0.01, "fire": 0.01, "bfgs": 0.05, "lbfgs": 0.05}
 
 
-def make_optimizer(name, atoms, c=None, h=None, logfile=None, blas_threads=None, **kwargs):
+def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, blas_threads=None, **kwargs):
     """Return an optimiser for ``atoms`` whose first step moves at most ``c h``.
+
+    ASE's own defaults (FIRE ``dt = 0.1``, ``maxstep = 0.2``; ``run(fmax=0.05)``) are set for
+    eV and Angstrom: with Fan's forces (about 4e-3 on the default circle) ``run(fmax=0.05)``
+    stops at step 0. This optimiser scales the steps; choose ``fmax`` relative to the forces
+    (e.g. ``1e-3 * max |F|``): a run that stops at step 0 with ``fmax > 0`` warns
+    (:class:`ase_sphrelax.drivers.optimizers.NothingRelaxedWarning`).
 
     Parameters
     ----------
@@ -39,6 +102,10 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, blas_threads=None,
         None: :data:`DEFAULT_C` of the optimiser.
     h : float or None
         Kernel cut-off radius (default: the calculator's ``h``).
+    keep_inside : bool
+        With a calculator that has a ``domain``, attach
+        :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain` to the atoms: no step takes a
+        particle out of the domain (issue 10 item 9). False: the optimiser's steps as they are.
     blas_threads : None, False or int
         BLAS threads inside the ASE optimisers' steps (:mod:`~ase_sphrelax.drivers.blas`):
         None limits them to 1 unless the user set ``OPENBLAS_NUM_THREADS`` (or another BLAS
@@ -57,10 +124,13 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, blas_threads=None,
     c = DEFAULT_C[name] if c is None else c
     h = _calculator_h(atoms) if h is None else h
     if name == "fan":  # Eq. 2.4 does no BLAS work
-        return FanRelaxation(atoms, c=c, h=h, logfile=logfile, **kwargs)
+        return FanRelaxation(atoms, c=c, h=h, logfile=logfile, keep_inside=keep_inside, **kwargs)
     if h is None:
         raise ValueError("h must be given, or the calculator must have a parameter 'h'")
-    c = check_positive("c", c)
+    c = check_c(c)
+    if keep_inside:
+        attach_keep_inside(atoms)
+    mark_scaled(atoms)
     forces = atoms.get_forces()
     f_max = float(np.sqrt((forces**2).sum(axis=1)).max())
     step = c * h
@@ -72,14 +142,14 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, blas_threads=None,
         dt = np.sqrt(step / f_max)
         params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step * np.sqrt(max(len(forces), 1)))
         params.update(kwargs)
-        return limit_blas_in_steps(FIRE(atoms, logfile=logfile, **params), blas_threads)
+        return limit_blas_in_steps(_checked(FIRE)(atoms, logfile=logfile, **params), blas_threads)
     # quasi-Newton: the first step is F / alpha
     params = dict(alpha=f_max / step, maxstep=10 * step)
     if name == "lbfgs":
         params["memory"] = 20  # the two-loop recursion over 100 vectors costs more than a force call
     params.update(kwargs)
     maxstep = params.pop("maxstep")
-    cls = BFGS if name == "bfgs" else LBFGS
+    cls = _checked(BFGS if name == "bfgs" else LBFGS)
     # ASE's LBFGS refuses maxstep > 1 (a sanity check in Angstrom); SPH lengths have no such scale
     opt = cls(atoms, logfile=logfile, maxstep=min(maxstep, 1.0), **params)
     opt.maxstep = maxstep

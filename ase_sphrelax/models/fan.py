@@ -39,9 +39,13 @@ from ase.calculators.calculator import PropertyNotImplementedError
 from ..checks import check_dim, check_positive, check_skin
 from ..kernels import get_kernel
 
-__all__ = ["FanModel", "FanVolumes", "verlet_skin"]
+__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning"]
 
 SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
+
+
+class ParticlesOutsideWarning(UserWarning):
+    """Particles far outside the domain at the first evaluation (:meth:`FanModel.warn_far_outside`)."""
 
 
 def verlet_skin(skin, h):
@@ -103,11 +107,25 @@ class FanModel:
     @classmethod
     def from_parameters(cls, parameters):
         """The model of a calculator's ``parameters`` (h, dx, domain, dim, kernel), which are
-        normalised in place (``h``, ``dx`` as floats)."""
+        normalised in place (``h``, ``dx`` as floats).
+
+        With ``dim`` None (inferred from the atoms at each evaluation) the model is built for
+        the domain's dimension, or 2 without a domain, to check the parameters; the calculator
+        then uses :meth:`with_dim` for the dimension of the atoms.
+        """
         p = parameters
-        model = cls(p.h, p.dx, p.domain, p.dim, p.kernel)
-        p.h, p.dx, p.dim = model.h, model.dx, model.dim
+        dim = p.dim if p.dim is not None else getattr(p.domain, "dim", 2)
+        model = cls(p.h, p.dx, p.domain, dim, p.kernel)
+        p.h, p.dx = model.h, model.dx
+        if p.dim is not None:
+            p.dim = model.dim
         return model
+
+    def with_dim(self, dim):
+        """The same model in ``dim`` dimensions (self if it already is)."""
+        if dim == self.dim:
+            return self
+        return type(self)(self.h, self.dx, self.domain, dim, self.kernel.name)
 
     def __repr__(self):
         return (f"FanModel(h={self.h!r}, dx={self.dx!r}, domain={self.domain!r}, dim={self.dim}, "
@@ -191,6 +209,26 @@ class FanModel:
         normal_pc = np.zeros((n, 3))
         normal_pc[:, : n_pc.shape[1]] = n_pc[:, :3]
         return e_p, -(2.0 * v0 * self.kernel.w1(np.maximum(s_p, 0.0), self.h))[:, None] * normal_pc
+
+    def warn_far_outside(self, r_pc, who="FanModel"):
+        """Warn (:class:`ParticlesOutsideWarning`) when particles lie more than ``h`` outside the domain.
+
+        Beyond the boundary the force of Eq. 4.4 is the constant ``-2 W1(0) vt n``: such particles
+        come back slowly, one small step at a time, and usually mean positions in another frame
+        than the domain's (issue 10 item 5: particles 5 units outside ran silently).
+        """
+        if self.domain is None:
+            return
+        phi_p = np.asarray(self.domain.phi(np.ascontiguousarray(np.asarray(r_pc)[:, : self.dim])), dtype=float)
+        far = np.nonzero(phi_p > self.h)[0]
+        if len(far):
+            import warnings
+
+            worst = int(far[np.argmax(phi_p[far])])
+            warnings.warn(f"{who}: {len(far)} particle(s) lie more than h outside the domain (up to "
+                          f"{phi_p[worst]:.4g} = {phi_p[worst] / self.h:.3g} h, particle {worst}): the boundary "
+                          "force is constant out there, so they return only slowly; check that the positions and "
+                          "the domain share one frame", ParticlesOutsideWarning, stacklevel=5)
 
     # -- stress ----------------------------------------------------------------------
     def check_stress(self, volumes, cell_volume):

@@ -1,0 +1,15 @@
+"""Sampling unnormalised densities with SPH (SPH-ParVI) and the tools to judge it.
+
+* :mod:`.targets` — test densities with scores and reference samplers;
+* :mod:`.metrics` — energy distance, MMD, sliced Wasserstein, moment and mode errors;
+* :mod:`.baselines` — SVGD, ULA, MALA and emcee, run like the SPH sampler;
+* :mod:`.result` — :class:`SampleResult` and the evaluation-counting wrapper;
+* :mod:`.sampler` — :class:`ParVISampler` and :func:`sample` (the default configuration);
+* :mod:`.theory` — the predicted stationary densities.
+"""
+from .result import CountingTarget, SampleResult
+from .sampler import ParVIDivergence, ParVISampler, sample
+from .targets import TARGET_NAMES, Target, get_target
+
+__all__ = ["SampleResult", "CountingTarget", "ParVISampler", "ParVIDivergence", "sample", "Target", "get_target",
+           "TARGET_NAMES"]
