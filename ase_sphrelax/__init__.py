@@ -13,8 +13,10 @@ __version__ = "0.1.0"
 
 _WHERE = {
     "FanCalculator": ".calculators",
+    "BIPICalculator": ".calculators",
     "ALARICCalculator": ".calculators.alaric",
     "FanRelaxation": ".drivers",
+    "BIPIPacker": ".drivers",
     "Kernel": ".kernels",
     "get_kernel": ".kernels",
     "NeighborList": ".neighbors",

@@ -71,8 +71,19 @@ def fan_lammps_bounded():
     return calc, fill(domain, dx, jitter=0.2, seed=2), dict(h=2.0 * dx)
 
 
+def bipi_bounded():
+    """BIPI's E_BI on a trapezoid with a jittered fill."""
+    from ase_sphrelax import BIPICalculator
+    from ase_sphrelax.domains import Polygon
+
+    dx = 1 / 32
+    domain = Polygon([np.array([[0, 1], [0, 0], [1, 0], [1.5, 1.0]])])
+    return BIPICalculator(h=4 * dx, dx=dx, boundary=domain), fill(domain, dx, jitter=0.2, seed=4), dict(h=3 * dx)
+
+
 CASES = {"fan periodic": fan_periodic, "fan bounded": fan_bounded, "fan 3D": fan_3d, "toy": toy_soft_spheres,
-         "fan lammps bounded": fan_lammps_bounded, "alaric 2D": alaric_2d, "parvi 2D": parvi_2d}
+         "fan lammps bounded": fan_lammps_bounded, "alaric 2D": alaric_2d, "parvi 2D": parvi_2d,
+         "bipi bounded": bipi_bounded}
 
 
 def _evaluate(calc, atoms):

@@ -182,8 +182,9 @@ class BoundaryPairs:
     def nearest_distance(self):
         """Distance of each particle to its nearest element within the radius (inf if none)."""
         out = np.full(self.n_particles, np.inf)
-        if self.n_pairs:
-            np.minimum.at(out, self.particle_k, self.distance_k)
+        rows = np.nonzero(np.diff(self.start_p))[0]
+        if len(rows):  # CSR rows are contiguous: one reduceat over the non-empty rows
+            out[rows] = np.minimum.reduceat(self.distance_k, self.start_p[rows])
         return out
 
 

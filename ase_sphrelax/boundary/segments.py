@@ -303,6 +303,11 @@ class BoundarySegments:
             self._polygon = Polygon(self.loops)
         return self._polygon
 
+    @property
+    def domain(self):
+        """The enclosed region as a level-set domain (the :attr:`polygon`), as for BoundaryTriangles."""
+        return self.polygon
+
     def contains(self, r_pc):
         """Boolean mask of the points strictly inside (through :attr:`polygon`)."""
         return self.polygon.contains(r_pc)

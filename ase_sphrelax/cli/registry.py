@@ -40,12 +40,16 @@ COMMANDS = {
     "table": "ase_sphrelax.cli.table",
     "sample": "ase_sphrelax.cli.sample",
     "density": "ase_sphrelax.cli.density",
+    "pack": "ase_sphrelax.cli.pack",
 }
 
 #: built-in methods per command (``sphrelax COMMAND --method NAME``)
 METHODS = {
     "relax": {
         "fan": "ase_sphrelax.cli.relax:FanMethod",
+    },
+    "pack": {
+        "bipi": "ase_sphrelax.cli.pack:BIPIMethod",
     },
 }
 

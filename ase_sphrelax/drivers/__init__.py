@@ -6,6 +6,7 @@ from .._lazy import lazy_exports
 
 _WHERE = {
     "FanRelaxation": ".fan_relaxation",
+    "BIPIPacker": ".bipi_packer",
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
     "KeepInDomain": ".keep_inside",

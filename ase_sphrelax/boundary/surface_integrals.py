@@ -1,0 +1,217 @@
+"""3D boundary integrals over flat triangles (the 3D extension of BIPI's Eq. 2-3).
+
+For a particle ``x_a`` at signed distance ``delta`` (units of the support ``h``) from the plane
+of a triangle with inward normal ``n``, let ``p`` be its foot on the plane. The triangle is the
+signed sum of the three triangles ``(p, v_i, v_i+1)``; each is integrated in polar coordinates
+about ``p``. The radial integrals are the antiderivatives ``P1`` and ``Q`` of
+:mod:`~ase_sphrelax.boundary.radial`; what remains is one integral along each edge, in the
+coordinate ``x`` from the foot of ``p`` on the edge's line (edge distance ``e``):
+
+``int dx e / (e^2 + x^2) [R(rho(x)) - R(|delta|)]``, ``rho(x)^2 = delta^2 + e^2 + x^2``.
+
+* Beyond the support (``rho >= 1``) ``R`` is constant and the integral is an arctangent.
+* The singular part of ``gamma`` (``Q ~ -A3_0 / rho``, the solid angle) is integrated in closed
+  form: ``A3_0 sign(delta) [atan(x / e) - atan(|delta| x / (e rho))]``.
+* The smooth remainders are divided differences ``(R(rho) - R(|delta|)) / (rho^2 - delta^2)``
+  (``rho^2 - delta^2 = e^2 + x^2`` exactly, no cancellation), integrated by Gauss-Legendre on
+  intervals split at the foot ``x = 0`` and where ``rho`` crosses the kernel's break radii.
+
+This is exact up to the Gauss rule on smooth integrands (``n = 16`` nodes by default; the
+tests compare with direct 3D integration to 1e-6 and with adaptive 2D quadrature per triangle).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["triangle_terms", "plane_offset"]
+
+
+@numba.njit(cache=True, inline="always")
+def _laurent(row, r):
+    """sum_m row[m] r^(m - 1)."""
+    total = row[0] / r if row[0] != 0.0 else 0.0
+    rk = 1.0
+    for m in range(1, row.shape[0]):
+        total += row[m] * rk
+        rk *= r
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def _divided_difference(row, r, d):
+    """(L(r) - L(d)) / (r^2 - d^2) for the Laurent polynomial L of ``row``, without cancellation.
+
+    ``(r^q - d^q) / (r^2 - d^2) = S_q / (r + d)`` with ``S_q = sum_{i < q} r^i d^(q-1-i)``, built by
+    ``S_q = r S_(q-1) + d^(q-1)``; the ``1 / r`` column gives ``-1 / (r d (r + d))``.
+    """
+    total = 0.0
+    s_q = 1.0  # S_1
+    d_q = 1.0  # d^(q - 1)
+    for m in range(2, row.shape[0]):  # power q = m - 1 >= 1
+        if m > 2:
+            d_q *= d
+            s_q = r * s_q + d_q
+        total += row[m] * s_q
+    total /= r + d
+    if row[0] != 0.0:
+        total -= row[0] / (r * d * (r + d))
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def _piece(breaks, r):
+    j = 0
+    while j < breaks.shape[0] - 2 and r >= breaks[j + 1]:
+        j += 1
+    return j
+
+
+@numba.njit(cache=True, inline="always")
+def plane_offset(px, py, pz, tri, nrm, t):
+    """``(x_a - x_t) . n_t`` from the vertex nearest to the particle (rounding ~ its distance)."""
+    best = np.inf
+    k_best = 0
+    for k in range(3):
+        d2 = (px - tri[t, 3 * k]) ** 2 + (py - tri[t, 3 * k + 1]) ** 2 + (pz - tri[t, 3 * k + 2]) ** 2
+        if d2 < best:
+            best = d2
+            k_best = k
+    return ((px - tri[t, 3 * k_best]) * nrm[t, 0] + (py - tri[t, 3 * k_best + 1]) * nrm[t, 1]
+            + (pz - tri[t, 3 * k_best + 2]) * nrm[t, 2])
+
+
+@numba.njit(cache=True)
+def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, xg, wg, q_max, cuts):
+    """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
+
+    ``q_max`` is the radius (units of ``h``) the triangle is clipped to: 1, the support, for both
+    terms; less for ``int_{t cap B(x_a, q_max h)} W dS`` alone (``gamma_at`` is then returned as 0).
+    ``cuts`` is scratch space of at least ``2 (number of kernel pieces) + 5`` entries.
+
+    Returns
+    -------
+    gamma_at : float
+        ``sigma delta int_t G3(rho) dA'``.
+    grad_at : float
+        ``int_t W dS`` (so that ``grad gamma_at = grad_at * n_t``), in 1 / length.
+    delta : float
+        Signed distance to the triangle's plane in units of ``h``.
+    """
+    nx, ny, nz = nrm[t, 0], nrm[t, 1], nrm[t, 2]
+    delta = plane_offset(px, py, pz, tri, nrm, t) * inv_h
+    ad = abs(delta)
+    if ad >= q_max:
+        return 0.0, 0.0, delta
+    with_gamma = q_max >= 1.0
+    sgn = 1.0 if delta > 0.0 else (-1.0 if delta < 0.0 else 0.0)
+    h = 1.0 / inv_h
+    # foot of p on the plane
+    fx = px - delta * h * nx
+    fy = py - delta * h * ny
+    fz = pz - delta * h * nz
+    jd = _piece(breaks, ad)
+    p1_d = _laurent(lp[jd], ad)  # piece 0 has no 1 / rho term: fine at ad = 0
+    qt_d = _laurent(lq[jd], ad)
+    if with_gamma:
+        kf_inf = p1_one - p1_d
+        kg_inf = sgn * a0 - delta * qt_d
+    else:
+        kf_inf = _laurent(lp[_piece(breaks, q_max)], q_max) - p1_d
+        kg_inf = 0.0
+    nb = breaks.shape[0] - 1
+    gam = 0.0
+    jf = 0.0
+    for i in range(3):
+        k1 = (i + 1) % 3
+        k2 = (i + 2) % 3
+        ax, ay, az = tri[t, 3 * i], tri[t, 3 * i + 1], tri[t, 3 * i + 2]
+        bx, by, bz = tri[t, 3 * k1], tri[t, 3 * k1 + 1], tri[t, 3 * k1 + 2]
+        cx, cy, cz = tri[t, 3 * k2], tri[t, 3 * k2 + 1], tri[t, 3 * k2 + 2]
+        ux, uy, uz = bx - ax, by - ay, bz - az
+        length = math.sqrt(ux * ux + uy * uy + uz * uz)
+        ux /= length
+        uy /= length
+        uz /= length
+        # in-plane unit normal of the edge, towards the opposite vertex
+        wx, wy, wz = cx - ax, cy - ay, cz - az
+        along = wx * ux + wy * uy + wz * uz
+        mx, my, mz = wx - along * ux, wy - along * uy, wz - along * uz
+        mlen = math.sqrt(mx * mx + my * my + mz * mz)
+        e = ((fx - ax) * mx + (fy - ay) * my + (fz - az) * mz) / mlen * inv_h
+        if e == 0.0:
+            continue
+        xa = ((ax - fx) * ux + (ay - fy) * uy + (az - fz) * uz) * inv_h
+        xb = ((bx - fx) * ux + (by - fy) * uy + (bz - fz) * uz) * inv_h
+        d2 = delta * delta + e * e
+        e2 = e * e
+        # interval end points: xa, the foot 0, the break crossings, xb
+        n_cut = 0
+        cuts[n_cut] = xa
+        n_cut += 1
+        if xa < 0.0 < xb:
+            cuts[n_cut] = 0.0
+            n_cut += 1
+        for j in range(1, nb + 2):
+            radius = breaks[j] if j <= nb else q_max
+            if radius > q_max or (j == nb + 1 and with_gamma):
+                continue
+            b2 = radius * radius - d2
+            if b2 > 0.0:
+                xc = math.sqrt(b2)
+                if xa < xc < xb:
+                    cuts[n_cut] = xc
+                    n_cut += 1
+                if xa < -xc < xb:
+                    cuts[n_cut] = -xc
+                    n_cut += 1
+        cuts[n_cut] = xb
+        n_cut += 1
+        # insertion sort (a handful of points)
+        for m in range(1, n_cut):
+            v = cuts[m]
+            q = m - 1
+            while q >= 0 and cuts[q] > v:
+                cuts[q + 1] = cuts[q]
+                q -= 1
+            cuts[q + 1] = v
+        for m in range(n_cut - 1):
+            x0 = cuts[m]
+            x1 = cuts[m + 1]
+            if x1 <= x0:
+                continue
+            xm = 0.5 * (x0 + x1)
+            rm = math.sqrt(d2 + xm * xm)
+            if rm >= q_max:
+                ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
+                jf += kf_inf * ang
+                gam += kg_inf * ang
+                continue
+            j = _piece(breaks, rm)
+            if sgn != 0.0 and with_gamma:
+                r1 = math.sqrt(d2 + x1 * x1)
+                r0 = math.sqrt(d2 + x0 * x0)
+                phi1 = math.atan2(x1 * e * (e2 + x1 * x1), (r1 + ad) * (e2 * r1 + ad * x1 * x1))
+                phi0 = math.atan2(x0 * e * (e2 + x0 * x0), (r0 + ad) * (e2 * r0 + ad * x0 * x0))
+                gam += a0 * sgn * (phi1 - phi0)
+            half = 0.5 * (x1 - x0)
+            sf = 0.0
+            sq = 0.0
+            for g in range(xg.shape[0]):
+                x = xm + half * xg[g]
+                r = math.sqrt(d2 + x * x)
+                if j == jd:
+                    ddp = _divided_difference(lp[j], r, ad)
+                    ddq = _divided_difference(lq[j], r, ad)
+                else:
+                    y = e2 + x * x
+                    ddp = (_laurent(lp[j], r) - p1_d) / y
+                    ddq = (_laurent(lq[j], r) - qt_d) / y
+                sf += wg[g] * ddp
+                sq += wg[g] * ddq
+            jf += half * e * sf
+            if with_gamma:
+                gam += half * e * delta * sq
+    return sigma * gam, sigma * inv_h * jf, delta

@@ -1,0 +1,145 @@
+"""BIPI's objective as an ASE calculator (Boregowda & Liu 2025, Eq. 2-5).
+
+Energy ``E_BI = (V/2) sum_{a != b} W_ab - sum_a gamma(x_a)`` with forces ``-dE_BI/dx_a =
+-(V sum_b grad_a W_ab - grad gamma_a) = -gamma_a grad C_a`` (:mod:`ase_sphrelax.models.bipi`),
+exact, so ASE's FIRE and LBFGS minimise BIPI's concentration objective. The per-particle
+results of the paper are exposed too: ``gamma`` (Eq. 2), ``grad_gamma`` (Eq. 3),
+``concentration`` ``C_a`` (Eq. 4), ``concentration_gradient`` ``grad C_a`` (Eq. 5) and
+``wall_gradient``, the sum of ``grad gamma_as`` over the elements closer than ``0.5 dx`` (the
+step boundary pressure of Eq. 13-14, used by :class:`~ase_sphrelax.drivers.BIPIPacker`; that
+rule is not a gradient and is not part of the forces).
+
+The pair sums ``sum_b W_ab`` and ``sum_b grad_a W_ab`` run through
+:func:`ase_sphrelax.kernel_sums.kernel_sums`; the boundary terms through
+:class:`ase_sphrelax.boundary.BoundaryIntegrals` on the same neighbour bins.
+"""
+from __future__ import annotations
+
+import numpy as np
+from ase.calculators.calculator import all_changes
+
+from ..boundary import BoundaryIntegrals, as_boundary
+from ..boundary.gamma import BAND_RULES
+from ..kernel_sums import kernel_sums
+from ..models.bipi import J_DEFAULT, BIPIModel, support_from_paper
+from ..models.fan import verlet_skin
+from .base import SPHCalculator
+
+__all__ = ["BIPICalculator"]
+
+
+class BIPICalculator(SPHCalculator):
+    """BIPI's ``E_BI`` with exact forces, and the paper's per-particle ``gamma``, ``C``, ``grad C``.
+
+    Parameters
+    ----------
+    h : float
+        Kernel **support** radius (``h = 2 h_B``: BIPI2D's ``hsml = 2 dx_r`` is ``h = 4 dx``);
+        see :meth:`from_paper` for the paper's ratio ``h_B / dx_r``.
+    dx : float
+        Particle spacing ``dx_r``; particle volume ``V = dx^d``.
+    boundary : BoundarySegments, BoundaryTriangles, a polygonal domain, a Mesh or a file
+        The boundary elements (:func:`ase_sphrelax.boundary.as_boundary`); its dimension is the
+        calculator's.
+    kernel : str
+        ``"wendland_c2"`` (the paper's Wendland "quintic").
+    J : float
+        ``D = J h_B^2`` of the packer's shift (stored in the model; not used by the forces).
+    skin : float or None
+        Verlet skin (default ``0.1 h``).
+    dim : int or None
+        Must match the boundary (default: the boundary's).
+    band_rule : {"ball", "normal", "centroid"}
+        Which part of the boundary feels the step pressure (``wall_gradient``,
+        :meth:`ase_sphrelax.boundary.BoundaryIntegrals.compute`): "ball" (default) the part within
+        ``0.5 dx`` of the particle; "normal" whole elements whose line/plane is that close (Eq. 14
+        as written); "centroid" whole elements whose centroid is (Eq. 21 as written).
+
+    Notes
+    -----
+    Bounded systems only (``pbc`` False along the ``dim`` axes); 2D particles must lie at z = 0.
+    ``C`` and ``grad C`` are undefined where ``gamma = 0`` (a particle farther than ``h``
+    outside the boundary): asking for them then raises, naming the particles.
+    """
+
+    implemented_properties = ["energy", "free_energy", "energies", "forces", "gamma", "grad_gamma", "concentration",
+                              "concentration_gradient", "wall_gradient"]
+    default_parameters = dict(h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
+                              band_rule="ball")
+
+    def __init__(self, h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
+                 band_rule="ball", **kwargs):
+        super().__init__(h=h, dx=dx, boundary=boundary, kernel=kernel, J=J, skin=skin, dim=dim, band_rule=band_rule,
+                         **kwargs)
+
+    @classmethod
+    def from_paper(cls, h_over_dx_paper, dx, boundary, **kwargs):
+        """Calculator for the paper's ratio ``h_B / dx_r`` (BIPI2D default 2): ``h = 2 h_B``."""
+        return cls(h=support_from_paper(h_over_dx_paper, dx), dx=dx, boundary=boundary, **kwargs)
+
+    def _validate_parameters(self):
+        p = self.parameters
+        if p.boundary is None:
+            raise ValueError("boundary must be given: BoundarySegments, BoundaryTriangles, a polygonal domain, a Mesh "
+                             "or a file")
+        boundary = as_boundary(p.boundary)
+        if p.dim is None:
+            p.dim = boundary.dim
+        elif p.dim != boundary.dim:
+            raise ValueError(f"dim={p.dim!r} but the boundary is {boundary.dim}D")
+        super()._validate_parameters()
+        self.model = BIPIModel(p.h, p.dx, boundary.dim, p.kernel, p.J)
+        p.h, p.dx = self.model.h, self.model.dx
+        self.skin = verlet_skin(p.skin, self.model.h)
+        if p.band_rule not in BAND_RULES:
+            raise ValueError(f"band_rule must be one of {BAND_RULES}, got {p.band_rule!r}")
+        self.boundary = boundary
+        elements = boundary
+        if boundary.dim == 2 and p.band_rule != "centroid":
+            # runs of collinear segments merged (the polygon's segments): the same integrals over fewer
+            # elements (AirFoilFluid: 5224 -> 686); only the "centroid" rule depends on the elements
+            elements = boundary.polygon.segments
+        self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
+
+    def _check_atoms(self, atoms):
+        dim = self.model.dim
+        if dim == 2 and len(atoms) and np.any(atoms.positions[:, 2] != 0.0):
+            raise ValueError("atoms: a 2D boundary needs particles at z = 0 (dimension mismatch; got z != 0)")
+        if np.any(atoms.pbc[:dim]):
+            raise ValueError(f"atoms.pbc must be False along the {dim} axes of a bounded BIPI domain, got {atoms.pbc}")
+
+    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+        super().calculate(atoms, properties, system_changes)
+        model = self.model
+        atoms = self.atoms
+        self._check_atoms(atoms)
+        r_pc, _ = self.prepare(atoms, model.h, self.skin)
+        terms = self.integrals.compute(self.nlist, r_pc, band=model.band, band_rule=self.parameters.band_rule)
+        gamma_p, grad_gamma_pc = terms.gamma_p, terms.grad_gamma_pc
+        self.results.update(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
+        self.boundary_terms = terms
+        if set(properties) <= {"gamma", "grad_gamma", "wall_gradient"}:
+            return
+        sums = kernel_sums(self.nlist, r_pc, model.h, model.kernel)
+        energies_p = model.energies(sums.w_p, gamma_p)
+        gradient_pc = model.gradient(sums.grad_pc, grad_gamma_pc)
+        self.results.update(energy=float(energies_p.sum()), energies=energies_p, forces=-gradient_pc)
+        self.results["free_energy"] = self.results["energy"]
+        empty = np.nonzero(gamma_p <= 0.0)[0]
+        if len(empty):
+            if {"concentration", "concentration_gradient"} & set(properties):
+                raise ValueError(f"particles {empty[:10].tolist()} lie more than h outside the boundary (gamma = 0): "
+                                 "their concentration C_a is undefined")
+            return  # C and grad C are not stored: asking for them later raises
+        self.results["concentration"] = model.concentration(sums.w_p, gamma_p)
+        self.results["concentration_gradient"] = gradient_pc / gamma_p[:, None]
+
+    # -- convenience ------------------------------------------------------------------
+    def get_gamma(self, atoms=None):
+        return self.get_property("gamma", atoms)
+
+    def get_concentration(self, atoms=None):
+        return self.get_property("concentration", atoms)
+
+    def get_concentration_gradient(self, atoms=None):
+        return self.get_property("concentration_gradient", atoms)
