@@ -179,7 +179,7 @@ class BoundarySegments:
             if not np.all(loop.forward_k):
                 k = int(np.nonzero(~loop.forward_k)[0][0])
                 raise ValueError(
-                    f"path: {path}: segments {int(seg[0])} and {int(seg[k])} of loop {i} run in opposite directions "
+                    f"{path}: segments {int(seg[0])} and {int(seg[k])} of loop {i} run in opposite directions "
                     "along the loop, so the file's orientation (inside on the left) is ambiguous; write every loop "
                     "in one direction, or build the domain with Polygon.from_edges (which orients loops by "
                     "nesting) and use BoundarySegments.from_polygon")
@@ -197,7 +197,7 @@ class BoundarySegments:
         if hit is not None:
             (la, ka), (lb, kb) = hit
             sa, sb = int(sources[la][ka]), int(sources[lb][kb])
-            where = f"path: {name}" if file_sources else f"{names[la]} / {names[lb]}"
+            where = f"{name}" if file_sources else f"{names[la]} / {names[lb]}"
             raise ValueError(f"{where}: segments {sa} and {sb} cross or overlap (the boundary must be simple, "
                              "disjoint closed loops)")
         depth = _validate_loops(loops, names)

@@ -106,7 +106,7 @@ class BoundaryTriangles:
         try:
             mesh = trimesh.load(path, force="mesh")
         except Exception as err:  # trimesh raises many types
-            raise ValueError(f"path: cannot read a mesh from {str(path)!r}: {err}") from None
+            raise ValueError(f"{str(path)!r}: cannot read a mesh (trimesh: {err})") from None
         return cls(mesh, name=str(path))
 
     @classmethod
