@@ -37,7 +37,7 @@ from numpy.polynomial import polynomial as P
 
 from .checks import check_dim
 
-__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind", "PIECEWISE"]
+__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind", "profile_curvature_by_kind", "PIECEWISE"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
 
@@ -126,6 +126,44 @@ def profile_by_kind(q, kind, breaks, coef):
             return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0)
         return 2.0 * u * u * u, -6.0 * u * u
     return profile_value_and_slope(q, breaks, coef)
+
+
+@numba.njit(cache=True, inline="always")
+def profile_curvature_by_kind(q, kind, breaks, coef):
+    """Profile f(q), df/dq and d2f/dq2 (zero for q >= 1): :func:`profile_by_kind` plus the curvature,
+    for Halley steps of the smoothing-length solve (:func:`ase_sphrelax.sph.solve_smoothing_lengths`)."""
+    if q >= 1.0:
+        return 0.0, 0.0, 0.0
+    u = 1.0 - q
+    if kind == WENDLAND_C2:  # f' = -20 q u^3, f'' = 20 u^2 (4 q - 1)
+        u2 = u * u
+        return u2 * u2 * (5.0 - 4.0 * u), -20.0 * q * u2 * u, 20.0 * u2 * (4.0 * q - 1.0)
+    if kind == WENDLAND_C4:  # f' = -(56/3) q (1 + 5 q) u^5, f'' = -(56/3) u^4 (1 + 4 q - 35 q^2)
+        u4 = u * u * u * u
+        poly = (35.0 / 3.0) * q * q + 6.0 * q + 1.0
+        return (u4 * u * u * poly, (-56.0 / 3.0) * q * (1.0 + 5.0 * q) * u4 * u,
+                (-56.0 / 3.0) * u4 * (1.0 + 4.0 * q - 35.0 * q * q))
+    if kind == WENDLAND_C4_1D:  # f' = -14 q (1 + 4 q) u^4, f'' = -14 u^3 (1 + 3 q - 24 q^2)
+        u3 = u * u * u
+        poly = 8.0 * q * q + 5.0 * q + 1.0
+        return u3 * u * u * poly, -14.0 * q * (1.0 + 4.0 * q) * u3 * u, -14.0 * u3 * (1.0 + 3.0 * q - 24.0 * q * q)
+    if kind == CUBIC_SPLINE:
+        if q < 0.5:
+            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0), 36.0 * q - 12.0
+        return 2.0 * u * u * u, -6.0 * u * u, 12.0 * u
+    s = 0
+    while q >= breaks[s + 1]:
+        s += 1
+    u = breaks[s + 1] - q
+    deg = coef.shape[1] - 1
+    value = coef[s, deg]
+    slope = 0.0
+    curv = 0.0
+    for k in range(deg - 1, -1, -1):
+        curv = curv * u + slope
+        slope = slope * u + value
+        value = value * u + coef[s, k]
+    return value, -slope, 2.0 * curv
 
 
 def _to_u(piece_q, right):

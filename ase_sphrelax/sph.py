@@ -56,7 +56,7 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from .kernels import profile_by_kind
+from .kernels import profile_by_kind, profile_curvature_by_kind
 from .pairs import Output, PairInteraction
 
 __all__ = ["ETA_SUPPORT", "default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
@@ -110,6 +110,31 @@ def _density_pair(a, b, r2, d, params, inp):
     value, slope = profile_by_kind(q, kind, breaks, coef)
     mb = m_s[b]
     return (mb * value, mb * q * slope, value, 1.0), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_pair(a, b, r2, d, params, inp):
+    """The smoothing-length solve's gather, equal masses: sum f, sum q f', sum q^2 f'', neighbour count."""
+    kind, breaks, coef = params
+    ih_s, active_s = inp
+    q = math.sqrt(r2) * ih_s[a]
+    if not active_s[a] or q >= 1.0:
+        return (0.0, 0.0, 0.0, 0.0), ()
+    value, slope, curv = profile_curvature_by_kind(q, kind, breaks, coef)
+    return (value, q * slope, q * q * curv, 1.0), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_pair_masses(a, b, r2, d, params, inp):
+    """As :func:`_solve_pair` with per-particle masses: sum m f, sum m q f', sum m q^2 f'', sum f, count."""
+    kind, breaks, coef = params
+    ih_s, m_s, active_s = inp
+    q = math.sqrt(r2) * ih_s[a]
+    if not active_s[a] or q >= 1.0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0), ()
+    value, slope, curv = profile_curvature_by_kind(q, kind, breaks, coef)
+    mb = m_s[b]
+    return (mb * value, mb * q * slope, mb * q * q * curv, value, 1.0), ()
 
 
 # The pressure pairs are written out flat (no helper for the shared slope sum): in these loops a nested
@@ -248,6 +273,12 @@ def _interaction(name, dim_points):
         if name == "density":
             inter = PairInteraction(_density_pair, dict(s=Output(()), t=Output(()), n=Output(()), count=Output(())),
                                     symmetric=False, dim=dim_points)
+        elif name == "solve":
+            inter = PairInteraction(_solve_pair, dict(s=Output(()), t=Output(()), w=Output(()), count=Output(())),
+                                    symmetric=False, dim=dim_points)
+        elif name == "solve_masses":
+            inter = PairInteraction(_solve_pair_masses, dict(s=Output(()), t=Output(()), w=Output(()), n=Output(()),
+                                                             count=Output(())), symmetric=False, dim=dim_points)
         elif name.startswith("pressure"):
             pair = {"pressure": _pressure_pair, "pressure_equal": _pressure_pair_equal_masses,
                     "pressure_virial": _pressure_virial_pair,
@@ -321,6 +352,21 @@ def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
     return out.s + m_p * kernel.f0, out.t, out.n + kernel.f0, out.count
 
 
+def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
+    """(s, t, w, n, count) with the self terms, as :func:`_raw_sums` plus ``w = sum m q^2 f''``."""
+    params = _kernel_params(kernel)
+    reach = float(h_p.max())
+    if equal:  # m_p constant: s = m sum f, n = sum f
+        out = _interaction("solve", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=(1.0 / h_p, active_p),
+                                                           reach=reach)
+        n_p = out.s + kernel.f0
+        m = m_p[0]
+        return m * n_p, m * out.t, m * out.w, n_p, out.count
+    out = _interaction("solve_masses", r_pc.shape[1]).compute(nlist, r_pc, params=params,
+                                                              inputs=(1.0 / h_p, m_p, active_p), reach=reach)
+    return out.s + m_p * kernel.f0, out.t, out.w, out.n + kernel.f0, out.count
+
+
 def density_sums(nlist, r_pc, masses, h, kernel):
     """Density, number density and Omega for given smoothing lengths (fixed or per particle).
 
@@ -371,12 +417,15 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
                             store=True):
     """Solve ``rho_a(H_a) H_a^d = m_a eta^d`` with ``rho_a = sum_b m_b W_ab(H_a)`` for every particle.
 
-    With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). The function
-    ``g(H) = eta^d - (sigma / m_a) sum_b m_b f(r_ab / H)`` decreases monotonically in ``H``, so each
-    particle has at most one root; it is found by Newton steps on ``g`` (``g' = sigma sum_b m_b q f'(q)
-    / (m_a H)``), limited to a factor 2 per iteration and kept inside a bisection bracket (a step that
-    leaves the bracket is replaced by bisection, or by doubling/halving while one side is open);
-    after :data:`NEWTON_ITERATIONS` iterations only bisection. Converged when ``|dH|/H < tol``.
+    With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). ``sigma s(H) / m_a`` with
+    ``s = sum_b m_b f(r_ab / H)`` increases monotonically in ``H``, so each particle has at most one
+    root; it is found by Halley steps on ``G = ln(sigma s / m_a) - d ln eta`` in ``ln H`` (one density
+    pass gives ``s``, ``sum m q f'`` and ``sum m q^2 f''``; see :func:`_smoothing_length_step`), limited
+    to a factor 2 per iteration and kept inside a bisection bracket (a step that leaves the bracket is
+    replaced by bisection, or by doubling/halving while one side is open); after
+    :data:`NEWTON_ITERATIONS` iterations only bisection. Converged when the step is below ``tol``
+    relative; H is then kept, so the returned sums are those of the returned H. From the previous
+    step's H (a change of H up to ~1e-3) this takes two density passes.
 
     Parameters
     ----------
@@ -436,39 +485,20 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     active_p = np.ones(n, dtype=np.bool_)
     s_p = np.empty(n)
     t_p = np.empty(n)
-    w_p = np.empty(n)
+    n_p = np.empty(n)
     count_p = np.empty(n)
+    equal = bool(np.all(m_p == m_p[0]))
+    sigma_over_m_p = sigma / m_p
     h_cap = None  # 1e3 times the larger of the extent and the first H, computed when H has grown that far
     h_first = float(h_p.max())
     for iteration in range(1, max_iter + 1):
         nlist.update(r_pc, cell, pbc, cutoff=h_p, store=store)
-        s_a, t_a, w_a, c_a = _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel)
-        idx = np.nonzero(active_p)[0]
-        s_p[idx], t_p[idx], w_p[idx], count_p[idx] = s_a[idx], t_a[idx], w_a[idx], c_a[idx]
-        h = h_p[idx]
-        g = target - sigma * s_p[idx] / m_p[idx]
-        if not np.all(np.isfinite(g)):
-            a = int(idx[np.argmax(~np.isfinite(g))])
-            raise SmoothingLengthError(f"particle {a} at {r_pc[a].tolist()}: the kernel sum is not finite at H = "
-                                       f"{h_p[a]:.6g} (non-finite positions or masses?)")
-        dg = sigma * t_p[idx] / (m_p[idx] * h)  # <= 0
-        lo = np.where(g > 0.0, h, lo_p[idx])
-        hi = np.where(g < 0.0, h, hi_p[idx])
-        lo_p[idx], hi_p[idx] = lo, hi
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = -g / dg
-        newton_ok = np.isfinite(step) & (dg < 0.0)
-        newton = h + np.where(newton_ok, step, 0.0)
-        # a Newton step by more than a factor 2 (a first neighbour just outside H gives dg ~ 0 and a huge
-        # step, past the growth cap) is replaced by doubling/halving or bisection
-        bad = ~newton_ok | (newton < lo) | (newton > hi) | (newton > 2.0 * h) | (newton < 0.5 * h)
-        bisect = np.where(np.isinf(hi), 2.0 * h, np.where(lo <= 0.0, 0.5 * h, 0.5 * (lo + hi)))
-        # Newton inside the bracket for the first iterations, then plain bisection (always converges)
-        h_new = np.where(bad | (iteration > NEWTON_ITERATIONS), bisect, newton)
-        # converged: the Newton correction (or the bracket) is below tol; keep h, whose sums are known
-        done = (g == 0.0) | (newton_ok & (np.abs(step) <= tol * h)) | (hi - lo <= tol * h)
-        h_p[idx] = np.where(done, h, h_new)
-        active_p[idx[done]] = False
+        sums = _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
+        bad = _smoothing_length_step(*sums, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p, sigma_over_m_p,
+                                     target, tol, iteration > NEWTON_ITERATIONS)
+        if bad >= 0:
+            raise SmoothingLengthError(f"particle {bad} at {r_pc[bad].tolist()}: the kernel sum is not finite at H = "
+                                       f"{h_p[bad]:.6g} (non-finite positions or masses?)")
         if not active_p.any():
             break
         if h_cap is None and h_p.max() > 1e3 * h_first:
@@ -485,7 +515,63 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             f"(H = {h_p[a]:.6g}, bracket [{lo_p[a]:.6g}, {hi_p[a]:.6g}], {int(active_p.sum())} particles left)")
     norm_p = sigma / h_p**d
     omega_p = -t_p / (d * s_p)
-    return DensitySums(h_p.copy(), norm_p * s_p, norm_p * w_p, omega_p, count_p.copy(), iterations=iteration)
+    return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
+
+
+@numba.njit(cache=True)
+def _smoothing_length_step(s_a, t_a, w_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
+                           sigma_over_m_p, target, tol, bisect_only):
+    """One update of every active particle's H from its sums (in place); the first particle with a
+    non-finite sum, or -1.
+
+    The root of ``G(u) = ln(sigma s / m) - ln(eta^d)``, ``u = ln H``, is found by Halley steps:
+    ``G' = -t/s`` (``= d Omega``), ``G'' = (t + w)/s - t^2/s^2`` with ``s = sum m f``, ``t = sum m q f'``,
+    ``w = sum m q^2 f''``. ``G`` is nearly linear in ``ln H`` (``s`` grows like ``H^d``) and Halley's
+    steps converge cubically, so from the previous step's H one correction and one check usually
+    suffice (Newton on ``eta^d - sigma s / m`` left a 1e-6 residual after a 1e-3 change of H and needed
+    a third density pass). A step outside the bracket, by more than a factor 2, or not finite is
+    replaced by bisection (doubling/halving while one side is open); ``bisect_only`` after
+    :data:`NEWTON_ITERATIONS`. Converged when the step or the bracket is below ``tol`` relative: H is
+    then kept, so that its sums are the ones returned.
+    """
+    log_target = math.log(target)
+    for a in range(h_p.shape[0]):
+        if not active_p[a]:
+            continue
+        s, t, w = s_a[a], t_a[a], w_a[a]
+        s_p[a], t_p[a], n_p[a], count_p[a] = s, t, n_a[a], c_a[a]
+        h = h_p[a]
+        g = target - sigma_over_m_p[a] * s
+        if not math.isfinite(g) or not math.isfinite(t) or not math.isfinite(w):
+            return a
+        lo = h if g > 0.0 else lo_p[a]
+        hi = h if g < 0.0 else hi_p[a]
+        lo_p[a], hi_p[a] = lo, hi
+        if g == 0.0 or hi - lo <= tol * h:
+            active_p[a] = False
+            continue
+        ok = t < 0.0 and s > 0.0
+        step = 0.0
+        if ok:
+            big_g = math.log(sigma_over_m_p[a] * s) - log_target
+            g1 = -t / s
+            g2 = (t + w) / s - g1 * g1
+            den = 2.0 * g1 * g1 - big_g * g2
+            step = -2.0 * big_g * g1 / den if den > 0.0 else -big_g / g1
+            if abs(step) <= tol:
+                active_p[a] = False
+                continue
+            ok = abs(step) < 0.6931471805599453  # at most a factor 2
+        h_new = h * math.exp(step) if ok else 0.0
+        if not ok or bisect_only or h_new <= lo or h_new >= hi:
+            if hi == math.inf:
+                h_new = 2.0 * h
+            elif lo <= 0.0:
+                h_new = 0.5 * h
+            else:
+                h_new = 0.5 * (lo + hi)
+        h_p[a] = h_new
+    return -1
 
 
 # -- forces ----------------------------------------------------------------------------------------

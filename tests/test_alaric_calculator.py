@@ -207,3 +207,23 @@ def test_stress_needs_a_periodic_cell_and_a_conservative_form():
     atoms.calc = ALARICCalculator(target_density=density, dim=1, form="paper")
     with pytest.raises(PropertyNotImplementedError, match="stress needs"):
         atoms.get_stress()
+
+
+def test_small_moves_reuse_the_verlet_list():
+    """The default skin is fixed at the first evaluation: a skin that followed the mean H (which changes
+    at every step) made a new list at every evaluation, i.e. a rebuild per dynamics step."""
+    atoms = _periodic(2, 20, seed=3)
+    density, gradient = _gauss(2)
+    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=2)
+    atoms.calc = calc
+    atoms.get_forces()
+    atoms.get_forces()  # (the first evaluation is one-shot; the list is built at the second)
+    nlist = calc.nlist
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        step = rng.normal(scale=1e-4, size=(len(atoms), 3))
+        step[:, 2] = 0.0
+        atoms.positions += step
+        atoms.get_forces()
+    assert calc.nlist is nlist
+    assert nlist.builds == 1

@@ -361,3 +361,30 @@ def test_isolated_start_does_not_overshoot():
     out = sph.solve_smoothing_lengths(NeighborList(1.0, skin=0.1), r_pc, cell, pbc, 1.0, kernel, h0=h0)
     np.testing.assert_allclose(out.h_p[45], sph.solve_smoothing_lengths(
         NeighborList(1.0, skin=0.1), r_pc, cell, pbc, 1.0, kernel).h_p[45], rtol=1e-6)
+
+
+@pytest.mark.parametrize("dim,n", [(1, 200), (2, 30), (3, 12)])
+@pytest.mark.parametrize("masses", ["equal", "varied"])
+@pytest.mark.parametrize("kernel_name", ["wendland_c4", "wendland_c2", "cubic_spline"])
+def test_warm_started_solve_takes_two_passes(dim, n, masses, kernel_name):
+    """From the previous H after a move that changes H by up to ~1e-3, one Halley correction and one
+    check reach tol = 1e-8 (Newton on eta^d - sigma s / m needed three density passes here; the Halley
+    residual grows like the cube of the change, so a 3e-3 change in 1D takes a third pass)."""
+    r_pc, cell, pbc = _system(dim, n, True, seed=40 + dim, jitter=0.25)
+    kernel = get_kernel(kernel_name, dim)
+    rng = np.random.default_rng(dim)
+    m_p = 1.0 if masses == "equal" else rng.uniform(0.8, 1.2, len(r_pc))
+    nlist = NeighborList(1.0, skin=0.5)
+    first = sph.solve_smoothing_lengths(nlist, r_pc, cell, pbc, m_p, kernel, tol=1e-13)
+    moved = r_pc.copy()
+    moved[:, :dim] += rng.normal(scale=3e-4 if dim == 1 else 1e-3, size=(len(r_pc), dim))
+    exact = sph.solve_smoothing_lengths(nlist, moved, cell, pbc, m_p, kernel, tol=1e-14, h0=first.h_p)
+    assert np.max(np.abs(exact.h_p / first.h_p - 1.0)) > 1e-4  # the move does change H
+    warm = sph.solve_smoothing_lengths(nlist, moved, cell, pbc, m_p, kernel, tol=1e-8, h0=first.h_p)
+    assert warm.iterations == 2
+    np.testing.assert_allclose(warm.h_p, exact.h_p, rtol=1e-8)
+    # the returned sums belong to the returned H
+    direct = sph.density_sums(nlist, moved, m_p, warm.h_p, kernel)
+    np.testing.assert_allclose(warm.rho_p, direct.rho_p, rtol=1e-12)
+    np.testing.assert_allclose(warm.omega_p, direct.omega_p, rtol=1e-10)
+    np.testing.assert_allclose(warm.n_p, direct.n_p, rtol=1e-12)

@@ -84,6 +84,7 @@ class ALARICCalculator(SPHCalculator):
     def __init__(self, target_density=None, dim=1, **kwargs):
         self.mass = None
         self.h_p = None
+        self._skin = None
         self.state = None
         self._floor = None
         self._wall = None
@@ -118,6 +119,7 @@ class ALARICCalculator(SPHCalculator):
         self.eta = sph.default_eta(self.kernel) if p.eta is None else p.eta
         self.mass = p.mass
         self.h_p = None
+        self._skin = None
         self._floor = p.density_floor
         self._wall = p.wall_length
         self._rho_ref = None
@@ -184,8 +186,10 @@ class ALARICCalculator(SPHCalculator):
         if self.h_p is None or len(self.h_p) != n:
             h0 = sph.initial_smoothing_length(atoms.positions, atoms.cell.array, atoms.pbc, d, self.eta)
             self.h_p = np.full(n, h0)
-        skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
-        r_pc, pbc = self.prepare(atoms, self.h_p, skin)
+            self._skin = None
+        if self._skin is None:  # fixed from the first evaluation: a skin that follows H would rebuild every step
+            self._skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
+        r_pc, pbc = self.prepare(atoms, self.h_p, self._skin)
         state = sph.solve_smoothing_lengths(self.nlist, r_pc, atoms.cell.array, pbc, 1.0, self.kernel, eta=self.eta,
                                             h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1)
         self.h_p = state.h_p
