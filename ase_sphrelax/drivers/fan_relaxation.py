@@ -11,6 +11,7 @@ BFGS and LBFGS adapt their step and reach lower E with fewer force calls.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 from ase.optimize.optimize import DEFAULT_MAX_STEPS, Optimizer
 
@@ -19,6 +20,20 @@ from .keep_inside import attach_keep_inside
 from .optimizers import ASE_DEFAULT_FMAX, check_c, mark_scaled, warn_if_nothing_relaxed
 
 __all__ = ["FanRelaxation"]
+
+
+@numba.njit(cache=True)
+def _max_norm2(u_pc):
+    """max_p |u_p|^2, NaN if any component is NaN (inf if one is infinite), without temporaries."""
+    best = 0.0
+    for p in range(u_pc.shape[0]):
+        u2 = 0.0
+        for c in range(u_pc.shape[1]):
+            u2 += u_pc[p, c] * u_pc[p, c]
+        if u2 != u2:
+            return u2
+        best = max(best, u2)
+    return best
 
 
 def _calculator_h(atoms):
@@ -62,6 +77,8 @@ class FanRelaxation(Optimizer):
         self.last_step = 0.0
         self.keep_inside = attach_keep_inside(atoms) if keep_inside else None
         mark_scaled(atoms)  # Eq. 2.4 scales its own step: the ASE-defaults hint is not for it
+        # ASE turns logfile=None into a Log that writes nothing, after computing E and |F| for it
+        self._silent = logfile is None
         Optimizer.__init__(self, atoms, logfile=logfile, **kwargs)
 
     def initialize(self):
@@ -72,8 +89,9 @@ class FanRelaxation(Optimizer):
 
     # -- the run loop, lean for small systems ------------------------------------
     # ASE's loop asks for the forces three times per step and computes the energy and the
-    # force norm for its log even without a log file: for 8224 particles that was a third
-    # of a step on top of the force evaluation (issue 9, item 3).
+    # force norm for its log even without a log file (logfile=None): for 8224 particles that
+    # was a third of a step on top of the force evaluation (issue 9, item 3). Here a step
+    # takes the gradient of the evaluation before it, and a silent log costs nothing.
     def run(self, fmax=ASE_DEFAULT_FMAX, steps=DEFAULT_MAX_STEPS):
         """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
 
@@ -91,8 +109,8 @@ class FanRelaxation(Optimizer):
         """Generator of :meth:`run`, yielding ``converged`` after each step (as ASE's).
 
         One force request per step (ASE's loop makes two more, for its log and its
-        convergence test, on unchanged atoms); the log, observers and trajectory are as
-        ASE's.
+        convergence test, on unchanged atoms), whose gradient the next step uses; the log,
+        observers and trajectory are as ASE's.
         """
         self.fmax = fmax
         return self._irun(steps)
@@ -107,8 +125,9 @@ class FanRelaxation(Optimizer):
         is_converged = self.gradient_converged(gradient)
         yield is_converged
         while not is_converged and self.nsteps < self.max_steps:
-            gradient = None  # not held through the step and the next evaluation (1e6 particles: 24 MB)
-            self.step()
+            # an observer may have moved the atoms: then the step asks anew (from the calculator's cache)
+            self._step(None if self.observers else gradient)
+            gradient = None  # consumed by the step (1e6 particles: 24 MB not held through the next evaluation)
             self.nsteps += 1
             gradient = self.optimizable.get_gradient()
             self.log(gradient)
@@ -122,7 +141,7 @@ class FanRelaxation(Optimizer):
         return Optimizer.gradient_converged(self, gradient)
 
     def log(self, gradient):
-        if self.logfile is not None:  # ASE computes the energy and |F| even without a log file
+        if not self._silent:  # ASE computes the energy and |F| even without a log file
             Optimizer.log(self, gradient)
 
     def todict(self):
@@ -131,11 +150,14 @@ class FanRelaxation(Optimizer):
         return description
 
     def step(self, f=None):
+        self._step(None if f is None else self._get_gradient(f))  # ASE's warning for f
+
+    def _step(self, gradient=None):
+        """One Eq. 2.4 step from ``gradient`` (dE/dx, flat; None: asked for), which it overwrites."""
         # in place on ASE's fresh arrays: no temporaries of size N beyond them (1e6 particles)
-        u = np.asarray(self._get_gradient(f), dtype=float)
+        u = np.asarray(self.optimizable.get_gradient() if gradient is None else gradient, dtype=float)
         np.negative(u, out=u)  # U = -dE/dx (Eq. A.1), in ASE's fresh gradient array
-        u_pc = u.reshape(-1, 3)
-        u_max = float(np.sqrt(np.einsum("pc,pc->p", u_pc, u_pc).max()))
+        u_max = float(np.sqrt(_max_norm2(u.reshape(-1, 3))))
         if not np.isfinite(u_max):
             raise FloatingPointError("forces are not finite; cannot take an Eq. 2.4 step")
         if u_max == 0.0:
