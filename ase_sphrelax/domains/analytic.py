@@ -41,6 +41,27 @@ class Ball(Domain):
     def _phi(self, r_pd):
         return np.linalg.norm(r_pd - self.center, axis=1) - self.radius
 
+    # the public queries in numba, on the given array without a (P, dim) copy (same values)
+    def _query_points(self, r_pc):
+        r = np.asarray(r_pc, dtype=float)
+        if r.ndim == 1:
+            r = r[None, :]
+        if r.ndim != 2 or r.shape[1] not in (self.dim, 3) or r.shape[1] < self.dim:
+            raise ValueError(f"r_pc must have shape (P, 3) or (P, {self.dim}), got {np.shape(r_pc)}")
+        return r
+
+    def phi(self, r_pc):
+        """Signed distance ``|r - center| - radius`` at positions ``r_pc`` (P, 3) or (P, dim)."""
+        from ._ball_loops import ball_phi
+
+        return ball_phi(self._query_points(r_pc), self.center, self.radius)
+
+    def phi_and_normal(self, r_pc):
+        """Return ``(phi_p, n_pc)``; ``n_pc = grad phi`` with shape (P, 3)."""
+        from ._ball_loops import ball_phi_grad
+
+        return ball_phi_grad(self._query_points(r_pc), self.center, self.radius, 3)
+
     @property
     def bounds(self):
         return self.center - self.radius, self.center + self.radius
