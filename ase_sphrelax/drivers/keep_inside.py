@@ -54,12 +54,17 @@ class KeepInDomain:
     def __init__(self, domain):
         if not (hasattr(domain, "phi") and hasattr(domain, "phi_and_normal") and hasattr(domain, "dim")):
             raise TypeError(f"domain must be a Domain with phi(), phi_and_normal() and dim, got {type(domain).__name__}")
+        from ..domains.base import Domain  # here: importing the drivers (sphrelax --help) loads no domain
+
         self.domain = domain
+        self._takes_positions = isinstance(domain, Domain)  # a Domain takes (P, 3) positions itself
         self.n_returned = 0
         self.n_left_outside = 0
 
     def _phi(self, r_pc):
-        return np.asarray(self.domain.phi(np.ascontiguousarray(r_pc[:, : self.domain.dim])), dtype=float).reshape(-1)
+        if not self._takes_positions:  # a duck-typed level set gets (P, dim) points
+            r_pc = np.ascontiguousarray(r_pc[:, : self.domain.dim])
+        return np.asarray(self.domain.phi(r_pc), dtype=float).reshape(-1)
 
     def adjust_positions(self, atoms, new):
         """Cut the steps that leave the domain; move particles that are outside back in (in place)."""
@@ -95,6 +100,13 @@ class KeepInDomain:
 
     def adjust_forces(self, atoms, forces):
         pass
+
+    def __deepcopy__(self, memo):
+        # Atoms.copy() deep-copies constraints, and ASE's calculators copy the atoms at every
+        # evaluation: share the (immutable) domain, a mesh or table of any size, copy the counters
+        twin = type(self)(self.domain)
+        twin.n_returned, twin.n_left_outside = self.n_returned, self.n_left_outside
+        return twin
 
     def get_removed_dof(self, atoms):
         return 0

@@ -37,6 +37,7 @@ import numpy as np
 from ase.calculators.calculator import PropertyNotImplementedError
 
 from ..checks import check_dim, check_positive, check_skin
+from ..domains.base import Domain
 from ..kernels import get_kernel
 
 __all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning"]
@@ -200,15 +201,22 @@ class FanModel:
         n = len(r_pc)
         if self.domain is None:
             return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
-        phi_p, n_pc = self.domain.phi_and_normal(np.ascontiguousarray(r_pc[:, : self.dim]))
+        if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
+            phi_p, n_pc = self.domain.phi_and_normal(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
+        else:
+            phi_p, n_pc = self.domain.phi_and_normal(np.ascontiguousarray(r_pc[:, : self.dim]))
         s_p = -np.asarray(phi_p, dtype=float).reshape(n)
         e_p = 2.0 * v0 * self.kernel.w1_tail_integral(s_p, self.h)
         if not want_forces:
             return e_p, None
         n_pc = np.asarray(n_pc, dtype=float)
-        normal_pc = np.zeros((n, 3))
-        normal_pc[:, : n_pc.shape[1]] = n_pc[:, :3]
-        return e_p, -(2.0 * v0 * self.kernel.w1(np.maximum(s_p, 0.0), self.h))[:, None] * normal_pc
+        if n_pc.shape != (n, 3):  # a Domain returns (P, 3) normals
+            normal_pc = np.zeros((n, 3))
+            normal_pc[:, : n_pc.shape[1]] = n_pc[:, :3]
+            n_pc = normal_pc
+        g_p = self.kernel.w1(np.maximum(s_p, 0.0), self.h)
+        g_p *= -2.0 * v0
+        return e_p, g_p[:, None] * n_pc
 
     def warn_far_outside(self, r_pc, who="FanModel"):
         """Warn (:class:`ParticlesOutsideWarning`) when particles lie more than ``h`` outside the domain.
