@@ -309,6 +309,26 @@ def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
     return bin_start[(x0 * nbin_c[1] + y0) * nbin_c[2] + z0], bin_start[(x1 * nbin_c[1] + y1) * nbin_c[2] + z1 + 1]
 
 
+@numba.njit(cache=True)
+def _partner_end(first, last, bin_s, nbin_c, bin_start, stencil_kc):
+    """1 + the last sorted point that a scanned (or listed) pair (a, b) with a in [first, last)
+    can reach as b: the largest end of the own-bin and stencil ranges over the bins of the
+    chunk's points (at least ``last``). One pass over the chunk's bins, not its points."""
+    end = last
+    if last <= first:
+        return end
+    for bin_ in range(bin_s[first], bin_s[last - 1] + 1):
+        a = bin_start[bin_]
+        if a == bin_start[bin_ + 1]:
+            continue  # empty bin
+        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
+        for k in range(-1, stencil_kc.shape[0]):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+            if hi > lo and hi > end:
+                end = hi
+    return end
+
+
 @numba.njit(cache=True, nogil=True)
 def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
                       count_s, pair_j, pos, first, last):
@@ -454,8 +474,8 @@ def _fold_ghosts(bufs, ghost_s, src_s, outs):
 
 @numba.njit(cache=True, nogil=True)
 def _fold_part_originals(parts, bases, src_s, is_ghost_s, outs, first, last):
-    """outs[i][p] = sum over threads t of parts[i][t][s - bases[t]] (rows s >= bases[t]),
-    for the originals s in [first, last)."""
+    """outs[i][p] = sum over threads t of parts[i][t][s - bases[t]] (the rows s that thread t's
+    part holds, ``bases[t] <= s < bases[t] + len(part)``), for the originals s in [first, last)."""
     for i in range(len(parts)):
         part_i = parts[i]
         out_pk = outs[i]
@@ -466,8 +486,9 @@ def _fold_part_originals(parts, bases, src_s, is_ghost_s, outs, first, last):
                 for k in range(k_max):
                     total = 0.0
                     for t in range(len(part_i)):
-                        if s >= bases[t]:
-                            total += part_i[t][s - bases[t], k]
+                        row = s - bases[t]
+                        if row >= 0 and row < part_i[t].shape[0]:
+                            total += part_i[t][row, k]
                     out_pk[p, k] = total
 
 
@@ -481,14 +502,16 @@ def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
             s = ghost_s[g]
             p = src_s[s]
             for t in range(len(part_i)):
-                if s >= bases[t]:
+                row = s - bases[t]
+                if row >= 0 and row < part_i[t].shape[0]:
                     for k in range(k_max):
-                        out_pk[p, k] += part_i[t][s - bases[t], k]
+                        out_pk[p, k] += part_i[t][row, k]
 
 
 def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n):
     """Per-particle sums (n, k) of per-thread buffers that start at their thread's first
-    point: ``parts[i][t]`` has shape (n_s - bases[t], k), row 0 being point ``bases[t]``."""
+    point: ``parts[i][t]`` has shape (m_t, k), row 0 being point ``bases[t]``, rows beyond
+    ``bases[t] + m_t`` zero (see :meth:`BinnedPoints.partner_ends`)."""
     parts = tuple(tuple(p) for p in parts)
     outs = tuple(np.empty((n, part[0].shape[1])) for part in parts)
     run_chunks(_fold_part_originals, src_s.shape[0], (parts, bases, src_s, is_ghost_s, outs),
@@ -597,6 +620,18 @@ class BinnedPoints:
         span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
         self.max_candidates = int(np.diff(bin_start).max()) * int(1 + np.prod(span_k, axis=1).sum())
         self._gather_buffers = {}
+        self._partner_ends = {}
+
+    def partner_ends(self, bounds):
+        """For each chunk ``(first, last)`` of points, 1 + the last point that a pair of the
+        chunk's points can reach (every pair (a, b) of a scan or of a list built on these bins
+        has ``first <= a < last`` and ``a < b < end``): a thread's buffers need rows
+        ``[first, end)`` only (on 2 threads the first thread's end is about n/2, not n)."""
+        key = tuple(bounds)
+        if key not in self._partner_ends:
+            self._partner_ends[key] = [int(_partner_end(first, last, self.bin_s, self.nbin_c, self.bin_start,
+                                                         self.stencil_kc)) for first, last in bounds]
+        return self._partner_ends[key]
 
     def expected_pairs(self):
         """Estimated size of the half list (uniform density within the bins' extent)."""
@@ -809,6 +844,10 @@ class NeighborList:
 
     def fold_thread_parts(self, parts, bases):
         return self.points.fold_thread_parts(parts, bases)
+
+    def partner_ends(self, bounds):
+        """See :meth:`BinnedPoints.partner_ends` (the list is built on the same bins)."""
+        return self.points.partner_ends(bounds)
 
     def loop_arrays(self):
         """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""

@@ -27,8 +27,9 @@ the same way. :class:`PairInteraction` turns the function into the loops:
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
   each thread on a static chunk of points with its own output buffers (kept between calls:
   fresh pages cost more than the pair loop on these machines; zeroed by the thread itself;
-  starting at the chunk's first point when the neighbours are ``forward_pairs``), folded
-  afterwards onto the particles, ghosts included.
+  starting at the chunk's first point when the neighbours are ``forward_pairs``, and ending
+  at the last point its pairs reach when they say so, ``partner_ends``), folded afterwards
+  onto the particles, ghosts included.
 
 Two kinds of interaction:
 
@@ -379,6 +380,11 @@ class PairInteraction:
         nthreads = thread_count(n_ext)
         forward = bool(getattr(neighbors, "forward_pairs", False))
         buffers, bases = self._thread_buffers(nthreads, n_ext, forward)
+        if forward and nthreads > 1 and hasattr(neighbors, "partner_ends"):
+            # thread t's pairs reach rows [bases[t], ends[t]) only: zero and fold no more
+            ends = neighbors.partner_ends(chunk_bounds(n_ext, nthreads))
+            buffers = [tuple(buf[: ends[t] - bases[t]] if o.per_point else buf
+                             for buf, o in zip(buffers[t], self.outputs.values())) for t in range(nthreads)]
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
         if getattr(neighbors, "build_pending", False):
             # a rebuild: one bin scan writes the Verlet list and evaluates the pairs

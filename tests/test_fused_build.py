@@ -168,3 +168,23 @@ def test_row_stencil_on_degenerate_bin_grids(name, chunks):
     e_ref, f_ref, _ = pair_potential_sums(one_shot, r_pc, cut, 1.0, KERNEL)
     np.testing.assert_allclose(e, e_ref, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * max(np.abs(f_ref).max(), 1e-300))
+
+
+@pytest.mark.parametrize("name", list(_edge_scenes()) + ["3D random", "2D random"])
+@pytest.mark.parametrize("n_chunks", [2, 3, 5])
+def test_partner_ends_bound_every_pair_of_a_chunk(name, n_chunks):
+    """The threads' buffers end at partner_ends: no listed partner of a chunk's points lies beyond."""
+    if name.endswith("random"):
+        r_pc, cell, pbc = scene(5, flat=name.startswith("2D"))
+        cut = 0.9
+    else:
+        r_pc, cell, pbc, cut = _edge_scenes()[name]
+    nlist = NeighborList(cut, skin=0.1)
+    nlist.update(r_pc, cell, pbc)
+    bounds = neighbors.chunk_bounds(nlist.n_extended, n_chunks)
+    ends = nlist.partner_ends(bounds)
+    start, partner = nlist.pair_start, nlist.pair_j
+    for (first, last), end in zip(bounds, ends):
+        assert last <= end <= nlist.n_extended
+        if start[last] > start[first]:
+            assert partner[start[first]:start[last]].max() < end
