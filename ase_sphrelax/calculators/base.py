@@ -39,6 +39,16 @@ def _same_values(a, b):
     return True
 
 
+@numba.njit(cache=True)
+def _all_finite(r_pc):
+    """``np.isfinite(r_pc).all()`` without the boolean temporary."""
+    r = r_pc.ravel()
+    for i in range(r.shape[0]):
+        if not np.isfinite(r[i]):
+            return False
+    return True
+
+
 def _equal(a, b):
     """``np.array_equal`` for the per-particle arrays of check_state: several calls per
     optimiser step, where numpy's allocation and dispatch cost more than the compare."""
@@ -142,7 +152,7 @@ class SPHCalculator(Calculator):
         """
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
-        if not np.isfinite(atoms.positions).all():
+        if not _all_finite(atoms.positions):
             bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
         p = self.parameters

@@ -97,7 +97,8 @@ class FanCalculator(SPHCalculator):
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, model.h, model.pair_prefactor(vols.v0),
                                                      model.kernel, want_virial=want_stress)
-        energies_p = pair_e_p + model.self_energy(n, vols.v0, vols.volume) / n
+        energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
+        energies_p += model.self_energy(n, vols.v0, vols.volume) / n
         if model.domain is not None:
             boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
             energies_p += boundary_e_p
