@@ -125,9 +125,11 @@ class FanRelaxation(Optimizer):
         is_converged = self.gradient_converged(gradient)
         yield is_converged
         while not is_converged and self.nsteps < self.max_steps:
-            # an observer may have moved the atoms: then the step asks anew (from the calculator's cache)
-            self._step(None if self.observers else gradient)
-            gradient = None  # consumed by the step (1e6 particles: 24 MB not held through the next evaluation)
+            # an observer may have moved the atoms: then the step asks anew (from the calculator's cache);
+            # no gradient is held through the step's own request or the next evaluation (1e6: 24 MB each)
+            step_gradient, gradient = (None if self.observers else gradient), None
+            self._step(step_gradient)  # consumed in place
+            step_gradient = None
             self.nsteps += 1
             gradient = self.optimizable.get_gradient()
             self.log(gradient)
