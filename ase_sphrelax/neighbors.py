@@ -309,24 +309,21 @@ def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
     return bin_start[(x0 * nbin_c[1] + y0) * nbin_c[2] + z0], bin_start[(x1 * nbin_c[1] + y1) * nbin_c[2] + z1 + 1]
 
 
-@numba.njit(cache=True)
-def _partner_end(first, last, bin_s, nbin_c, bin_start, stencil_kc):
-    """1 + the last sorted point that a scanned (or listed) pair (a, b) with a in [first, last)
-    can reach as b: the largest end of the own-bin and stencil ranges over the bins of the
-    chunk's points (at least ``last``). One pass over the chunk's bins, not its points."""
+@numba.njit(cache=True, nogil=True)
+def _partner_end(partners, count, last):
+    """1 + the largest of ``partners[:count]`` (the partners of a chunk of points ending at
+    ``last``), at least ``last``."""
     end = last
-    if last <= first:
-        return end
-    for bin_ in range(bin_s[first], bin_s[last - 1] + 1):
-        a = bin_start[bin_]
-        if a == bin_start[bin_ + 1]:
-            continue  # empty bin
-        kx, ky, kz = bin_coords(a, bin_s, nbin_c)
-        for k in range(-1, stencil_kc.shape[0]):
-            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
-            if hi > lo and hi > end:
-                end = hi
+    for p in range(count):
+        if partners[p] >= end:
+            end = partners[p] + 1
     return end
+
+
+@numba.njit(cache=True, nogil=True)
+def _partner_end_chunk(pair_start, pair_j, out, t, first, last):
+    """out[t] = 1 + the largest listed partner of the points [first, last) (at least ``last``)."""
+    out[t] = _partner_end(pair_j[pair_start[first]:pair_start[last]], pair_start[last] - pair_start[first], last)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -376,7 +373,8 @@ def _gather(r_pc, src_s, img_sc, cell_cc, x_sc):
 def _scan_chunk_growing(scan, t, count_s, region, first, last):
     """Chunk ``t`` of a one-pass list scan into ``region``, continued in a grown copy
     whenever it fills up. ``scan(t, count_s, region, pos, first, last) -> (a_next, pos)``.
-    Returns (array holding the chunk's partners, number written, grown?)."""
+    Returns (array holding the chunk's partners, number written, grown?, 1 + the largest
+    partner: see :meth:`NeighborList.partner_ends`, found here while the partners are in cache)."""
     a, pos = scan(t, count_s, region, 0, first, last)
     grown = False
     while a < last:
@@ -384,7 +382,7 @@ def _scan_chunk_growing(scan, t, count_s, region, first, last):
         bigger[:pos] = region[:pos]
         region, grown = bigger, True
         a, pos = scan(t, count_s, region, pos, a, last)
-    return region, pos, grown
+    return region, pos, grown, int(_partner_end(region, pos, last))
 
 
 def _one_pass_list(scan, n_ext, buffer, nthreads):
@@ -395,8 +393,8 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     early (``a_next < last``) when ``pair_j`` is full. Each of the ``nthreads`` chunks of
     points writes into its own region of ``buffer``; the regions are then moved together.
     A region that fills up continues in a grown copy of its own. Returns ``(pair_start,
-    pair_j, buffer)``: ``pair_j`` is a view of the returned buffer (a new, larger one when
-    the old was too small).
+    pair_j, buffer, ends)``: ``pair_j`` is a view of the returned buffer (a new, larger one when
+    the old was too small); ``ends[t]`` is 1 + the largest partner of chunk t (at least its end).
     """
     count_s = np.empty(n_ext + 1, dtype=np.int64)
     count_s[0] = 0
@@ -407,12 +405,12 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     jobs = [pool.submit(_scan_chunk_growing, scan, t, count_s, regions[t], *bounds[t]) for t in range(nthreads - 1)]
     last = _scan_chunk_growing(scan, nthreads - 1, count_s, regions[-1], *bounds[-1])  # on the calling thread
     results = [job.result() for job in jobs] + [last]
-    total = sum(pos for _, pos, _ in results)
-    if any(grown for _, _, grown in results):
+    total = sum(r[1] for r in results)
+    if any(r[2] for r in results):
         # a region outgrew its share: gather all into a new buffer with a margin for the next build
         buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
         dst = 0
-        for region, pos, _ in results:
+        for region, pos, _, _ in results:
             buffer[dst:dst + pos] = region[:pos]
             dst += pos
     else:
@@ -422,7 +420,7 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
             buffer[dst:dst + pos] = buffer[t * cap_t:t * cap_t + pos]
             dst += pos
     np.cumsum(count_s, out=count_s)
-    return count_s, buffer[:total], buffer
+    return count_s, buffer[:total], buffer, [r[3] for r in results]
 
 
 @numba.njit(cache=True)
@@ -511,7 +509,7 @@ def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
 def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n):
     """Per-particle sums (n, k) of per-thread buffers that start at their thread's first
     point: ``parts[i][t]`` has shape (m_t, k), row 0 being point ``bases[t]``, rows beyond
-    ``bases[t] + m_t`` zero (see :meth:`BinnedPoints.partner_ends`)."""
+    ``bases[t] + m_t`` zero (see :meth:`NeighborList.partner_ends`)."""
     parts = tuple(tuple(p) for p in parts)
     outs = tuple(np.empty((n, part[0].shape[1])) for part in parts)
     run_chunks(_fold_part_originals, src_s.shape[0], (parts, bases, src_s, is_ghost_s, outs),
@@ -620,18 +618,6 @@ class BinnedPoints:
         span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
         self.max_candidates = int(np.diff(bin_start).max()) * int(1 + np.prod(span_k, axis=1).sum())
         self._gather_buffers = {}
-        self._partner_ends = {}
-
-    def partner_ends(self, bounds):
-        """For each chunk ``(first, last)`` of points, 1 + the last point that a pair of the
-        chunk's points can reach (every pair (a, b) of a scan or of a list built on these bins
-        has ``first <= a < last`` and ``a < b < end``): a thread's buffers need rows
-        ``[first, end)`` only (on 2 threads the first thread's end is about n/2, not n)."""
-        key = tuple(bounds)
-        if key not in self._partner_ends:
-            self._partner_ends[key] = [int(_partner_end(first, last, self.bin_s, self.nbin_c, self.bin_start,
-                                                         self.stencil_kc)) for first, last in bounds]
-        return self._partner_ends[key]
 
     def expected_pairs(self):
         """Estimated size of the half list (uniform density within the bins' extent)."""
@@ -750,6 +736,7 @@ class NeighborList:
         self._r0_pc = None
         self._cut_build = None
         self._cut_build_uniform = None
+        self._ends = None
 
     # -- public -----------------------------------------------------------------
     @property
@@ -845,9 +832,23 @@ class NeighborList:
     def fold_thread_parts(self, parts, bases):
         return self.points.fold_thread_parts(parts, bases)
 
-    def partner_ends(self, bounds):
-        """See :meth:`BinnedPoints.partner_ends` (the list is built on the same bins)."""
-        return self.points.partner_ends(bounds)
+    def partner_ends(self, nthreads):
+        """For the ``nthreads`` chunks of points of the pair loops (:func:`chunk_bounds`), 1 + the
+        last listed partner of each chunk's points, or None without a complete stored list.
+
+        A thread walking chunk ``(first, last)`` of the list writes rows ``[first, end)`` only:
+        its buffers need no more (on 2 threads the first thread's end is about n/2, not n).
+        Found by the list scan's threads (for its number of threads), else by one pass of
+        the threads over the list.
+        """
+        if self._pair_j is None or self._pending:
+            return None
+        if self._ends is None or len(self._ends) != nthreads:
+            out = np.empty(nthreads, dtype=np.int64)
+            run_chunks(_partner_end_chunk, self.points.n_extended, (self._pair_start, self._pair_j, out),
+                       per_thread=[(t,) for t in range(nthreads)])
+            self._ends = [int(x) for x in out]
+        return self._ends
 
     def loop_arrays(self):
         """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""
@@ -908,6 +909,7 @@ class NeighborList:
         skin = self.skin if store else 0.0
         self._pair_start = self._pair_j = None
         self._pending = False
+        self._ends = None
         self.points = None  # free the old bins before the new ones are made
         self.points = BinnedPoints(r_pc, cell, pbc, cut_p, skin)
         if store:
@@ -930,8 +932,8 @@ class NeighborList:
         want = int(1.05 * expected) + 1024
         if self._pair_buffer.shape[0] < want:
             self._pair_buffer = np.empty(want, dtype=np.int32)
-        self._pair_start, self._pair_j, self._pair_buffer = _one_pass_list(scan, self.points.n_extended,
-                                                                           self._pair_buffer, nthreads)
+        self._pair_start, self._pair_j, self._pair_buffer, self._ends = _one_pass_list(
+            scan, self.points.n_extended, self._pair_buffer, nthreads)
         self._pair_count = self._pair_j.shape[0]
         self._pending = False
 

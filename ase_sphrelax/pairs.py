@@ -380,9 +380,12 @@ class PairInteraction:
         nthreads = thread_count(n_ext)
         forward = bool(getattr(neighbors, "forward_pairs", False))
         buffers, bases = self._thread_buffers(nthreads, n_ext, forward)
-        if forward and nthreads > 1 and hasattr(neighbors, "partner_ends"):
+        ends = None
+        if forward and nthreads > 1 and not getattr(neighbors, "build_pending", False) \
+                and hasattr(neighbors, "partner_ends"):
+            ends = neighbors.partner_ends(nthreads)  # None unless a stored list is walked
+        if ends is not None:
             # thread t's pairs reach rows [bases[t], ends[t]) only: zero and fold no more
-            ends = neighbors.partner_ends(chunk_bounds(n_ext, nthreads))
             buffers = [tuple(buf[: ends[t] - bases[t]] if o.per_point else buf
                              for buf, o in zip(buffers[t], self.outputs.values())) for t in range(nthreads)]
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
