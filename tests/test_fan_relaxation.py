@@ -249,3 +249,36 @@ def test_fire_caps_each_particles_move_not_the_whole_step():
         start = atoms.positions.copy()
         make_optimizer("fire", atoms, c=0.01, h=1.0).run(fmax=0.0, steps=1)
         np.testing.assert_allclose(atoms.positions - start, np.tile([0.01, 0, 0], (n, 1)), rtol=1e-12, atol=1e-15)
+
+
+def _eq24_step(atoms, c=0.01, h=2.6):
+    """Positions after one Eq. 2.4 step from the forces of ``atoms`` as they are now."""
+    f_pc = atoms.get_forces()
+    return atoms.positions + f_pc * (c * h / np.linalg.norm(f_pc, axis=1).max())
+
+
+@pytest.mark.parametrize("observer", [False, True], ids=["run", "run with an observer"])
+def test_run_steps_from_the_forces_of_each_step(observer):
+    """run() hands each step the gradient of the evaluation before it: the same positions as
+    steps taken one by one from freshly asked forces."""
+    atoms, reference = jittered_box(), jittered_box()
+    opt = FanRelaxation(atoms, c=0.01, logfile=None)
+    if observer:
+        opt.attach(lambda: None)
+    opt.run(fmax=0.0, steps=3)
+    for _ in range(3):
+        reference.positions = _eq24_step(reference)
+    np.testing.assert_array_equal(atoms.positions, reference.positions)
+
+
+def test_irun_steps_from_the_forces_of_atoms_moved_between_yields():
+    """The caller may move the atoms between two yields of irun(): the next step takes the
+    forces at the moved positions, not the gradient of the evaluation before."""
+    atoms = jittered_box()
+    steps = FanRelaxation(atoms, c=0.01, logfile=None).irun(fmax=0.0, steps=2)
+    next(steps)
+    next(steps)
+    atoms.positions[:40, 0] += 0.3  # the caller moves some particles
+    expected = _eq24_step(atoms)
+    next(steps)
+    np.testing.assert_allclose(atoms.positions, expected, rtol=0, atol=1e-14)

@@ -90,8 +90,9 @@ class FanRelaxation(Optimizer):
     # -- the run loop, lean for small systems ------------------------------------
     # ASE's loop asks for the forces three times per step and computes the energy and the
     # force norm for its log even without a log file (logfile=None): for 8224 particles that
-    # was a third of a step on top of the force evaluation (issue 9, item 3). Here a step
-    # takes the gradient of the evaluation before it, and a silent log costs nothing.
+    # was a third of a step on top of the force evaluation (issue 9, item 3). Here run() hands
+    # a step the gradient of the evaluation before it (unless an observer could have moved the
+    # atoms), and a silent log costs nothing.
     def run(self, fmax=ASE_DEFAULT_FMAX, steps=DEFAULT_MAX_STEPS):
         """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
 
@@ -100,7 +101,8 @@ class FanRelaxation(Optimizer):
         fmax relative to the forces.
         """
         converged = False
-        for converged in self.irun(fmax=fmax, steps=steps):
+        self.fmax = fmax
+        for converged in self._irun(steps, reuse_gradient=True):  # no code of the caller between the steps
             pass
         warn_if_nothing_relaxed(self, fmax, converged)
         return converged
@@ -109,13 +111,15 @@ class FanRelaxation(Optimizer):
         """Generator of :meth:`run`, yielding ``converged`` after each step (as ASE's).
 
         One force request per step (ASE's loop makes two more, for its log and its
-        convergence test, on unchanged atoms), whose gradient the next step uses; the log,
-        observers and trajectory are as ASE's.
+        convergence test, on unchanged atoms); the log, observers and trajectory are as
+        ASE's. The caller may change the atoms between two yields, so each step asks for
+        the forces again (the calculator's cache serves them if nothing changed); :meth:`run`,
+        which runs no code between the steps, hands the step the gradient it has.
         """
         self.fmax = fmax
         return self._irun(steps)
 
-    def _irun(self, steps):
+    def _irun(self, steps, reuse_gradient=False):
         self.max_steps = self.nsteps + steps
         gradient = self.optimizable.get_gradient()
         if self.nsteps == 0:
@@ -127,7 +131,7 @@ class FanRelaxation(Optimizer):
         while not is_converged and self.nsteps < self.max_steps:
             # an observer may have moved the atoms: then the step asks anew (from the calculator's cache);
             # no gradient is held through the step's own request or the next evaluation (1e6: 24 MB each)
-            step_gradient, gradient = (None if self.observers else gradient), None
+            step_gradient, gradient = (gradient if reuse_gradient and not self.observers else None), None
             self._step(step_gradient)  # consumed in place
             step_gradient = None
             self.nsteps += 1
