@@ -75,6 +75,15 @@ KERNEL_NAMES = ("wendland_c2", "wendland_c4", "cubic_spline")
 
 
 @numba.njit(cache=True, inline="always")
+def _piece(q, breaks):
+    """Segment ``s`` of a piecewise profile holding ``q < 1`` and ``u = breaks[s+1] - q``."""
+    s = 0
+    while q >= breaks[s + 1]:
+        s += 1
+    return s, breaks[s + 1] - q
+
+
+@numba.njit(cache=True, inline="always")
 def profile_value_and_slope(q, breaks, coef):
     """Profile f(q) and df/dq of a piecewise polynomial (zero for q >= 1).
 
@@ -83,10 +92,7 @@ def profile_value_and_slope(q, breaks, coef):
     """
     if q >= 1.0:
         return 0.0, 0.0
-    s = 0
-    while q >= breaks[s + 1]:
-        s += 1
-    u = breaks[s + 1] - q
+    s, u = _piece(q, breaks)
     deg = coef.shape[1] - 1
     value = coef[s, deg]
     slope = 0.0
@@ -167,10 +173,7 @@ def profile_derivatives_by_kind(q, kind, breaks, coef):
         if q < 0.5:
             return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0), 36.0 * q - 12.0, 36.0, 0.0
         return 2.0 * u * u * u, -6.0 * u * u, 12.0 * u, -12.0, 0.0
-    s = 0
-    while q >= breaks[s + 1]:
-        s += 1
-    u = breaks[s + 1] - q
+    s, u = _piece(q, breaks)
     deg = coef.shape[1] - 1
     value = coef[s, deg]
     d1 = 0.0
