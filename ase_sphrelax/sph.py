@@ -19,8 +19,9 @@ Pieces (each a :class:`~ase_sphrelax.pairs.PairInteraction`; no pair loop of its
     A fixed (global) ``h`` is the special case ``H_a = h``.
 :func:`solve_smoothing_lengths`
     ``H_a`` and ``rho_a`` solved together (Eq. 31-32 in the equal-mass case, Phantom's
-    ``rho_a = m_a (eta / H_a)^d`` in general): safeguarded Newton iteration with a bisection
-    bracket, tolerance ``|dH|/H < tol``, and :class:`SmoothingLengthError` naming the particle
+    ``rho_a = m_a (eta / H_a)^d`` in general): safeguarded Halley iteration in ``ln H`` with a
+    bisection bracket, tolerance ``|dH|/H < tol`` (one density pass from the previous step's H with
+    Wendland C4 and equal masses, two otherwise), and :class:`SmoothingLengthError` naming the particle
     when it does not converge or when no root exists (fewer particles than one kernel's
     neighbours in an open system).
 :func:`pressure_forces`
@@ -335,7 +336,7 @@ class DensitySums:
     neighbours_p : ndarray (N,)
         Number of other particles within ``H_a``.
     iterations : int
-        Newton/bisection iterations used (0 for a plain density pass).
+        Density passes of the H solve (0 for a plain density pass).
     """
 
     def __init__(self, h_p, rho_p, n_p, omega_p, neighbours_p, iterations=0):
