@@ -37,7 +37,8 @@ from numpy.polynomial import polynomial as P
 
 from .checks import check_dim
 
-__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind", "profile_curvature_by_kind", "PIECEWISE"]
+__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind",
+           "profile_derivatives_by_kind", "PIECEWISE"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
 
@@ -74,6 +75,15 @@ KERNEL_NAMES = ("wendland_c2", "wendland_c4", "cubic_spline")
 
 
 @numba.njit(cache=True, inline="always")
+def _piece(q, breaks):
+    """Segment ``s`` of a piecewise profile holding ``q < 1`` and ``u = breaks[s+1] - q``."""
+    s = 0
+    while q >= breaks[s + 1]:
+        s += 1
+    return s, breaks[s + 1] - q
+
+
+@numba.njit(cache=True, inline="always")
 def profile_value_and_slope(q, breaks, coef):
     """Profile f(q) and df/dq of a piecewise polynomial (zero for q >= 1).
 
@@ -82,10 +92,7 @@ def profile_value_and_slope(q, breaks, coef):
     """
     if q >= 1.0:
         return 0.0, 0.0
-    s = 0
-    while q >= breaks[s + 1]:
-        s += 1
-    u = breaks[s + 1] - q
+    s, u = _piece(q, breaks)
     deg = coef.shape[1] - 1
     value = coef[s, deg]
     slope = 0.0
@@ -129,41 +136,57 @@ def profile_by_kind(q, kind, breaks, coef):
 
 
 @numba.njit(cache=True, inline="always")
-def profile_curvature_by_kind(q, kind, breaks, coef):
-    """Profile f(q), df/dq and d2f/dq2 (zero for q >= 1): :func:`profile_by_kind` plus the curvature,
-    for Halley steps of the smoothing-length solve (:func:`ase_sphrelax.sph.solve_smoothing_lengths`)."""
+def profile_derivatives_by_kind(q, kind, breaks, coef):
+    """Profile f(q) and its first four derivatives in q (zero for q >= 1).
+
+    :func:`profile_by_kind` plus f'', f''' and f'''', for the smoothing-length solve of
+    :func:`ase_sphrelax.sph.solve_smoothing_lengths` (Halley steps, and the sums carried to the
+    new H by their Taylor series). The cubic spline's f'''' is zero between its knots (its f'''
+    jumps at q = 1/2; the jump is left out).
+    """
     if q >= 1.0:
-        return 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     u = 1.0 - q
-    if kind == WENDLAND_C2:  # f' = -20 q u^3, f'' = 20 u^2 (4 q - 1)
+    if kind == WENDLAND_C2:  # f' = -20 q u^3, f'' = 20 u^2 (4 q - 1), f''' = 120 u (1 - 2 q), f'''' = 120 (4 q - 3)
         u2 = u * u
-        return u2 * u2 * (5.0 - 4.0 * u), -20.0 * q * u2 * u, 20.0 * u2 * (4.0 * q - 1.0)
-    if kind == WENDLAND_C4:  # f' = -(56/3) q (1 + 5 q) u^5, f'' = -(56/3) u^4 (1 + 4 q - 35 q^2)
-        u4 = u * u * u * u
+        return (u2 * u2 * (5.0 - 4.0 * u), -20.0 * q * u2 * u, 20.0 * u2 * (4.0 * q - 1.0), 120.0 * u * (1.0 - 2.0 * q),
+                120.0 * (4.0 * q - 3.0))
+    if kind == WENDLAND_C4:
+        # f' = -(56/3) q (1 + 5 q) u^5, f'' = -(56/3) u^4 (1 + 4 q - 35 q^2), f''' = 560 q u^3 (3 - 7 q),
+        # f'''' = 560 u^2 (3 - 26 q + 35 q^2)
+        u2 = u * u
+        u3 = u2 * u
+        u4 = u3 * u
         poly = (35.0 / 3.0) * q * q + 6.0 * q + 1.0
-        return (u4 * u * u * poly, (-56.0 / 3.0) * q * (1.0 + 5.0 * q) * u4 * u,
-                (-56.0 / 3.0) * u4 * (1.0 + 4.0 * q - 35.0 * q * q))
-    if kind == WENDLAND_C4_1D:  # f' = -14 q (1 + 4 q) u^4, f'' = -14 u^3 (1 + 3 q - 24 q^2)
-        u3 = u * u * u
+        return (u4 * u2 * poly, (-56.0 / 3.0) * q * (1.0 + 5.0 * q) * u4 * u,
+                (-56.0 / 3.0) * u4 * (1.0 + 4.0 * q - 35.0 * q * q), 560.0 * q * u3 * (3.0 - 7.0 * q),
+                560.0 * u2 * (3.0 - 26.0 * q + 35.0 * q * q))
+    if kind == WENDLAND_C4_1D:
+        # f' = -14 q (1 + 4 q) u^4, f'' = -14 u^3 (1 + 3 q - 24 q^2), f''' = 840 q u^2 (1 - 2 q),
+        # f'''' = 840 u (1 - 7 q + 8 q^2)
+        u2 = u * u
+        u3 = u2 * u
         poly = 8.0 * q * q + 5.0 * q + 1.0
-        return u3 * u * u * poly, -14.0 * q * (1.0 + 4.0 * q) * u3 * u, -14.0 * u3 * (1.0 + 3.0 * q - 24.0 * q * q)
+        return (u3 * u2 * poly, -14.0 * q * (1.0 + 4.0 * q) * u3 * u, -14.0 * u3 * (1.0 + 3.0 * q - 24.0 * q * q),
+                840.0 * q * u2 * (1.0 - 2.0 * q), 840.0 * u * (1.0 - 7.0 * q + 8.0 * q * q))
     if kind == CUBIC_SPLINE:
         if q < 0.5:
-            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0), 36.0 * q - 12.0
-        return 2.0 * u * u * u, -6.0 * u * u, 12.0 * u
-    s = 0
-    while q >= breaks[s + 1]:
-        s += 1
-    u = breaks[s + 1] - q
+            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0), 36.0 * q - 12.0, 36.0, 0.0
+        return 2.0 * u * u * u, -6.0 * u * u, 12.0 * u, -12.0, 0.0
+    s, u = _piece(q, breaks)
     deg = coef.shape[1] - 1
     value = coef[s, deg]
-    slope = 0.0
-    curv = 0.0
-    for k in range(deg - 1, -1, -1):
-        curv = curv * u + slope
-        slope = slope * u + value
+    d1 = 0.0
+    d2 = 0.0
+    d3 = 0.0
+    d4 = 0.0
+    for k in range(deg - 1, -1, -1):  # Horner with derivatives in u = breaks[s+1] - q
+        d4 = d4 * u + d3
+        d3 = d3 * u + d2
+        d2 = d2 * u + d1
+        d1 = d1 * u + value
         value = value * u + coef[s, k]
-    return value, -slope, 2.0 * curv
+    return value, -d1, 2.0 * d2, -6.0 * d3, 24.0 * d4
 
 
 def _to_u(piece_q, right):

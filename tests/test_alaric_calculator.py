@@ -227,3 +227,22 @@ def test_small_moves_reuse_the_verlet_list():
         atoms.get_forces()
     assert calc.nlist is nlist
     assert nlist.builds == 1
+
+
+def test_results_depend_on_the_starting_h_only_to_the_tolerance():
+    """Re-evaluating the same positions from another starting H (the previous result, or the global guess)
+    changes energy and forces by no more than the H tolerance allows (default h_tol = 1e-8)."""
+    atoms = _periodic(2, 12, seed=8)
+    density, gradient = _gauss(2)
+    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=2)
+    calc.calculate(atoms, ["energy", "forces"])
+    e1, f1 = calc.results["energy"], calc.results["forces"].copy()
+    calc.calculate(atoms, ["energy", "forces"])  # from the converged H
+    e2, f2 = calc.results["energy"], calc.results["forces"].copy()
+    tight = ALARICCalculator(target_density=density, target_gradient=gradient, dim=2, h_tol=1e-13,
+                             mass=calc.mass)
+    tight.calculate(atoms, ["energy", "forces"])
+    scale = np.abs(tight.results["forces"]).max()
+    for e, f in ((e1, f1), (e2, f2)):
+        assert abs(e - tight.results["energy"]) <= 1e-9 * abs(tight.results["energy"])
+        np.testing.assert_allclose(f, tight.results["forces"], rtol=0, atol=1e-7 * scale)

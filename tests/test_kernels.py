@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from ase_sphrelax.kernels import KERNEL_NAMES, PIECEWISE, get_kernel, profile_by_kind, profile_curvature_by_kind
+from ase_sphrelax.kernels import KERNEL_NAMES, PIECEWISE, get_kernel, profile_by_kind, profile_derivatives_by_kind
 
 @numba.njit(cache=True)
 def _evaluate_by_kind(q_k, kind, breaks, coef):
@@ -107,18 +107,22 @@ def test_closed_forms_of_the_hot_loops_equal_the_exact_polynomials(name, dim):
 
 @pytest.mark.parametrize("name", KERNEL_NAMES)
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_curvature_matches_finite_differences_of_the_slope(name, dim):
-    """profile_curvature_by_kind: value and slope as profile_by_kind, f'' as the central difference of f'
-    (closed forms and the generic piecewise evaluation)."""
+def test_higher_derivatives_match_finite_differences(name, dim):
+    """profile_derivatives_by_kind: value and slope as profile_by_kind, f'', f''' and f'''' as central
+    differences of f', f'' and f''' (closed forms and the generic piecewise evaluation; f'''' away from
+    the cubic spline's knot at q = 1/2, where its f''' jumps)."""
     k = get_kernel(name, dim)
     e = 1e-6
     for kind in (k.kind, PIECEWISE):
         for q in np.linspace(0.013, 0.987, 60):
-            value, slope, curv = profile_curvature_by_kind(q, kind, k.breaks, k.coef)
+            value, slope, curv, third, fourth = profile_derivatives_by_kind(q, kind, k.breaks, k.coef)
             v0, s0 = profile_by_kind(q, k.kind, k.breaks, k.coef)
-            fd = (profile_by_kind(q + e, k.kind, k.breaks, k.coef)[1]
-                  - profile_by_kind(q - e, k.kind, k.breaks, k.coef)[1]) / (2 * e)
+            up = profile_derivatives_by_kind(q + e, kind, k.breaks, k.coef)
+            down = profile_derivatives_by_kind(q - e, kind, k.breaks, k.coef)
             assert value == pytest.approx(v0, rel=1e-12, abs=1e-12)
             assert slope == pytest.approx(s0, rel=1e-12, abs=1e-12)
-            assert curv == pytest.approx(fd, rel=1e-6, abs=1e-7)
-        assert profile_curvature_by_kind(1.0, kind, k.breaks, k.coef) == (0.0, 0.0, 0.0)
+            assert curv == pytest.approx((up[1] - down[1]) / (2 * e), rel=1e-6, abs=1e-7)
+            assert third == pytest.approx((up[2] - down[2]) / (2 * e), rel=1e-6, abs=1e-6)
+            if abs(q - 0.5) > 2 * e:
+                assert fourth == pytest.approx((up[3] - down[3]) / (2 * e), rel=1e-6, abs=1e-5)
+        assert profile_derivatives_by_kind(1.0, kind, k.breaks, k.coef) == (0.0, 0.0, 0.0, 0.0, 0.0)

@@ -254,7 +254,9 @@ class ALARICCalculator(SPHCalculator):
         f_ext_pc = np.zeros_like(f_pc)
         if p.form == "log":
             above = target_p > self._floor
-            if np.any(above):
+            if np.all(above):  # the usual case: no masked copies
+                f_ext_pc[:, : p.dim] = (m * cs2 / target_p)[:, None] * self.target.gradients(x_pd)
+            elif np.any(above):
                 grad_pd = self.target.gradients(x_pd[above])
                 f_ext_pc[above, : p.dim] = (m * cs2 / target_p[above])[:, None] * grad_pd
         elif p.form == "squares":
