@@ -13,8 +13,8 @@ writes under ``--out``: ``table1.md`` (a), ``table2.md`` (b), ``fig6.png`` (c), 
     against eps_teo.min of Eq. 48; the dynamics (log potential) and after the least-squares polish.
 (c) Fig. 6: 909 particles, 0, 1 and 2 splitting stages, eps traces.
 (d) Fig. 8: radial profiles in 1D, 2D and 3D with N = 77 * 7^d (3D: 77 * 5^3; 2D/3D: unit disc/ball,
-    step caps 2000 and 300).
-(e) Figs. 10-11: Eq. 49 in the unit disc, 10 000 particles, p = 1, 2, 3.
+    step caps 10000 and 1500).
+(e) Figs. 10-11: Eq. 49 in the unit disc, 10 000 particles, p = 1, 2, 3 (step cap 4000).
 (f) Sec. 5.1 / Fig. 13: 2000 particles, uniform density in a circle from one random start: ALARIC
     against WVT (r^-2 and kernel weights): eps against steps and wall time.
 (g) FIRE and LBFGS on the ALARIC potential (and LBFGS on the least-squares potential) against
@@ -174,7 +174,7 @@ def fig8(quick, out):
         n = n0 * p
         atoms, origin, domain = start_atoms(n0, dim)
         density, gradient = model.eq46(delta)
-        cap = {1: 20000, 2: 2000, 3: 300}[dim] if not quick else 300
+        cap = {1: 20000, 2: 10000, 3: 1500}[dim] if not quick else 300
         res = relax_density(atoms, density, dim, target_gradient=gradient, splits=1, domain=domain, origin=origin,
                             polish=dim == 1, max_steps=cap)
         calc = res["calculator"]
@@ -210,7 +210,7 @@ def fig10_11(quick, out):
         atoms, origin, domain = start_atoms(n // 4, 2)
         density, gradient = model.eq49(p)
         res = relax_density(atoms, density, 2, target_gradient=gradient, splits=1, domain=domain,
-                            max_steps=600 if quick else 800)
+                            max_steps=600 if quick else 4000)
         r = res["calculator"].results
         x = res["atoms"].positions
         axes[0, k].scatter(x[:, 0], x[:, 1], s=0.3, c="k")
