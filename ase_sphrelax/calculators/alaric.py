@@ -254,11 +254,9 @@ class ALARICCalculator(SPHCalculator):
         f_ext_pc = np.zeros_like(f_pc)
         if p.form == "log":
             above = target_p > self._floor
-            if np.all(above):  # the usual case: no masked copies
-                f_ext_pc[:, : p.dim] = (m * cs2 / target_p)[:, None] * self.target.gradients(x_pd)
-            elif np.any(above):
-                grad_pd = self.target.gradients(x_pd[above])
-                f_ext_pc[above, : p.dim] = (m * cs2 / target_p[above])[:, None] * grad_pd
+            if np.any(above):
+                sel = slice(None) if np.all(above) else above  # the usual case, all above: views, no masked copies
+                f_ext_pc[sel, : p.dim] = (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
         elif p.form == "squares":
             grad_pd = self.target.gradients(x_pd)
             f_ext_pc[:, : p.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
