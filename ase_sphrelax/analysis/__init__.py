@@ -37,4 +37,6 @@ _WHERE = {
     "alaric_min_error": ".alaric",
 }
 __all__ = sorted(_WHERE)
-__getattr__, __dir__ = lazy_exports(globals(), _WHERE)
+_SUBMODULES = ("alaric", "bounded", "cell_filter", "lattice_sums", "pattern_cells", "pattern_prediction", "patterns",
+               "quality", "symmetry")
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE, _SUBMODULES)
