@@ -32,7 +32,7 @@ Quick start
 (True, True)
 
 Submodules (loaded on first use, so ``import ase_sphrelax`` loads no numba)
--------------------------------------------------------------------------
+---------------------------------------------------------------------------
 ``domains`` level-set domains; ``build`` particle fills; ``boundary`` boundary segments,
 triangles and integrals; ``calculators``; ``drivers``; ``analysis`` quality metrics and
 lattice patterns; ``sampling`` SPH-ParVI, targets, metrics and baselines; ``kernels``;
