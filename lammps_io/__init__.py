@@ -39,6 +39,9 @@ _WHERE = {
     "cli_export": ".cli",
     "cli_relax": ".cli",
     "write_vtk": ".cli",
+    "hydrostatic_tank": ".sph_flows",
+    "elliptic_drop": ".sph_flows",
+    "elliptic_drop_axes": ".sph_flows",
 }
 __all__ = list(_WHERE) + ["sph_at_rest"]
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
