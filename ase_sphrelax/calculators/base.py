@@ -221,6 +221,16 @@ class SPHCalculator(Calculator):
         self._evaluations = 0
         self.reset()
 
+    def clone(self):
+        """A fresh calculator of the same class and parameters (no results, no neighbour list)."""
+        return type(self)(**self.parameters)
+
+    def validate_atoms(self, atoms):
+        """Every check of an evaluation on ``atoms`` (shared and the method's), without evaluating; returns dim."""
+        dim = self.use_dim(atoms)
+        self.check_atoms(atoms, dim, ())
+        return dim
+
     def silence_scale_hint(self):
         """No :class:`SPHScaleWarning` from this calculator: a driver that scales its steps runs it."""
         self._scale_hinted = True

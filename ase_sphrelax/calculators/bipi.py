@@ -137,10 +137,6 @@ class BIPICalculator(SPHCalculator):
             self.get_property("gamma", atoms)
         return self._boundary_pairs.nearest_distance()
 
-    def subsystem_calculator(self):
-        """A fresh calculator with the same parameters (e.g. for a sub-system of the particles)."""
-        return type(self)(**self.parameters)
-
     # -- convenience ------------------------------------------------------------------
     def get_gamma(self, atoms=None):
         return self.get_property("gamma", atoms)
