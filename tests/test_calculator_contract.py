@@ -388,3 +388,14 @@ def test_conservative_is_a_property_of_every_calculator(name):
         pytest.skip(method.skip())
     calc = method.make()
     assert isinstance(type(calc).__dict__.get("conservative", getattr(type(calc), "conservative")), (bool, property))
+
+
+def test_a_monitor_is_a_separate_result_of_a_non_conservative_form():
+    """ALARIC's paper form (Eq. 29): forces only; its monitor, the log potential, is results['monitor']."""
+    atoms = lattice_atoms(1, 30, seed=5)
+    paper, log = _alaric(form="paper"), _alaric()
+    assert not paper.conservative and log.conservative
+    assert paper.monitor(atoms) == pytest.approx(log.get_potential_energy(atoms), rel=1e-12)
+    assert log.monitor(atoms) is None
+    with pytest.raises(PropertyNotImplementedError, match="stress needs a conservative form"):
+        paper.get_stress(atoms)
