@@ -142,7 +142,8 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
             if not (z_flat if k == 2 else _flat(r_pc[:, k], r_pc)):
                 bad = np.nonzero(np.abs(r_pc[:, k]) > 1e-12 * max(1.0, float(np.abs(r_pc).max())))[0]
                 raise ValueError(f"a {target}D system needs every particle at {'xyz'[k]} = 0, but {len(bad)} have "
-                                 f"{'xyz'[k]} != 0 (e.g. particle {int(bad[0])} at {'xyz'[k]} = "
+                                 f"{'xyz'[k]} != 0 (non-zero coordinates beyond axis {target - 1}; e.g. particle "
+                                 f"{int(bad[0])} at {'xyz'[k]} = "
                                  f"{r_pc[bad[0], k]:.6g}): pass {name}=3 for 3D atoms, or put 2D particles at "
                                  f"z = 0; they are never flattened silently")
         return target

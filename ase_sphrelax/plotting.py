@@ -52,3 +52,53 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def plot_concentration_gradient(atoms, calc, path, title=""):
+    """Particles coloured by log10 |grad C_a| of a BIPICalculator (the paper's Figs. 10-12); 3D: a slice.
+
+    Writes ``path`` as a 256-colour PNG (a quarter of the file size); returns ``path``.
+    """
+    grad = np.linalg.norm(calc.get_concentration_gradient(atoms), axis=1)
+    value = np.log10(np.maximum(grad, 1e-300) * calc.model.h)
+    plot_particles(atoms, value, path, domain=calc.boundary.domain, dx=calc.model.dx, title=title,
+                   label=r"log$_{10}$ (h |$\nabla$C$_a$|)", slice_width=2 * calc.model.dx)
+    from PIL import Image
+
+    with Image.open(path) as image:
+        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+    return path
+
+
+def plot_packing_history(history, path=None, title=None):
+    """BIPI's TPD_avg and |grad C|_avg against the iteration (Fig. 7-9), stages in colours.
+
+    ``history``: :attr:`ase_sphrelax.drivers.BIPIPacker.history`. Returns the figure (closed when
+    written to ``path``).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
+    offset = 0
+    colours = {"2a": "tab:green", "2c": "tab:blue"}
+    for stage in ("2a", "2c"):
+        rows = [r for r in history if r["stage"] == stage]
+        if not rows:
+            continue
+        it = offset + np.arange(1, len(rows) + 1)
+        axes[0].plot(it, [r["tpd_avg"] for r in rows], color=colours[stage], label=f"step {stage}")
+        axes[1].semilogy(it, [max(r["gradc_avg"], 1e-300) for r in rows], color=colours[stage], label=f"step {stage}")
+        offset = it[-1]
+    axes[0].set(xlabel="iteration", ylabel="TPD$_{avg}$")
+    axes[1].set(xlabel="iteration", ylabel=r"$|\nabla C|_{avg}$ (packable)")
+    for ax in axes:
+        ax.legend()
+    if title:
+        fig.suptitle(title)
+    if path is not None:
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+    return fig

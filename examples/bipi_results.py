@@ -88,7 +88,9 @@ def load_boundary(geometry, out):
 
 
 def run_case(name, out, quick):
-    from ase_sphrelax.drivers.bipi_packer import pack, pack_summary, plot_gradient
+    from ase_sphrelax.analysis.bipi import pack_summary
+    from ase_sphrelax.drivers.bipi_packer import pack
+    from ase_sphrelax.plotting import plot_concentration_gradient as plot_gradient
 
     geometry, dx, ratio = CASES[name]
     boundary = load_boundary(geometry, out)

@@ -14,7 +14,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from ase.calculators.calculator import all_changes
 
 from ase_sphrelax.calculators.base import SPHCalculator, periodic_measure
 from ase_sphrelax.models.fan import FanModel, verlet_skin
@@ -156,6 +155,9 @@ class FanLammpsCalculator(SPHCalculator):
             if not rebuilt:
                 x = np.ascontiguousarray(box.r_pc.ravel())
                 lmp.scatter_atoms("x", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(x))
+                # a new timestep: thermo serves computes (pe, the virial) cached per timestep, so a second
+                # `run 0` at the same step reported the previous positions' energy and stress (forces were new)
+                lmp.command(f"reset_timestep {lmp.extract_global('ntimestep') + 1}")
             lmp.command("run 0 post no")
         else:
             # one nve/noforce step of length 1 with v = displacement: LAMMPS keeps its
@@ -173,16 +175,23 @@ class FanLammpsCalculator(SPHCalculator):
             lmp.scatter_atoms("v", 1, 3, (ctypes.c_double * (3 * n)).from_buffer(v))
             lmp.command("run 1 pre no post no")
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        super().calculate(atoms, properties, system_changes)
-        atoms = self.atoms
+    # -- the calculator contract (ase_sphrelax.calculators.base) -----------------
+    def configure(self, dim):
+        self.model = self.model.with_dim(dim)
+        check_pair_style(self.parameters.style, self.model.kernel, dim)
+
+    def check_atoms(self, atoms, dim, properties):
+        if "stress" in properties:
+            vols = self.model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, dim))
+            self.model.check_stress(vols, atoms.cell.volume)
+
+    def cutoff(self, atoms, dim):
+        return None  # LAMMPS keeps its own neighbour list
+
+    def evaluate(self, state, properties):
+        atoms, model = state.atoms, self.model
         n = len(atoms)
-        self.model = model = self.model.with_dim(self.resolve_dim(atoms))  # also: finite positions
-        check_pair_style(self.parameters.style, model.kernel, model.dim)
         vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
-        want_stress = "stress" in properties
-        if want_stress:
-            model.check_stress(vols, atoms.cell.volume)
         periodic = vols.measure is not None
         box = lammps_box(atoms, dim=model.dim, margin=model.h)
         key = (model.dim, n, tuple(atoms.pbc), atoms.cell[:].tobytes(), vols.v0, box.lo_c.tobytes() if periodic else None)
@@ -208,18 +217,14 @@ class FanLammpsCalculator(SPHCalculator):
             boundary_e_p, boundary_f_pc = model.boundary(atoms.positions, vols.v0)
             energy += float(boundary_e_p.sum())
             f_pc += boundary_f_pc
-        f_pc[:, model.dim:] = 0.0
-        self.results["energy"] = energy
-        self.results["free_energy"] = energy
-        self.results["forces"] = f_pc
-        if "forces" in properties:
-            self.hint_force_scale(f_pc)
-        if want_stress:
+        out = dict(energy=energy, forces=f_pc)
+        if "stress" in properties:
             v = [float(thermo[f"c_fanvir[{k}]"]) for k in range(1, 7)]
             pressure_cc = np.array([[v[0], v[3], v[4]], [v[3], v[1], v[5]], [v[4], v[5], v[2]]])
             # LAMMPS' virial pressure is -(1/V) dE/d(strain)
             pair_virial_cc = -box.tensor_to_ase(pressure_cc) * box.lammps_volume
-            self.results["stress"] = model.stress(pair_virial_cc, energy, vols, atoms.cell.volume)
+            out["stress"] = model.stress(pair_virial_cc, energy, vols, atoms.cell.volume)
+        return out
 
 
 def fan_calculator(h=None, dx=None, dim=None, style="lepton", **kwargs):

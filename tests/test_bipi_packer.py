@@ -10,7 +10,8 @@ from ase.constraints import FixAtoms
 
 from ase_sphrelax import BIPICalculator, BIPIPacker
 from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
-from ase_sphrelax.drivers.bipi_packer import initial_fill, plot_history
+from ase_sphrelax.drivers.bipi_packer import initial_fill
+from ase_sphrelax.plotting import plot_packing_history as plot_history
 
 
 def pack(boundary, dx, ratio=2.0, **kwargs):

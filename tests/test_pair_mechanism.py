@@ -47,25 +47,28 @@ SOFT_SPHERES = PairInteraction(soft_sphere_pair, dict(energies=Output(()), force
 
 class SoftSphereCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
-    default_parameters = dict(k=1.0, gamma=0.0, dim=3, skin=0.1)
+    default_parameters = dict(k=1.0, gamma=0.0, dim=None, skin=0.1)
     velocity_dependent = True
 
     def _validate_parameters(self):
         super()._validate_parameters()
         check_positive("k", self.parameters.k)
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        super().calculate(atoms, properties, system_changes)
-        p, atoms = self.parameters, self.atoms
+    def cutoff(self, atoms, dim):
         radius_p = atoms.get_array("radius")
-        r_pc, _ = self.prepare(atoms, cutoff=radius_p + radius_p.max(), skin=p.skin)
-        out = SOFT_SPHERES.compute(self.nlist, r_pc, params=(p.k, p.gamma), inputs=(radius_p, atoms.get_velocities()),
+        return radius_p + radius_p.max(), self.parameters.skin
+
+    def evaluate(self, state, properties):
+        p, atoms = self.parameters, state.atoms
+        radius_p = atoms.get_array("radius")
+        v_pc = state.v_pc if state.v_pc is not None else np.zeros_like(state.r_pc)
+        out = SOFT_SPHERES.compute(state.nlist, state.r_pc, params=(p.k, p.gamma), inputs=(radius_p, v_pc),
                                    reach=2.0 * radius_p.max())
-        self.results.update(energy=out.energies.sum(), free_energy=out.energies.sum(), energies=out.energies,
-                            forces=out.forces)
+        results = dict(energy=out.energies.sum(), energies=out.energies, forces=out.forces)
         if atoms.cell.rank == 3 and atoms.pbc.all():
             v = out.virial
-            self.results["stress"] = np.array([v[0], v[1], v[2], v[3], v[4], v[5]]) / atoms.get_volume()
+            results["stress"] = np.array([v[0], v[1], v[2], v[3], v[4], v[5]]) / atoms.get_volume()
+        return results
 
 
 # -- references --------------------------------------------------------------------------------------

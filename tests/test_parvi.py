@@ -92,7 +92,7 @@ def test_calculator_rejects_bad_atoms_and_parameters():
     atoms = _atoms(2, 10)
     atoms.positions[3, 2] = 0.1
     with pytest.raises(ValueError, match="beyond axis 1"):
-        ParVICalculator(score=target.score).get_forces(atoms)
+        ParVICalculator(score=target.score, dim=2).get_forces(atoms)  # dim=None would infer 3D
     with pytest.raises(ValueError, match="open space"):
         ParVICalculator(score=target.score).get_forces(Atoms("H4", positions=np.zeros((4, 3)), cell=np.eye(3) * 4,
                                                                pbc=[True, True, False]))

@@ -35,6 +35,7 @@ _WHERE = {
     "classify_bounded_pattern": ".bounded",
     "relax_circle": ".bounded",
     "alaric_min_error": ".alaric",
+    "pack_summary": ".bipi",
 }
 __all__ = sorted(_WHERE)
 _SUBMODULES = ("alaric", "bounded", "cell_filter", "lattice_sums", "pattern_cells", "pattern_prediction", "patterns",

@@ -8,7 +8,7 @@ splitting are the dynamics' (:class:`~ase_sphrelax.drivers.ALARICDynamics`).
 from __future__ import annotations
 
 import numpy as np
-from ase.calculators.calculator import PropertyNotImplementedError, all_changes
+from ase.calculators.calculator import PropertyNotImplementedError
 
 from .. import sph
 from ..checks import check_positive
@@ -29,7 +29,9 @@ class ALARICCalculator(SPHCalculator):
     ----------
     target_density : callable
         ``rho*``: vectorised ``(N, dim) -> (N,)``, finite and ``>= 0``, not zero everywhere.
-    dim : {1, 2, 3}
+    dim : {1, 2, 3} or None
+        None (default): the domain's, else inferred from the Atoms (:func:`ase_sphrelax.checks.resolve_dim`;
+        1D atoms lie on the x axis, e.g. with ``atoms.info["dim"] = 1``).
     target_gradient : callable or None
         ``grad rho*``: ``(N, dim) -> (N, dim)``; None uses central differences of ``target_density``
         (step ``fd_step``; the forces are then the gradient up to that error).
@@ -48,7 +50,8 @@ class ALARICCalculator(SPHCalculator):
         potential ``U = sum_a m c_s^2 (rho_a - rho*(x_a))^2 / (2 rho_ref)`` (``rho_ref`` the mean target at
         the first evaluation), whose minimum is the paper's fixed point ``rho_a = rho*(x_a)``.
         ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
-        non-conservative (``energy`` is then the log potential, a monitor).
+        non-conservative: forces only (``energy`` raises PropertyNotImplementedError); the log
+        potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`).
     domain : Domain or None
         Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
     wall_length : float or None
@@ -77,11 +80,11 @@ class ALARICCalculator(SPHCalculator):
     """
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
-    default_parameters = dict(target_density=None, dim=1, target_gradient=None, mass=None, cs2=1.0,
+    default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
                               density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
-    def __init__(self, target_density=None, dim=1, **kwargs):
+    def __init__(self, target_density=None, dim=None, **kwargs):
         self.mass = None
         self.h_p = None
         self._skin = None
@@ -93,13 +96,17 @@ class ALARICCalculator(SPHCalculator):
 
     @property
     def conservative(self):
-        """True when the forces are the exact negative gradient of ``energy``."""
+        """True when the forces are the exact negative gradient of ``energy`` (forms "log" and "squares")."""
         return self.parameters.form in ("log", "squares")
+
+    def non_conservative_reason(self):
+        return f"form={self.parameters.form!r} (Eq. 29; its monitor, the log potential, is results['monitor'])"
 
     def _validate_parameters(self):
         super()._validate_parameters()
         p = self.parameters
-        self.target = model.Target(p.target_density, p.dim, p.target_gradient, check_positive("fd_step", p.fd_step))
+        model.Target(p.target_density, p.dim or "d", p.target_gradient)  # callables, before any evaluation
+        check_positive("fd_step", p.fd_step)
         p.mass = check_positive("mass", p.mass, allow_none=True)
         p.cs2 = check_positive("cs2", p.cs2)
         p.h_tol = check_positive("h_tol", p.h_tol)
@@ -113,41 +120,84 @@ class ALARICCalculator(SPHCalculator):
         if p.domain is not None:
             if not hasattr(p.domain, "phi_and_normal"):
                 raise TypeError(f"domain must be a Domain with phi_and_normal() or None, got {type(p.domain).__name__}")
-            if getattr(p.domain, "dim", p.dim) != p.dim:
+            if p.dim is not None and getattr(p.domain, "dim", p.dim) != p.dim:
                 raise ValueError(f"domain is {p.domain.dim}D but dim={p.dim}")
-        self.kernel = get_kernel(p.kernel, p.dim)
-        self.eta = sph.default_eta(self.kernel) if p.eta is None else p.eta
+        if p.origin is not None:
+            origin = np.asarray(p.origin, dtype=float).reshape(-1)
+            if not np.all(np.isfinite(origin)) or (p.dim is not None and origin.shape != (p.dim,)):
+                raise ValueError(f"origin must be {p.dim or 'dim'} finite numbers or None, got {p.origin!r}")
         self.mass = p.mass
         self.h_p = None
         self._skin = None
         self._floor = p.density_floor
         self._wall = p.wall_length
         self._rho_ref = None
-        self.origin = np.zeros(p.dim) if p.origin is None else np.asarray(p.origin, dtype=float).reshape(-1)
-        if self.origin.shape != (p.dim,) or not np.all(np.isfinite(self.origin)):
-            raise ValueError(f"origin must be {p.dim} finite numbers or None, got {p.origin!r}")
+        if p.dim is not None:
+            self.configure(p.dim)
+            self.dim = p.dim
 
+    def configure(self, dim):
+        """The target, kernel, eta and origin in ``dim`` dimensions."""
+        p = self.parameters
+        self.target = model.Target(p.target_density, dim, p.target_gradient, p.fd_step)
+        self.kernel = get_kernel(p.kernel, dim)
+        self.eta = sph.default_eta(self.kernel) if p.eta is None else p.eta
+        self.origin = np.zeros(dim) if p.origin is None else np.asarray(p.origin, dtype=float).reshape(-1)
+        if self.origin.shape != (dim,):
+            raise ValueError(f"origin must be {dim} finite numbers or None (the atoms are {dim}D), got {p.origin!r}")
+        self.h_p = None
+
+    # -- public controls for the dynamics (ALARICDynamics) ----------------------------------------------
     def set_mass(self, mass):
         """Change the equal particle mass (Eq. 44 reset) keeping H and the neighbour list."""
         self.mass = check_positive("mass", mass)
         self.reset()
 
-    def _check_atoms(self, atoms):
-        d = self.parameters.dim
-        r = atoms.positions
-        if d < 3 and np.any(r[:, d:] != 0.0):
-            bad = np.nonzero(np.any(r[:, d:] != 0.0, axis=1))[0]
-            raise ValueError(f"dim={d} but particles {bad[:10].tolist()} have non-zero coordinates beyond axis {d - 1}")
-        if d < 3 and np.any(atoms.pbc[d:]):
-            raise ValueError(f"dim={d} but pbc={atoms.pbc.tolist()} is periodic beyond axis {d - 1}")
-        n_min = self.eta**d / (self.kernel.sigma * self.kernel.f0)
-        if len(atoms) < n_min and not np.all(atoms.pbc[:d]):
+    def reset_smoothing_lengths(self, h_p):
+        """Start afresh on new particles (e.g. after splitting, Fig. 2): initial smoothing lengths ``h_p``
+        (one per particle), a new neighbour list and the mass by Eq. 44 at the next evaluation."""
+        h_p = np.asarray(h_p, dtype=float)
+        if h_p.ndim != 1 or not np.all(np.isfinite(h_p)) or np.any(h_p <= 0):
+            raise ValueError("h_p must be finite smoothing lengths > 0, one per particle")
+        self.h_p = h_p
+        self.mass = self.parameters.mass
+        self._skin = None
+        self.forget_neighbours()
+
+    def viscous_forces(self, v_pc, alpha_p, v_sig):
+        """Artificial viscosity (Eq. 35) at the last evaluated positions: ``(forces (N, 3), div v (N,))``.
+
+        ``v_pc`` velocities (N, 3), ``alpha_p`` the switches (Eq. 19-20), ``v_sig`` the signal speed.
+        """
+        res = self.results
+        if "smoothing_lengths" not in res:
+            raise RuntimeError("viscous_forces: evaluate the forces first (atoms.get_forces())")
+        return sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
+                                    res["density"], alpha_p, v_sig, self.kernel)
+
+    # -- the contract's hooks ---------------------------------------------------------------------------
+    def check_atoms(self, atoms, dim, properties):
+        if "stress" in properties and not (np.all(atoms.pbc[:dim]) and atoms.cell.rank == 3):
+            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes (rank 3: give a 2D cell "
+                                              "a c vector) and a conservative form (log or squares)")
+        n_min = self.eta**dim / (self.kernel.sigma * self.kernel.f0)
+        if len(atoms) < n_min and not np.all(atoms.pbc[:dim]):
             raise ValueError(f"ALARIC needs more than {n_min:.3g} particles (eta^d / (sigma f(0)) kernel neighbours "
                              f"with eta={self.eta}) in an open system, got {len(atoms)}")
+        if self.h_p is None or len(self.h_p) != len(atoms):
+            h0 = sph.initial_smoothing_length(atoms.positions, atoms.cell.array, atoms.pbc, dim, self.eta)
+            self.h_p = np.full(len(atoms), h0)
+            self._skin = None
+        if self._skin is None:  # fixed from the first evaluation: a skin that follows H would rebuild every step
+            p = self.parameters
+            self._skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
+
+    def cutoff(self, atoms, dim):
+        return self.h_p, self._skin
 
     def points(self, r_pc, atoms):
         """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""
-        d = self.parameters.dim
+        d = self.dim if atoms is self.atoms else self.use_dim(atoms)  # in evaluate: resolved already
         if np.any(atoms.pbc[:d]):
             # elementwise products, not a BLAS solve or matmul: those cost 30 ms at 1e5 particles
             # on a loaded 2-core machine (BLAS threads), 30 times more than this
@@ -164,17 +214,10 @@ class ALARICCalculator(SPHCalculator):
             return out
         return np.ascontiguousarray(r_pc[:, :d] + self.origin)
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        super().calculate(atoms, properties, system_changes)
+    def evaluate(self, st, properties):
         p = self.parameters
-        atoms = self.atoms
+        atoms, d, n = st.atoms, st.dim, len(st.r_pc)
         want_stress = "stress" in properties
-        if want_stress and not (np.all(atoms.pbc[: p.dim]) and atoms.cell.rank == 3 and self.conservative):
-            raise PropertyNotImplementedError("stress needs a cell periodic along all dim axes (rank 3: give a 2D cell "
-                                              "a c vector) and a conservative form (log or squares)")
-        self._check_atoms(atoms)
-        n = len(atoms)
-        d = p.dim
         # the target first: bad targets fail before any SPH work
         x_pd = self.points(atoms.positions, atoms)
         target_p = self.target.values(x_pd)
@@ -183,14 +226,7 @@ class ALARICCalculator(SPHCalculator):
             if top <= 0.0:
                 raise ValueError("target_density is zero at every particle")
             self._floor = FLOOR * top
-        if self.h_p is None or len(self.h_p) != n:
-            h0 = sph.initial_smoothing_length(atoms.positions, atoms.cell.array, atoms.pbc, d, self.eta)
-            self.h_p = np.full(n, h0)
-            self._skin = None
-        if self._skin is None:  # fixed from the first evaluation: a skin that follows H would rebuild every step
-            self._skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
-        r_pc, pbc = self.prepare(atoms, self.h_p, self._skin)
-        state = sph.solve_smoothing_lengths(self.nlist, r_pc, atoms.cell.array, pbc, 1.0, self.kernel, eta=self.eta,
+        state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
                                             h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1)
         self.h_p = state.h_p
         n_p = state.n_p  # unit masses: rho = n
@@ -214,18 +250,16 @@ class ALARICCalculator(SPHCalculator):
             phi_p = np.asarray(phi_p, dtype=float)
             energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
             wall_p = (phi_p, np.asarray(normal_pc, dtype=float))
-        self.results["energies"] = energies_p
-        self.results["energy"] = self.results["free_energy"] = float(energies_p.sum())
-        self.results["density"] = rho_p
-        self.results["number_density"] = n_p
-        self.results["smoothing_lengths"] = state.h_p
-        self.results["omega"] = state.omega_p
-        self.results["target"] = target_p
-        self.results["epsilon"] = model.epsilon(rho_p, target_p, n_p)
+        out = dict(density=rho_p, number_density=n_p, smoothing_lengths=state.h_p, omega=state.omega_p,
+                   target=target_p, epsilon=model.epsilon(rho_p, target_p, n_p))
+        if self.conservative:
+            out.update(energies=energies_p, energy=float(energies_p.sum()))
+        else:
+            out["monitor"] = float(energies_p.sum())  # the log potential, a monitor of the paper's form
         self.state = state
         if "forces" in properties or want_stress:
-            f_pc, f_ext_pc, virial = self._forces(r_pc, x_pd, state, target_p, wall_p, want_stress)
-            self.results["forces"] = f_pc
+            f_pc, f_ext_pc, virial = self._forces(st.r_pc, x_pd, state, target_p, wall_p, want_stress)
+            out["forces"] = f_pc
             if want_stress:
                 # dU/d(strain): the pair virial plus -sum F_ext (x) x for the position-dependent terms, with x
                 # the wrapped position that the strain scales (the target sees origin + x)
@@ -234,7 +268,8 @@ class ALARICCalculator(SPHCalculator):
                 d_e = virial - f_ext_pc.T @ x_w
                 d_e = 0.5 * (d_e + d_e.T)
                 stress_cc = d_e / atoms.get_volume()
-                self.results["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
+                out["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
+        return out
 
     def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False):
         """(forces, the position-dependent (target and wall) part of them, pair virial)."""
@@ -256,15 +291,15 @@ class ALARICCalculator(SPHCalculator):
             above = target_p > self._floor
             if np.any(above):
                 sel = slice(None) if np.all(above) else above  # the usual case, all above: views, no masked copies
-                f_ext_pc[sel, : p.dim] = (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
+                f_ext_pc[sel, : self.dim] = (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
         elif p.form == "squares":
             grad_pd = self.target.gradients(x_pd)
-            f_ext_pc[:, : p.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
+            f_ext_pc[:, : self.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
             phi_p, normal_pc = wall_p
             outside = phi_p > 0.0
             f_ext_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
         f_pc += f_ext_pc
-        f_pc[:, p.dim:] = 0.0
-        f_ext_pc[:, p.dim:] = 0.0
+        f_pc[:, self.dim:] = 0.0
+        f_ext_pc[:, self.dim:] = 0.0
         return f_pc, f_ext_pc, virial

@@ -1,22 +1,32 @@
-"""Shared plumbing for the SPH relaxation calculators.
+"""The one calculator contract of the package (ARCHITECTURE.md, "Adding a method").
 
-:class:`SPHCalculator` validates parameters (ASE's ``Calculator.set`` would
-store unknown keywords silently), validates Atoms before any work, resolves
-their dimension by the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`: a
-mismatch is an error, never a silent projection) and keeps one Verlet neighbour list per
-calculator. Method calculators (Fan, BIPI, ALARIC, SPH-ParVI) subclass it.
+:meth:`SPHCalculator.calculate` does the shared steps for every method, in one place:
+parameter checks (ASE's ``Calculator.set`` would store unknown keywords silently), Atoms
+checks, the dimension by the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`:
+``dim=None`` infers it, a mismatch is an error, never a silent projection), the neighbour
+list (:meth:`SPHCalculator.prepare`), the refusal of an energy for non-conservative forces,
+``free_energy = energy``, the force-scale hint and storing the results. A method supplies its
+model's evaluation, :meth:`SPHCalculator.evaluate` (an :class:`EvaluationState` in, the
+requested properties out), and a few small hooks. Method calculators (Fan, BIPI, ALARIC,
+SPH-ParVI, Fan in LAMMPS) subclass it.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
-from ase.calculators.calculator import Calculator, Parameters, all_changes
+from ase.calculators.calculator import Calculator, Parameters, PropertyNotImplementedError, all_changes
 
 from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
 
-__all__ = ["SPHCalculator", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX"]
+__all__ = ["SPHCalculator", "EvaluationState", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX",
+           "ENERGY_PROPERTIES"]
+
+#: what a non-conservative calculator refuses: its forces are not minus the gradient of any energy
+ENERGY_PROPERTIES = ("energy", "free_energy", "energies", "stress")
 
 
 def periodic_measure(cell, pbc, dim):
@@ -59,30 +69,85 @@ def _equal(a, b):
     return _same_values(a, b)
 
 
-class SPHCalculator(Calculator):
-    """Base class: parameter checking, Atoms checking and the neighbour list.
+@dataclass
+class EvaluationState:
+    """What :meth:`SPHCalculator.evaluate` receives: the checked Atoms, in the resolved dimension.
 
-    Subclasses define ``default_parameters``, ``_validate_parameters()`` and
-    ``calculate()``, and call :meth:`prepare` at the start of ``calculate``; the
-    pair sums (:mod:`ase_sphrelax.pairs`) then run over ``self.nlist``, whatever its state.
+    Attributes
+    ----------
+    atoms : ase.Atoms
+        The calculator's copy of the Atoms (read only).
+    dim : int
+        1, 2 or 3, by :func:`ase_sphrelax.checks.resolve_dim`.
+    r_pc : ndarray (N, 3)
+        Positions, zero beyond ``dim`` (may be ``atoms.positions`` itself: do not modify).
+    pbc : ndarray (3,) of bool
+        Periodicity, False beyond ``dim``.
+    cell : ndarray (3, 3)
+    nlist : NeighborList or None
+        ``self.nlist`` updated for :meth:`SPHCalculator.cutoff`; None when the method keeps its own.
+    v_pc : ndarray (N, 3) or None
+        Velocities, for ``velocity_dependent`` calculators with momenta set; else None.
+    first : bool
+        The first evaluation since construction or :meth:`~SPHCalculator.set` (one-shot list).
+    """
+
+    atoms: object
+    dim: int
+    r_pc: np.ndarray
+    pbc: np.ndarray
+    cell: np.ndarray
+    nlist: object
+    v_pc: np.ndarray
+    first: bool
+
+
+class SPHCalculator(Calculator):
+    """Base class: the shared steps of every method's ``calculate``.
+
+    A method supplies (ARCHITECTURE.md, "Adding a method"):
+
+    * ``default_parameters`` with ``dim=None`` (inferred from the Atoms) and
+      ``implemented_properties``;
+    * ``_validate_parameters()``: reject bad input at construction and ``set()`` (call super);
+    * ``configure(dim)`` (optional): build what depends on the dimension (a model, a kernel),
+      called when the resolved dimension is first known or changes;
+    * ``check_atoms(atoms, dim, properties)`` (optional): the method's own rules (open space,
+      particle count, stress needs a periodic cell), after the shared ones (not empty, finite,
+      :meth:`resolve_dim`);
+    * ``cutoff(atoms, dim)``: ``(cutoff, skin)`` of the neighbour list (a number or one per
+      particle), or None when the model keeps its own list;
+    * ``evaluate(state, properties)``: the model's evaluation (:class:`EvaluationState` in,
+      a dict of results out, holding at least the requested properties);
+    * ``conservative`` (a class attribute or a property) and ``velocity_dependent``.
+
+    Non-conservative forms (``conservative`` False) compute forces only: asking for
+    ``energy``, ``free_energy``, ``energies`` or ``stress`` raises ASE's
+    :class:`~ase.calculators.calculator.PropertyNotImplementedError`, and a method's monitor
+    quantity, if any, is the separate result ``"monitor"`` (:meth:`monitor`).
 
     Class attributes
     ----------------
+    conservative : bool
+        True when the forces (and stress) are exact derivatives of the reported energy.
     velocity_dependent : bool
         True for forces that depend on the momenta (viscosity, friction): then
         :meth:`check_state` compares momenta too, so that a velocity change is never
-        served from the cache.
+        served from the cache, and :class:`EvaluationState` carries the velocities.
     """
 
     nolabel = True
     default_parameters: dict = {}
     velocity_dependent = False
+    conservative = True
 
     def __init__(self, **kwargs):
         self._check_keys(kwargs)
         self.nlist = None
         self._evaluations = 0
         self._valid = False
+        self._scale_hinted = False
+        self.dim = None
         Calculator.__init__(self, **kwargs)
         self._validate_parameters()
         self._valid = True
@@ -91,6 +156,11 @@ class SPHCalculator(Calculator):
     def pairs(self):
         """The neighbour list of the last :meth:`prepare` (an alias of ``nlist``)."""
         return self.nlist
+
+    @property
+    def evaluations(self):
+        """Evaluations since construction, :meth:`set` or :meth:`forget_neighbours` (the first is one-shot)."""
+        return self._evaluations
 
     def todict(self, skip_default=True):
         """Parameters for ASE's trajectory and JSON writers.
@@ -126,6 +196,7 @@ class SPHCalculator(Calculator):
         before = Parameters(self.parameters)
         changed = Calculator.set(self, **kwargs)
         if changed:
+            self.dim = None  # configure() again at the next evaluation
             try:
                 self._validate_parameters()
             except Exception:
@@ -133,9 +204,7 @@ class SPHCalculator(Calculator):
                 if self._valid:  # derived state (models, kernels) back to the old parameters
                     self._validate_parameters()
                 raise
-            self.reset()  # ASE keeps results on set() unless told otherwise
-            self.nlist = None
-            self._evaluations = 0
+            self.forget_neighbours()  # and the results: ASE keeps them on set() unless told otherwise
         return changed
 
     def _validate_parameters(self):
@@ -144,13 +213,63 @@ class SPHCalculator(Calculator):
         if "kernel" in p and p.kernel not in KERNEL_NAMES:
             raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {p.kernel!r}")
 
+    # -- public controls for drivers ----------------------------------------------------------
+    def forget_neighbours(self):
+        """Discard the neighbour list and the results: the next evaluation starts one-shot (e.g.
+        after the particles were split or replaced)."""
+        self.nlist = None
+        self._evaluations = 0
+        self.reset()
+
+    def clone(self):
+        """A fresh calculator of the same class and parameters (no results, no neighbour list)."""
+        return type(self)(**self.parameters)
+
+    def validate_atoms(self, atoms):
+        """Every check of an evaluation on ``atoms`` (shared and the method's), without evaluating; returns dim."""
+        dim = self.use_dim(atoms)
+        self.check_atoms(atoms, dim, ())
+        return dim
+
+    def silence_scale_hint(self):
+        """No :class:`SPHScaleWarning` from this calculator: a driver that scales its steps runs it."""
+        self._scale_hinted = True
+
+    def monitor(self, atoms=None):
+        """The method's monitor quantity (result ``"monitor"``; e.g. ALARIC's log potential in the
+        paper's non-conservative form), computed with the forces; None when the method has none."""
+        if atoms is not None or "monitor" not in self.results:
+            self.get_forces(atoms)
+        return self.results.get("monitor")
+
+    # -- the hooks of a method ------------------------------------------------------------------
+    def configure(self, dim):
+        """Build what depends on the dimension (models, kernels); called when ``dim`` is first
+        resolved or changes. Default: nothing."""
+
+    def check_atoms(self, atoms, dim, properties):
+        """The method's own rules on ``atoms`` and the requested ``properties`` (e.g. stress needs a
+        periodic cell), after the shared ones; raise a one-line error before any work. Default: none."""
+
+    def cutoff(self, atoms, dim):
+        """``(cutoff, skin)`` of ``self.nlist`` for this evaluation, or None (the model keeps its own list)."""
+        raise NotImplementedError(f"{type(self).__name__} must define cutoff(atoms, dim)")
+
+    def evaluate(self, state, properties):
+        """The model's evaluation: a dict with (at least) the requested ``properties``."""
+        raise NotImplementedError(f"{type(self).__name__} must define evaluate(state, properties)")
+
+    def non_conservative_reason(self):
+        """Why the forces are not a gradient (for the PropertyNotImplementedError of the energy)."""
+        return f"{type(self).__name__} with these parameters"
+
     # -- per-call preparation ---------------------------------------------------
     def resolve_dim(self, atoms):
         """The dimension of ``atoms`` for this calculator: ``parameters.dim`` (None: inferred) checked
         against the atoms and ``parameters.domain`` by :func:`ase_sphrelax.checks.resolve_dim`.
 
-        Every calculator calls it (directly or through :meth:`prepare`) before any work: 3D atoms
-        with ``dim=2``, 2D atoms with ``dim=3`` and 2D atoms off z = 0 are one-line errors.
+        :meth:`calculate` calls it before any work: 3D atoms with ``dim=2``, 2D atoms with
+        ``dim=3`` and 2D atoms off z = 0 are one-line errors.
         """
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
@@ -160,6 +279,14 @@ class SPHCalculator(Calculator):
         p = self.parameters
         return resolve_dim(atoms, p.get("dim"), p.get("domain"))
 
+    def use_dim(self, atoms):
+        """Resolve the dimension of ``atoms`` and :meth:`configure` the method for it; returns it."""
+        dim = self.resolve_dim(atoms)
+        if dim != self.dim:
+            self.configure(dim)
+            self.dim = dim
+        return dim
+
     def prepare(self, atoms, cutoff, skin, dim=None):
         """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
@@ -168,6 +295,7 @@ class SPHCalculator(Calculator):
         scan); the Verlet list is built from the second evaluation on, when it can be
         reused. ``dim`` is the result of :meth:`resolve_dim` (None: resolved here); the
         coordinates beyond it are zero and not periodic, or :meth:`resolve_dim` raised.
+        ``cutoff`` None: no list (the model keeps its own).
 
         ``r_pc`` is ``atoms.positions`` itself when no coordinate needs zeroing (2D atoms at
         z = 0, 3D): do not modify it in place.
@@ -179,9 +307,10 @@ class SPHCalculator(Calculator):
             r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
-        if self.nlist is None or self.nlist.skin != skin:
-            self.nlist = NeighborList(cutoff, skin=skin)
-        self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
+        if cutoff is not None:
+            if self.nlist is None or self.nlist.skin != skin:
+                self.nlist = NeighborList(cutoff, skin=skin)
+            self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
         self._evaluations += 1
         return r_pc, pbc
 
@@ -190,9 +319,10 @@ class SPHCalculator(Calculator):
 
         A user who follows ASE's habits (``FIRE(atoms).run(fmax=0.05)``) would otherwise get an
         unrelaxed result without a word (issue 10 item 8). The message is constant, so Python
-        shows it once per place; silence it with ``warnings.simplefilter("ignore", SPHScaleWarning)``.
+        shows it once per place; silence it with ``warnings.simplefilter("ignore", SPHScaleWarning)``
+        or, for one calculator, :meth:`silence_scale_hint`.
         """
-        if getattr(self, "_scale_hinted", False):
+        if self._scale_hinted:
             return
         self._scale_hinted = True
         f_max = float(np.sqrt((np.asarray(f_pc) ** 2).sum(axis=1)).max()) if len(f_pc) else 0.0
@@ -228,4 +358,32 @@ class SPHCalculator(Calculator):
         return changes
 
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
+        """The shared steps, then :meth:`evaluate` (class docstring): checks, dimension, list, results."""
         Calculator.calculate(self, atoms, properties, system_changes)
+        atoms = self.atoms
+        if not self.conservative:
+            refused = [name for name in properties if name in ENERGY_PROPERTIES]
+            if refused:
+                raise PropertyNotImplementedError(
+                    f"{refused[0]} needs a conservative form: {self.non_conservative_reason()} is not a gradient "
+                    "system (non-conservative forces; forces only)")
+        dim = self.use_dim(atoms)  # not empty, finite, the dimension rule
+        self.check_atoms(atoms, dim, properties)
+        reach = self.cutoff(atoms, dim)
+        cutoff, skin = (None, None) if reach is None else reach
+        first = self._evaluations == 0
+        r_pc, pbc = self.prepare(atoms, cutoff, skin, dim=dim)
+        v_pc = None
+        if self.velocity_dependent and atoms.has("momenta"):
+            v_pc = atoms.get_velocities()
+        state = EvaluationState(atoms=atoms, dim=dim, r_pc=r_pc, pbc=pbc, cell=atoms.cell.array,
+                                nlist=None if cutoff is None else self.nlist, v_pc=v_pc, first=first)
+        results = self.evaluate(state, properties)
+        f_pc = results.get("forces")
+        if f_pc is not None:
+            f_pc[:, dim:] = 0.0
+            if "forces" in properties:
+                self.hint_force_scale(f_pc)
+        if "energy" in results:
+            results["free_energy"] = results["energy"]
+        self.results.update(results)

@@ -16,7 +16,6 @@ The pair sums ``sum_b W_ab`` and ``sum_b grad_a W_ab`` run through
 from __future__ import annotations
 
 import numpy as np
-from ase.calculators.calculator import all_changes
 
 from ..boundary import BoundaryIntegrals, as_boundary
 from ..boundary.gamma import BAND_RULES
@@ -100,39 +99,43 @@ class BIPICalculator(SPHCalculator):
             # elements (AirFoilFluid: 5224 -> 686); only the "centroid" rule depends on the elements
             elements = boundary.polygon.segments
         self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
+        self._boundary_pairs = None
 
-    def _check_atoms(self, atoms):
-        dim = self.model.dim
-        if dim == 2 and len(atoms) and np.any(atoms.positions[:, 2] != 0.0):
-            raise ValueError("atoms: a 2D boundary needs particles at z = 0 (dimension mismatch; got z != 0)")
+    def check_atoms(self, atoms, dim, properties):
         if np.any(atoms.pbc[:dim]):
             raise ValueError(f"atoms.pbc must be False along the {dim} axes of a bounded BIPI domain, got {atoms.pbc}")
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        super().calculate(atoms, properties, system_changes)
+    def cutoff(self, atoms, dim):
+        return self.model.h, self.skin
+
+    def evaluate(self, state, properties):
         model = self.model
-        atoms = self.atoms
-        self._check_atoms(atoms)
-        r_pc, _ = self.prepare(atoms, model.h, self.skin)
-        terms = self.integrals.compute(self.nlist, r_pc, band=model.band, band_rule=self.parameters.band_rule)
+        terms = self.integrals.compute(state.nlist, state.r_pc, band=model.band, band_rule=self.parameters.band_rule)
         gamma_p, grad_gamma_pc = terms.gamma_p, terms.grad_gamma_pc
-        self.results.update(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
-        self.boundary_terms = terms
+        self._boundary_pairs = terms.pairs
+        out = dict(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
         if set(properties) <= {"gamma", "grad_gamma", "wall_gradient"}:
-            return
-        sums = kernel_sums(self.nlist, r_pc, model.h, model.kernel)
+            return out
+        sums = kernel_sums(state.nlist, state.r_pc, model.h, model.kernel)
         energies_p = model.energies(sums.w_p, gamma_p)
         gradient_pc = model.gradient(sums.grad_pc, grad_gamma_pc)
-        self.results.update(energy=float(energies_p.sum()), energies=energies_p, forces=-gradient_pc)
-        self.results["free_energy"] = self.results["energy"]
+        out.update(energy=float(energies_p.sum()), energies=energies_p, forces=-gradient_pc)
         empty = np.nonzero(gamma_p <= 0.0)[0]
         if len(empty):
             if {"concentration", "concentration_gradient"} & set(properties):
                 raise ValueError(f"particles {empty[:10].tolist()} lie more than h outside the boundary (gamma = 0): "
                                  "their concentration C_a is undefined")
-            return  # C and grad C are not stored: asking for them later raises
-        self.results["concentration"] = model.concentration(sums.w_p, gamma_p)
-        self.results["concentration_gradient"] = gradient_pc / gamma_p[:, None]
+            return out  # C and grad C are not stored: asking for them later raises
+        out["concentration"] = model.concentration(sums.w_p, gamma_p)
+        out["concentration_gradient"] = gradient_pc / gamma_p[:, None]
+        return out
+
+    def boundary_distances(self, atoms=None):
+        """Distance from each particle to its nearest boundary element within the kernel support (inf
+        beyond), from the last evaluation (``atoms`` given: evaluated for them first)."""
+        if atoms is not None or self._boundary_pairs is None:
+            self.get_property("gamma", atoms)
+        return self._boundary_pairs.nearest_distance()
 
     # -- convenience ------------------------------------------------------------------
     def get_gamma(self, atoms=None):

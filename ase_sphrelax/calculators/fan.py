@@ -17,8 +17,6 @@ exact strain derivative of ``E`` divided by the cell volume, including the
 """
 from __future__ import annotations
 
-from ase.calculators.calculator import all_changes
-
 from ..kernel_sums import pair_potential_sums
 from ..models.fan import FanModel, verlet_skin
 from .base import SPHCalculator, periodic_measure
@@ -73,10 +71,13 @@ class FanCalculator(SPHCalculator):
         self.skin = verlet_skin(self.parameters.skin, self.model.h)  # None: 0.1 h of the current h
         self.kernel = self.model.kernel
 
+    def configure(self, dim):
+        self.model = self.model.with_dim(dim)
+        self.kernel = self.model.kernel
+
     def model_for(self, atoms):
         """The :class:`~ase_sphrelax.models.fan.FanModel` in the dimension of ``atoms`` (:meth:`resolve_dim`)."""
-        self.model = self.model.with_dim(self.resolve_dim(atoms))
-        self.kernel = self.model.kernel
+        self.use_dim(atoms)
         return self.model
 
     def volumes(self, atoms):
@@ -84,18 +85,20 @@ class FanCalculator(SPHCalculator):
         model = self.model_for(atoms)
         return model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
 
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        super().calculate(atoms, properties, system_changes)
-        atoms = self.atoms
-        model = self.model_for(atoms)
+    def check_atoms(self, atoms, dim, properties):
+        if "stress" in properties:
+            self.model.check_stress(self.volumes(atoms), atoms.cell.volume)
+
+    def cutoff(self, atoms, dim):
+        return self.model.h, self.skin
+
+    def evaluate(self, state, properties):
+        model, r_pc = self.model, state.r_pc
+        vols = model.volumes(len(r_pc), periodic_measure(state.cell, state.atoms.pbc, state.dim))
         want_stress = "stress" in properties
-        vols = model.volumes(len(atoms), periodic_measure(atoms.cell.array, atoms.pbc, model.dim))
-        if want_stress:
-            model.check_stress(vols, atoms.cell.volume)
-        r_pc, _ = self.prepare(atoms, model.h, self.skin, dim=model.dim)
-        n = len(atoms)
+        n = len(r_pc)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
-        pair_e_p, f_pc, virial = pair_potential_sums(self.pairs, r_pc, model.h, model.pair_prefactor(vols.v0),
+        pair_e_p, f_pc, virial = pair_potential_sums(state.nlist, r_pc, model.h, model.pair_prefactor(vols.v0),
                                                      model.kernel, want_virial=want_stress)
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
         energies_p += model.self_energy(n, vols.v0, vols.volume) / n
@@ -103,15 +106,10 @@ class FanCalculator(SPHCalculator):
             boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
             energies_p += boundary_e_p
             f_pc += boundary_f_pc
-            if self._evaluations == 1:  # the first evaluation of these atoms: say so if some are far outside
+            if state.first:  # the first evaluation of these atoms: say so if some are far outside
                 model.warn_far_outside(r_pc, type(self).__name__)
-        f_pc[:, model.dim:] = 0.0
         energy = float(energies_p.sum())
-        self.results["energy"] = energy
-        self.results["free_energy"] = energy
-        self.results["energies"] = energies_p
-        self.results["forces"] = f_pc
-        if "forces" in properties:
-            self.hint_force_scale(f_pc)
+        out = dict(energy=energy, energies=energies_p, forces=f_pc)
         if want_stress:
-            self.results["stress"] = model.stress(virial, energy, vols, atoms.cell.volume)
+            out["stress"] = model.stress(virial, energy, vols, state.atoms.cell.volume)
+        return out

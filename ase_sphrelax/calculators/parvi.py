@@ -19,7 +19,7 @@ calculator compares momenta when deciding whether a result is cached.
 from __future__ import annotations
 
 import numpy as np
-from ase.calculators.calculator import PropertyNotImplementedError, all_changes
+from ase.calculators.calculator import PropertyNotImplementedError
 
 from ..checks import check_positive
 from ..models.parvi import CountingTarget, ParVIModel
@@ -36,7 +36,8 @@ class ParVICalculator(SPHCalculator):
     log_density, score : callable or None
         Vectorised ``(M, d) -> (M,)`` and ``(M, d) -> (M, d)``; a missing score is computed
         by central differences of ``log_density`` (counted in :attr:`evaluations`).
-    dim : {1, 2, 3}
+    dim : {1, 2, 3} or None
+        None (default): inferred from the Atoms (:func:`ase_sphrelax.checks.resolve_dim`).
     formulation : {"force", "pressure-log", "pressure-inverse"}
     eos : {"isothermal", "tait"}
     alpha, c0, rho0, gamma, kernel, h, n_neighbours, viscosity, viscosity_alpha, nu, regularisation, eps, mass
@@ -45,21 +46,33 @@ class ParVICalculator(SPHCalculator):
 
     implemented_properties = ["energy", "free_energy", "forces", "densities"]
     velocity_dependent = True
-    default_parameters = dict(log_density=None, score=None, dim=2, formulation="force", eos="isothermal", alpha=1.0,
+    default_parameters = dict(log_density=None, score=None, dim=None, formulation="force", eos="isothermal", alpha=1.0,
                               c0=None, rho0=None, gamma=7.0, kernel="wendland_c2", h="adaptive", n_neighbours=None,
                               viscosity="linear", viscosity_alpha=0.1, nu=0.05, regularisation=0.0, eps=1e-10,
                               mass=None)
 
     def _validate_parameters(self):
         super()._validate_parameters()
+        self.model = None
+        # validates every parameter; with dim=None, 2 until the first Atoms (configure rebuilds it)
+        self.model = self._model(self.parameters.dim or 2)
+        self.dim = self.parameters.dim
+
+    def _model(self, dim):
         p = self.parameters
-        target = CountingTarget(p.log_density, p.score, p.dim)
+        target = CountingTarget(p.log_density, p.score, dim)
         alpha = check_positive("alpha", p.alpha)
-        self.model = ParVIModel(target, p.dim, formulation=p.formulation, eos=p.eos, alpha=alpha,
-                                c0=float(np.sqrt(alpha)) if p.c0 is None else p.c0, rho0=p.rho0, gamma=p.gamma,
-                                kernel=p.kernel, h=p.h,
-                                n_neighbours=p.n_neighbours, viscosity=p.viscosity, viscosity_alpha=p.viscosity_alpha,
-                                nu=p.nu, regularisation=p.regularisation, eps=p.eps, mass=p.mass)
+        return ParVIModel(target, dim, formulation=p.formulation, eos=p.eos, alpha=alpha,
+                          c0=float(np.sqrt(alpha)) if p.c0 is None else p.c0, rho0=p.rho0, gamma=p.gamma,
+                          kernel=p.kernel, h=p.h, n_neighbours=p.n_neighbours, viscosity=p.viscosity,
+                          viscosity_alpha=p.viscosity_alpha, nu=p.nu, regularisation=p.regularisation, eps=p.eps,
+                          mass=p.mass)
+
+    def configure(self, dim):
+        if self.model is None or self.model.dim != dim:
+            h_tol = self.model.h_tol
+            self.model = self._model(dim)
+            self.model.h_tol = h_tol
 
     @property
     def nlist(self):
@@ -78,44 +91,34 @@ class ParVICalculator(SPHCalculator):
         """True when the forces are minus the gradient of the reported energy."""
         return self.model.conservative
 
+    def non_conservative_reason(self):
+        m = self.model
+        return f"formulation={m.formulation!r} with density={m.density!r} and regularisation={m.regularisation}"
+
     @property
     def evaluations(self):
         """(density, score) evaluations so far, per particle."""
         return self.model.target.n_density, self.model.target.n_score
 
-    def _positions(self, atoms):
-        dim = self.parameters.dim
-        if atoms is None or len(atoms) < 2:
-            raise ValueError(f"atoms: SPH-ParVI needs at least 2 particles, got {0 if atoms is None else len(atoms)}")
-        r = np.asarray(atoms.positions, dtype=float)
-        if not np.all(np.isfinite(r)):
-            bad = np.nonzero(~np.all(np.isfinite(r), axis=1))[0]
-            raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
-        if np.any(r[:, dim:] != 0.0):
-            raise ValueError(f"atoms: dim={dim} but some particles have non-zero coordinates beyond axis {dim - 1}")
+    def check_atoms(self, atoms, dim, properties):
+        if len(atoms) < 2:
+            raise ValueError(f"atoms: SPH-ParVI needs at least 2 particles, got {len(atoms)}")
         if np.any(np.asarray(atoms.pbc)[:dim]):
             raise ValueError(f"atoms.pbc: ParVICalculator works in open space, got pbc={atoms.pbc.tolist()}")
-        return r[:, :dim]
-
-    def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
-        SPHCalculator.calculate(self, atoms, properties, system_changes)
-        r = self._positions(self.atoms)
-        v = None
-        if self.model.viscosity != "none" and self.atoms.has("momenta"):
-            masses = self.atoms.get_masses()
-            v = self.atoms.get_momenta()[:, : self.parameters.dim] / masses[:, None]
-        want_energy = "energy" in properties or "free_energy" in properties
-        if want_energy and not self.model.conservative:
-            raise PropertyNotImplementedError(
-                f"energy: formulation={self.model.formulation!r} with density={self.model.density!r} and "
-                f"regularisation={self.model.regularisation} is not a gradient system (non-conservative forces)")
-        if want_energy and not self.model.target.has_density:
+        if ({"energy", "free_energy"} & set(properties)) and not self.model.target.has_density:
             raise PropertyNotImplementedError("energy: needs log_density (only a score was given)")
-        ev = self.model.evaluate(r, v, want_energy=want_energy)
-        forces = np.zeros((len(self.atoms), 3))
-        forces[:, : self.parameters.dim] = ev.forces
-        self.results["forces"] = forces
-        self.results["densities"] = ev.rho
+
+    def cutoff(self, atoms, dim):
+        return None  # the model keeps its own list (a k-d tree beyond 3D)
+
+    def evaluate(self, state, properties):
+        d = state.dim
+        v = state.v_pc[:, :d] if state.v_pc is not None and self.model.viscosity != "none" else None
+        want_energy = "energy" in properties or "free_energy" in properties
+        ev = self.model.evaluate(np.ascontiguousarray(state.r_pc[:, :d]), v, want_energy=want_energy)
+        forces = np.zeros((len(state.r_pc), 3))
+        forces[:, :d] = ev.forces
+        out = dict(forces=forces, densities=ev.rho)
         if ev.energy is not None:
-            self.results["energy"] = ev.energy
-            self.results["free_energy"] = ev.energy
+            out["energy"] = ev.energy
+        return out

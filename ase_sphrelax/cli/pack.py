@@ -109,7 +109,8 @@ def run(args):
     from ase.io import write
 
     from ..analysis.quality import quality_summary
-    from ..drivers.bipi_packer import pack_summary, plot_gradient, plot_history
+    from ..analysis.bipi import pack_summary
+    from ..plotting import plot_concentration_gradient, plot_packing_history
     from .relax import _print_quality
 
     model = packer.model
@@ -125,10 +126,10 @@ def run(args):
     export = atoms.copy()
     export.set_constraint()
     write(out / "packed.extxyz", export, format="extxyz")
-    plot_gradient(atoms, packer.calc, out / "packed.png",
-                  title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
-                        f"2c {summary['iterations_2c']} iterations")
-    plot_history(packer.history, out / "history.png", title=path.name)
+    plot_concentration_gradient(atoms, packer.calc, out / "packed.png",
+                                title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
+                                      f"2c {summary['iterations_2c']} iterations")
+    plot_packing_history(packer.history, out / "history.png", title=path.name)
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
                    wall_time_s=wall)
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),

@@ -267,7 +267,7 @@ def run(args):
           f"v0 = {quality.v0:.6g} ({'dx^d' if args.particle_volume == 'dx' else 'V/N'}), method = {args.method}, "
           f"engine = {args.engine}, optimizer = {engine.describe(args)}")
     atoms.calc = calc
-    calc._scale_hinted = True  # the engines scale their optimisers: ASE's defaults are not in play
+    calc.silence_scale_hint()  # the engines scale their optimisers: ASE's defaults are not in play
     e_before = atoms.get_potential_energy()
     t_relax = time.perf_counter()
     relaxed, steps_done, stop_reason = engine.relax(atoms, scene, h, args)

@@ -90,8 +90,10 @@ class ALARICDynamics(MolecularDynamics):
                  mass_reset=True, eps_min=1e-8, eps_dot_min=1e-8, cfl=0.25, length=None, theta=0.1, alpha0=1.0,
                  alpha_max=1.0, seed=0, stage_steps=None, logfile=None, loginterval=1, trajectory=None,
                  progress=None):
+        from ..calculators.alaric import ALARICCalculator
+
         calc = atoms.calc
-        if calc is None or not hasattr(calc, "target"):
+        if not isinstance(calc, ALARICCalculator):
             raise TypeError("ALARICDynamics needs atoms with an ALARICCalculator attached")
         self.fixed_dt = check_positive("timestep", timestep, allow_none=True)
         if not (np.isfinite(friction) and friction >= 0):
@@ -114,7 +116,8 @@ class ALARICDynamics(MolecularDynamics):
         self._stage_start = 0
         self.progress = progress
         self.calc = calc
-        self.dim = calc.parameters.dim
+        calc.silence_scale_hint()  # the CFL step follows the forces: ASE's fmax is not in play
+        self.dim = calc.resolve_dim(atoms)
         self.cs = float(np.sqrt(calc.parameters.cs2))
         self.length = check_positive("length", length, allow_none=True)
         self._logfile_arg = logfile
@@ -134,7 +137,7 @@ class ALARICDynamics(MolecularDynamics):
     # -- set-up -----------------------------------------------------------------------------
     def _start_stage(self):
         atoms = self.atoms
-        self.calc.results.clear()
+        self.calc.reset()
         atoms.get_forces()  # solves H, sets the mass (Eq. 44) at the first call
         self.force_calls += 1
         self._sync_masses()
@@ -163,10 +166,8 @@ class ALARICDynamics(MolecularDynamics):
         f_pc = atoms.get_forces().copy()
         m = self.calc.mass
         if self.viscosity:
-            res = self.calc.results
             v_sig = max(self.cs, float(np.sqrt((v_pc**2).sum(axis=1)).max()))
-            f_visc, div_p = sph.viscosity_forces(self.calc.nlist, atoms.positions, v_pc, m, res["smoothing_lengths"],
-                                                 res["density"], self.alpha_p, v_sig, self.calc.kernel)
+            f_visc, div_p = self.calc.viscous_forces(v_pc, self.alpha_p, v_sig)
             f_pc += f_visc
             self.div_p = div_p
         a_pc = f_pc / m
@@ -278,11 +279,7 @@ class ALARICDynamics(MolecularDynamics):
         self.splits_left -= 1
         self.stage += 1
         self._stage_start = self.nsteps + 1
-        self.calc.h_p = new_h
-        self.calc.nlist = None
-        self.calc.mass = None  # Eq. 44 at the first evaluation of the new stage
-        self.calc._evaluations = 0
-        self.calc.reset()
+        self.calc.reset_smoothing_lengths(new_h)  # a new list; Eq. 44 at the first evaluation of the new stage
         length = self.length
         self._start_stage()
         self.length = length
@@ -430,7 +427,7 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
 
 
 def _target_and_n(calc, atoms):
-    atoms.get_potential_energy()
+    atoms.get_forces()
     return calc.results["target"], calc.results["number_density"]
 
 
@@ -448,6 +445,7 @@ def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None,
 
     squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
                                form="squares", domain=domain, origin=origin, mass=mass)
+    squares.silence_scale_hint()  # LBFGS below is scaled to the potential (alpha, maxstep)
     atoms.calc = squares
     atoms.set_velocities(np.zeros((len(atoms), 3)))
     atoms.get_forces()

@@ -30,7 +30,8 @@ position for that iteration; ``history`` counts them as ``rejected``): no partic
 
 ``history`` keeps, per iteration: stage, iteration, ``TPD_avg``, ``|grad C|_avg`` (packable),
 ``n_pack``, ``n_selected``, the iteration's wall time, rejected moves; :meth:`BIPIPacker.save`
-writes it as JSON and :func:`plot_history` draws it (Fig. 7-9).
+writes it as JSON and :func:`ase_sphrelax.plotting.plot_packing_history` draws it (Fig. 7-9);
+:func:`ase_sphrelax.analysis.bipi.pack_summary` adds the quality metrics.
 """
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ from ase.optimize.optimize import Optimizer
 
 from ..checks import check_positive
 
-__all__ = ["BIPIPacker", "initial_fill", "pack", "pack_summary", "plot_history", "plot_gradient", "STAGES"]
+__all__ = ["BIPIPacker", "initial_fill", "pack", "STAGES"]
 
 STAGES = ("2a", "2b", "2c")
 CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
@@ -150,7 +151,7 @@ class BIPIPacker(Optimizer):
         if outside not in ("raise", "move"):
             raise ValueError(f"outside must be 'raise' or 'move', got {outside!r}")
         self.progress = bool(progress)
-        calc._check_atoms(atoms)
+        calc.validate_atoms(atoms)
         self.moved_in = self._bring_inside(atoms, outside)
         Optimizer.__init__(self, atoms, logfile=logfile, trajectory=trajectory, **kwargs)
 
@@ -222,7 +223,7 @@ class BIPIPacker(Optimizer):
         selected[i[close & packable[j]]] = True
         self._sel = np.nonzero(selected)[0]
         sub = Atoms(positions=r[self._sel], cell=atoms.cell, pbc=atoms.pbc)
-        sub.calc = type(self.calc)(**self.calc.parameters)
+        sub.calc = self.calc.clone()
         self._sub = sub
         self._movable = packable[self._sel] & ~self._user_fixed(len(atoms))[self._sel]
         self._x0_sub = self.x0[self._sel]
@@ -249,10 +250,11 @@ class BIPIPacker(Optimizer):
     def _move(self, atoms, grad_c, x0, movable):
         """One Eq. 14-15 move of the movable particles; returns (TPD_avg after it, rejected moves)."""
         calc = atoms.calc
-        step = self.model.shift(grad_c, calc.results["wall_gradient"], calc.results["gamma"], self.pressure)
+        step = self.model.shift(grad_c, calc.get_property("wall_gradient", atoms), calc.get_property("gamma", atoms),
+                                self.pressure)
         step[~movable] = 0.0
         # a move can leave the domain only from closer than the cap: test those particles
-        near = calc.boundary_terms.pairs.nearest_distance() <= self.model.cap * (1 + 1e-12)
+        near = calc.boundary_distances() <= self.model.cap * (1 + 1e-12)
         check = np.nonzero(near & movable)[0]
         rejected = 0
         if len(check):
@@ -435,72 +437,6 @@ def pack(boundary, dx, h=None, h_over_dx_paper=None, kernel="wendland_c2", J=Non
     packer = BIPIPacker(atoms, calc, **packer_kwargs)
     packer.run()
     return atoms, packer, start
-
-
-def pack_summary(atoms, packer):
-    """Headline numbers of a packing: the packer's summary plus boundary layer, escapes, |grad C| drop
-    and the shared quality metrics of :mod:`ase_sphrelax.analysis.quality`."""
-    from ..analysis.quality import BOUNDARY_LAYER, quality_summary
-
-    model = packer.model
-    domain = packer.calc.boundary.domain
-    out = packer.summary()
-    d = -domain.phi(atoms.positions) / model.dx
-    layer = d < BOUNDARY_LAYER
-    final = packer.final_gradc_avg()
-    first = out.get("gradc_avg_2c_first", np.nan)
-    out.update(n_particles=len(atoms), h_over_dx=model.h / model.dx, n_outside=int(np.sum(d <= 0)),
-               boundary_layer_mean=float(d[layer].mean()) if layer.any() else float("nan"),
-               boundary_layer_min=float(d.min()), n_boundary_layer=int(layer.sum()), gradc_avg_final=final,
-               gradc_drop_orders=float(np.log10(first / final)) if final > 0 and np.isfinite(first) else float("nan"),
-               quality=quality_summary(atoms, model.h, dx=model.dx, domain=domain, dim=model.dim,
-                                       kernel=model.kernel.name))
-    return out
-
-
-def plot_gradient(atoms, calc, path, title=""):
-    """Particles coloured by log10 |grad C_a| (the paper's Figs. 10-12); 3D: a slice."""
-    from ..plotting import plot_particles
-
-    grad = np.linalg.norm(calc.get_concentration_gradient(atoms), axis=1)
-    value = np.log10(np.maximum(grad, 1e-300) * calc.model.h)
-    plot_particles(atoms, value, path, domain=calc.boundary.domain, dx=calc.model.dx, title=title,
-                   label=r"log$_{10}$ (h |$\nabla$C$_a$|)", slice_width=2 * calc.model.dx)
-    from PIL import Image
-
-    with Image.open(path) as image:  # a 256-colour palette: a quarter of the file size
-        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
-    return path
-
-
-def plot_history(history, path=None, title=None):
-    """TPD_avg and |grad C|_avg against the iteration (Fig. 7-9), stages in colours; returns the figure."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
-    offset = 0
-    colours = {"2a": "tab:green", "2c": "tab:blue"}
-    for stage in ("2a", "2c"):
-        rows = [r for r in history if r["stage"] == stage]
-        if not rows:
-            continue
-        it = offset + np.arange(1, len(rows) + 1)
-        axes[0].plot(it, [r["tpd_avg"] for r in rows], color=colours[stage], label=f"step {stage}")
-        axes[1].semilogy(it, [max(r["gradc_avg"], 1e-300) for r in rows], color=colours[stage], label=f"step {stage}")
-        offset = it[-1]
-    axes[0].set(xlabel="iteration", ylabel="TPD$_{avg}$")
-    axes[1].set(xlabel="iteration", ylabel=r"$|\nabla C|_{avg}$ (packable)")
-    for ax in axes:
-        ax.legend()
-    if title:
-        fig.suptitle(title)
-    if path is not None:
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-    return fig
 
 
 def _count(name, value, minimum=0):

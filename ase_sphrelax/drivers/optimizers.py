@@ -54,7 +54,7 @@ def mark_scaled(atoms):
     if calc is None and hasattr(atoms, "atoms"):
         calc = getattr(atoms.atoms, "calc", None)
     if calc is not None:
-        calc._scale_hinted = True
+        getattr(calc, "silence_scale_hint", lambda: None)()  # an SPHCalculator; other calculators never hint
 
 
 _CHECKED = {}

@@ -24,7 +24,7 @@ import numba
 import numpy as np
 from ase.optimize.optimize import Optimizer
 
-from ..checks import check_dim, check_positive
+from ..checks import check_positive, resolve_dim
 from ..kernels import get_kernel, profile_by_kind
 from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
@@ -66,7 +66,9 @@ class WVTRelaxation(Optimizer):
     atoms : Atoms
     target_density : callable
         ``(N, dim) -> (N,)``, ``> 0`` where particles are.
-    dim : {1, 2, 3}
+    dim : {1, 2, 3} or None
+        None (default): the domain's, else inferred from the Atoms by
+        :func:`ase_sphrelax.checks.resolve_dim` (a mismatch is an error, never a projection).
     steps : int
         Length of the ``mu`` schedule (and the natural ``run(steps=...)``).
     mu0 : float or None
@@ -80,14 +82,14 @@ class WVTRelaxation(Optimizer):
         Neighbours: ``H = eta (m / rho*)^(1/d)`` (default :func:`ase_sphrelax.sph.default_eta`).
     """
 
-    def __init__(self, atoms, target_density, dim, steps=1000, mu0=None, weight="r2", domain=None,
+    def __init__(self, atoms, target_density, dim=None, steps=1000, mu0=None, weight="r2", domain=None,
                  kernel="wendland_c4", eta=None, logfile=None, **kwargs):
         if not callable(target_density):
             raise TypeError(f"target_density must be callable, got {type(target_density).__name__}")
         if weight not in WEIGHTS:
             raise ValueError(f"weight must be one of {WEIGHTS}, got {weight!r}")
         self.target_density = target_density
-        self.dim = check_dim(dim)
+        self.dim = resolve_dim(atoms, dim, domain)
         self.schedule = int(steps)
         if self.schedule < 1:
             raise ValueError(f"steps must be a positive integer, got {steps!r}")
