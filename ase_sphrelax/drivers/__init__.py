@@ -10,7 +10,7 @@ _WHERE = {
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
     "KeepInDomain": ".keep_inside",
-    "NothingRelaxedWarning": ".optimizers",
+    "NothingRelaxedWarning": ".step_scale",
     "SPHScaleWarning": ".optimizers",
     "ALARICDynamics": ".alaric_dynamics",
     "WVTRelaxation": ".wvt",
