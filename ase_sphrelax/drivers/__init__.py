@@ -2,7 +2,7 @@
 
 Names are imported on first use (ASE's optimisers load scipy): add one line to ``_WHERE``.
 """
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 _WHERE = {
     "FanRelaxation": ".fan_relaxation",
