@@ -10,6 +10,11 @@ return normals of shape ``(P, 3)``.
 The normal returned by :meth:`Domain.phi_and_normal` is the exact gradient of
 the ``phi`` returned (one-sided where ``phi`` has a kink: corners, medial
 axis), so a calculator whose energy contains ``phi`` gets exact forces.
+
+What :class:`Domain` builds lives here too, so that the base class imports no module that imports
+it back: the set operations ``a | b``, ``a & b``, ``a - b`` (:class:`Union`, :class:`Intersection`,
+:class:`Difference`; the ideas in :mod:`.csg`) and ``domain.tabulated(dx)`` (:class:`Tabulated`, on
+the :class:`~.table.CubicTable` of :mod:`.table`).
 """
 from __future__ import annotations
 
@@ -289,6 +294,7 @@ class Difference(BooleanDomain):
         return self.a.bounds
 
 
+# -- phi tabulated on a background mesh (Fan Sec. 2) -----------------------------------------------
 class Tabulated(Domain):
     """Any domain with its ``phi`` tabulated on a background mesh of spacing ``dx``.
 
