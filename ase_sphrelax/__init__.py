@@ -43,7 +43,7 @@ in the separate package ``lammps_io``.
 To export a name, add one line to ``_WHERE`` (name -> defining submodule), never an eager
 import (``tests/test_cli.py`` checks that ``import ase_sphrelax`` loads no numba).
 """
-from ._lazy import lazy_exports
+from .lazy import lazy_exports
 
 __version__ = "0.1.0"
 

@@ -78,7 +78,7 @@ def load_boundary(geometry, out):
     from ase_sphrelax.domains import Sphere
 
     if geometry == "sphere":
-        return Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3).triangles
+        return BoundaryTriangles.from_domain(Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3))
     if geometry.endswith(".stl"):
         mesh = (trimesh.creation.box(extents=(1.0, 1.0, 1.0)) if geometry == "cube.stl"
                 else trimesh.creation.icosphere(subdivisions=2, radius=0.5))

@@ -13,7 +13,7 @@ Fan's interior total error (Eq. 3.8) is the pair potential
 The names below are imported on first use (the calculator and the relaxation
 load numba through ase_sphrelax): to export a name, add one line to ``_WHERE``.
 """
-from ase_sphrelax._lazy import lazy_exports
+from ase_sphrelax.lazy import lazy_exports
 
 # a function named like its module is bound now: otherwise ``import lammps_io.sph_at_rest``
 # (run before first use) would leave the module under the name (light: numpy and ase only)

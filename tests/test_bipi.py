@@ -79,7 +79,7 @@ def test_identities_against_brute_force():
     w = k.w(dist, h)
     with np.errstate(invalid="ignore", divide="ignore"):
         dw = np.where(dist > 0, k.dw(dist, h) / dist, 0.0)[..., None] * d
-    gamma, grad_gamma = gamma_and_gradient(r, poly.segments, h)
+    gamma, grad_gamma = gamma_and_gradient(r, BoundarySegments.from_domain(poly), h)
     v = dx**2
     c_ref = v * w.sum(axis=1) / gamma
     gc_ref = (v * dw.sum(axis=1) - grad_gamma) / gamma[:, None]

@@ -263,12 +263,12 @@ def reference_3d(p, tri, h, radial):
     """
     from scipy.integrate import cubature
 
-    from ase_sphrelax.domains.mesh import _closest_on_triangle
+    from ase_sphrelax.domains.closest import closest_on_triangle
 
     total = np.zeros(4)
     m_h, n_h = radial.M(h), radial.N(h)
     for t, (v0, v1, v2) in enumerate(tri.vertices_tkc):
-        if _closest_on_triangle(*p, tri.packed_tk[t])[0] >= h * h:
+        if closest_on_triangle(*p, tri.packed_tk[t])[0] >= h * h:
             continue
         d = (p - v0) @ tri.normal_tc[t]
         area2 = np.linalg.norm(np.cross(v1 - v0, v2 - v0))

@@ -84,17 +84,17 @@ def test_segments_against_brute_force_wedge_and_holes(radius):
 @pytest.mark.parametrize("name,radius", [("TrapezoidalTank", 0.04), ("Standford2DBunny", 2.0), ("AirFoilFluid", 0.5),
                                          ("AirFoilSolid", 0.2)])
 def test_segments_against_brute_force_geometries(geometries, name, radius):
-    seg = Polygon.from_edges(geometries / f"{name}.edges").segments
+    seg = BoundarySegments.from_domain(Polygon.from_edges(geometries / f"{name}.edges"))
     rng = np.random.default_rng(2)
     r = scatter(seg.bounds, 4000, rng, spread=0.02)
     if name == "AirFoilFluid":  # most of the box is far from the airfoil: sample near it too
-        air = Polygon.from_edges(geometries / "AirFoilSolid.edges").segments
+        air = BoundarySegments.from_domain(Polygon.from_edges(geometries / "AirFoilSolid.edges"))
         r = np.concatenate([r, scatter(air.bounds, 4000, rng, spread=0.1)])
     check_against_brute(boundary_pairs(r, seg, radius), brute_segments(r, seg, radius))
 
 
 def test_refined_segments_against_brute_force(geometries):
-    seg = Polygon.from_edges(geometries / "TrapezoidalTank.edges").segments.refine(dx=0.02)
+    seg = BoundarySegments.from_domain(Polygon.from_edges(geometries / "TrapezoidalTank.edges")).refine(dx=0.02)
     assert seg.length_s.max() <= 0.002 + 1e-15 and len(seg) > 2000
     rng = np.random.default_rng(3)
     r = scatter(seg.bounds, 3000, rng, spread=0.05)
@@ -120,7 +120,7 @@ def test_periodic_images():
 
 def test_stored_list_reuse_and_rebuild(geometries):
     """Particles moving within half the skin reuse the registration and stay exact; larger moves rebuild."""
-    seg = Polygon.from_edges(geometries / "Standford2DBunny.edges").segments
+    seg = BoundarySegments.from_domain(Polygon.from_edges(geometries / "Standford2DBunny.edges"))
     rng = np.random.default_rng(5)
     r = scatter(seg.bounds, 3000, rng, spread=0.02)
     nlist = NeighborList(2.0, skin=1.0)
@@ -163,7 +163,7 @@ def test_triangles_against_brute_force(meshes, name, radius):
 
 def test_query_cost_is_local(geometries):
     """Particles far from the boundary test no element: the work grows with the boundary layer only."""
-    seg = Polygon.from_edges(geometries / "TrapezoidalTank.edges").segments.refine(dx=0.01)
+    seg = BoundarySegments.from_domain(Polygon.from_edges(geometries / "TrapezoidalTank.edges")).refine(dx=0.01)
     rng = np.random.default_rng(7)
     r = np.zeros((20000, 3))
     r[:, :2] = [0.2, 0.2] + 0.6 * rng.random((20000, 2))  # all at least 0.2 from the walls

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
 from ase_sphrelax.domains import (Box, Circle, Difference, Intersection, Mesh, Polygon, Sphere,
                                   Tabulated, Union)
 
@@ -399,48 +400,48 @@ def check_segments(seg, domain, dim_scale=1.0):
 @pytest.mark.parametrize("name", ["TrapezoidalTank", "Standford2DBunny", "AirFoilFluid"])
 def test_polygon_segments_public(name):
     p = Polygon.from_edges(edges(name))
-    seg = p.segments
+    seg = BoundarySegments.from_domain(p)
     assert len(seg) == p.n_segments
     check_segments(seg, p, dim_scale=float(np.ptp(np.concatenate(p.loops), axis=0).max()))
 
 
 def test_box_and_csg_segments():
     box = Box([0, 0], [2, 1])
-    check_segments(box.segments, box)
+    check_segments(BoundarySegments.from_domain(box), box)
     wedge_hole = Polygon([np.array([[0.5, 0.2], [1.5, 0.2], [1.0, 0.8]])])
     d = box - wedge_hole
-    seg = d.segments
+    seg = BoundarySegments.from_domain(d)
     assert len(seg.loops) == 2 and len(seg) == 7
     check_segments(seg, d)
     u = Box([0, 0], [1, 1]) | Box([0.5, 0.5], [2, 2])
-    check_segments(u.segments, u)
+    check_segments(BoundarySegments.from_domain(u), u)
 
 
 def test_circle_has_no_segments_and_says_how():
     c = Circle((0, 0), 1.0)
     with pytest.raises(ValueError, match="to_polygon"):
-        c.segments
+        BoundarySegments.from_domain(c)
     assert not hasattr(c, "segments")
     with pytest.raises(ValueError, match="to_polygon"):
-        (Box([-2, -2], [2, 2]) - c).segments
+        BoundarySegments.from_domain(Box([-2, -2], [2, 2]) - c)
     p = c.to_polygon(64)
     assert p.volume == pytest.approx(0.5 * 64 * math.sin(2 * math.pi / 64))
-    check_segments(p.segments, p)
+    check_segments(BoundarySegments.from_domain(p), p)
     with pytest.raises(ValueError, match="icosphere|to_mesh"):
-        Sphere((0, 0, 0), 1.0).triangles
+        BoundaryTriangles.from_domain(Sphere((0, 0, 0), 1.0))
 
 
 def test_mesh_triangles_public(stl_files):
     d, ico = stl_files
     for path in (d / "box.stl", d / "ico.stl"):
         m = Mesh(path)
-        tri = m.triangles
+        tri = BoundaryTriangles.from_domain(m)
         assert tri.area_t.sum() == pytest.approx(m.trimesh.area)
         np.testing.assert_allclose(np.linalg.norm(tri.normal_tc, axis=1), 1.0)
         eps = 1e-7
         assert np.all(m.contains(tri.centroid_tc + eps * tri.normal_tc))
         assert not np.any(m.contains(tri.centroid_tc - eps * tri.normal_tc))
-    box3 = Box([0, 0, 0], [1, 2, 3]).triangles
+    box3 = BoundaryTriangles.from_domain(Box([0, 0, 0], [1, 2, 3]))
     assert len(box3) == 12 and box3.volume == pytest.approx(6.0)
     s = Sphere((1, 0, 0), 0.5).to_mesh(2)
-    assert s.triangles.volume == pytest.approx(s.volume) and len(s.triangles) == 320
+    assert BoundaryTriangles.from_domain(s).volume == pytest.approx(s.volume) and len(BoundaryTriangles.from_domain(s)) == 320

@@ -10,7 +10,7 @@ arrangement, Eq. 5.2), ``pattern_cells`` (the cells of the patterns),
 Names are imported on first use, so ``import ase_sphrelax.analysis.quality`` does
 not load spglib or the lattice machinery.
 """
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 _WHERE = {
     "Quality": ".quality",

@@ -1,9 +1,12 @@
 """Boundaries given by their elements, for boundary-integral SPH (Boregowda & Liu, BIPI).
 
 * :class:`BoundarySegments` (2D straight segments) and :class:`BoundaryTriangles` (3D
-  triangle meshes), with unit **inward** normals, lengths/areas and centroids; the public
-  ``segments`` of :class:`~ase_sphrelax.domains.Polygon` (and 2D boxes, polygonal CSG) and
-  ``triangles`` of :class:`~ase_sphrelax.domains.Mesh`.
+  triangle meshes), with unit **inward** normals, lengths/areas and centroids; built from the
+  domains (``BoundarySegments.from_domain`` of a :class:`~ase_sphrelax.domains.Polygon`, 2D box or
+  polygonal CSG, ``BoundaryTriangles.from_domain`` of a :class:`~ase_sphrelax.domains.Mesh` or 3D
+  box), edge files, vertex loops or mesh files. Boundaries stand above the domains: they import
+  the domains' public loop and distance helpers (:mod:`~ase_sphrelax.domains.loops`,
+  :mod:`~ase_sphrelax.domains.closest`), never the reverse.
 * :class:`BoundaryQuery` / :func:`boundary_pairs`: the (particle, element) pairs within a
   radius, O(N + S) on the bins of the neighbour search, in CSR form over particles.
 * :func:`gamma_and_gradient` / :class:`BoundaryIntegrals`: the kernel volume fraction

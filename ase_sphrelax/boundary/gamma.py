@@ -31,7 +31,7 @@ import numba
 import numpy as np
 
 from ..checks import check_positive
-from ..domains.mesh import _closest_on_triangle
+from ..domains.closest import closest_on_triangle
 from ..parallel import run_chunks
 from .line_integrals import line_offset, segment_terms
 from .query import BoundaryQuery
@@ -78,7 +78,7 @@ def _chi_segment(px, py, seg, e, next_s, prev_s):
 
 @numba.njit(cache=True, inline="always")
 def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
-    d2, qx, qy, qz, feature = _closest_on_triangle(px, py, pz, tri[t])
+    d2, qx, qy, qz, feature = closest_on_triangle(px, py, pz, tri[t])
     side = plane_offset(px, py, pz, tri, nrm, t)
     if feature == 6 and side == 0.0:
         return 0.5
@@ -337,7 +337,7 @@ class BoundaryIntegrals:
             best = (np.inf, None)
             for k in range(pairs.start_p[p], pairs.start_p[p + 1]):
                 t = pairs.element_k[k]
-                d2, qx, qy, qz, f = _closest_on_triangle(*r_pc[i], b.packed_tk[t])
+                d2, qx, qy, qz, f = closest_on_triangle(*r_pc[i], b.packed_tk[t])
                 if d2 < best[0]:
                     best = (d2, (np.array([qx, qy, qz]), b.pseudo_normal_tfc[t, f]))
             q, m = best[1]

@@ -22,8 +22,7 @@ import math
 import numba
 import numpy as np
 
-from ..domains.mesh import _closest_on_triangle
-from ..domains.polygon import _seg_dist2
+from ..domains.closest import closest_on_triangle, segment_distance2
 from ..parallel import run_chunks
 
 __all__ = ["BoundaryPairs", "BoundaryQuery", "boundary_pairs"]
@@ -33,10 +32,10 @@ __all__ = ["BoundaryPairs", "BoundaryQuery", "boundary_pairs"]
 def _element_dist2(kind, elem, e, x, y, z):
     """Squared distance of (x, y, z) to element e (kind 0: 2D segment packed row, 1: triangle)."""
     if kind == 0:
-        d2, _ = _seg_dist2(x, y, elem[e, 0], elem[e, 1], elem[e, 2] - elem[e, 0], elem[e, 3] - elem[e, 1],
+        d2, _ = segment_distance2(x, y, elem[e, 0], elem[e, 1], elem[e, 2] - elem[e, 0], elem[e, 3] - elem[e, 1],
                            elem[e, 7])
         return d2 + z * z
-    return _closest_on_triangle(x, y, z, elem[e])[0]
+    return closest_on_triangle(x, y, z, elem[e])[0]
 
 
 @numba.njit(cache=True)

@@ -23,7 +23,7 @@ import warnings
 
 import numpy as np
 
-from ..domains.polygon import _signed_area, vertex_array
+from ..domains.loops import signed_area, vertex_array
 
 __all__ = ["BoundarySegments", "OrientationWarning", "EDGE_TO_DX_RATIO"]
 
@@ -170,9 +170,9 @@ class BoundarySegments:
         unreadable file, open polyline or branching end point, zero-length segment, a loop whose
         segments run in both directions (ambiguous orientation), crossing segments.
         """
-        from ..domains.polygon import _read_edge_loops
+        from ..domains.loops import read_edge_loops
 
-        edge_loops = _read_edge_loops(path, tol, strict=True)
+        edge_loops = read_edge_loops(path, tol, strict=True)
         loops, sources, names = [], [], []
         for i, loop in enumerate(edge_loops):
             seg = loop.segment_k
@@ -191,7 +191,7 @@ class BoundarySegments:
     @classmethod
     def _oriented(cls, loops, sources, names, n_outer, name, file_sources=False):
         """Check crossings and nesting, orient loops by their role (warning when reversed)."""
-        from ..domains.polygon import _validate_loops, first_crossing
+        from ..domains.loops import first_crossing, validate_loops
 
         hit = first_crossing(loops)
         if hit is not None:
@@ -200,13 +200,13 @@ class BoundarySegments:
             where = f"{name}" if file_sources else f"{names[la]} / {names[lb]}"
             raise ValueError(f"{where}: segments {sa} and {sb} cross or overlap (the boundary must be simple, "
                              "disjoint closed loops)")
-        depth = _validate_loops(loops, names)
+        depth = validate_loops(loops, names)
         for i in range(n_outer, len(loops)):
             if depth[i] % 2 == 0:
                 raise ValueError(f"{names[i]} is not inside an outer loop")
         out_loops, out_sources = [], []
         for i, (v, src, dep) in enumerate(zip(loops, sources, depth)):
-            ccw = _signed_area(v) > 0.0
+            ccw = signed_area(v) > 0.0
             outer = dep % 2 == 0
             if ccw != outer and i >= n_outer:  # an explicit hole: its role is given, orient it silently
                 k = len(v)
@@ -232,13 +232,13 @@ class BoundarySegments:
         (``circle.to_polygon(n_segments)``).
         """
         from ..domains.analytic import Ball, Box
-        from ..domains.csg import _Binary
+        from ..domains.csg import BooleanDomain
         from ..domains.polygon import Polygon
 
         if isinstance(domain, BoundarySegments):
             return domain
         if isinstance(domain, Polygon):
-            return domain.segments
+            return cls.from_polygon(domain)
         if not hasattr(domain, "dim"):
             raise TypeError(f"cannot take boundary segments of {type(domain).__name__}; accepted: Polygon, 2D Box, "
                             "Union/Intersection/Difference of those (or BoundarySegments.from_edges / from_vertices)")
@@ -250,7 +250,7 @@ class BoundarySegments:
             return cls([np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])], name=repr(domain))
         if isinstance(domain, Ball):
             raise NoSegmentsError(_no_segments_message(domain))
-        if isinstance(domain, _Binary):
+        if isinstance(domain, BooleanDomain):
             return cls.from_shapely(_polygonal_geometry(domain), name=repr(domain))
         raise TypeError(f"cannot take boundary segments of {type(domain).__name__}; accepted: Polygon, 2D Box, "
                         "Union/Intersection/Difference of those, an edge file or vertex loops")
@@ -292,7 +292,7 @@ class BoundarySegments:
     @property
     def area(self):
         """Enclosed area (shoelace over the oriented loops)."""
-        return float(sum(_signed_area(v) for v in self.loops))
+        return float(sum(signed_area(v) for v in self.loops))
 
     @property
     def polygon(self):
@@ -373,7 +373,7 @@ def _polygonal_geometry(domain):
     import shapely
 
     from ..domains.analytic import Ball, Box
-    from ..domains.csg import _Binary
+    from ..domains.csg import BooleanDomain
     from ..domains.polygon import Polygon
 
     if isinstance(domain, Polygon):
@@ -382,7 +382,7 @@ def _polygonal_geometry(domain):
         return shapely.box(*domain.lo, *domain.hi)
     if isinstance(domain, Ball):
         raise NoSegmentsError(_no_segments_message(domain) + " (it appears in a CSG expression)")
-    if isinstance(domain, _Binary):
-        return domain._shapely_op(_polygonal_geometry(domain.a), _polygonal_geometry(domain.b))
+    if isinstance(domain, BooleanDomain):
+        return domain.shapely_operation(_polygonal_geometry(domain.a), _polygonal_geometry(domain.b))
     raise TypeError(f"cannot take boundary segments of {type(domain).__name__}")
 

@@ -52,7 +52,7 @@ class BoundaryTriangles:
     def __init__(self, mesh, name=None):
         import trimesh
 
-        from ..domains.mesh import _pseudo_normals
+        from ..domains.mesh import pseudo_normals
 
         if not isinstance(mesh, trimesh.Trimesh):
             raise TypeError(f"mesh must be a trimesh.Trimesh, got {type(mesh).__name__}")
@@ -76,7 +76,7 @@ class BoundaryTriangles:
         self.normal_tc = np.ascontiguousarray(-np.asarray(mesh.face_normals, dtype=float))
         self.area_t = area
         self.centroid_tc = self.vertices_tkc.mean(axis=1)
-        self.pseudo_normal_tfc = np.ascontiguousarray(-_pseudo_normals(mesh))
+        self.pseudo_normal_tfc = np.ascontiguousarray(-pseudo_normals(mesh))
         self.packed_tk = np.ascontiguousarray(self.vertices_tkc.reshape(-1, 9))
         self._domain = None
 
@@ -120,7 +120,7 @@ class BoundaryTriangles:
         if isinstance(domain, BoundaryTriangles):
             return domain
         if isinstance(domain, Mesh):
-            return domain.triangles
+            return cls.from_mesh(domain)
         if not hasattr(domain, "dim"):
             raise TypeError(f"cannot take boundary triangles of {type(domain).__name__}; accepted: Mesh, 3D Box "
                             "(or BoundaryTriangles.from_file / from_trimesh)")

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..boundary import BoundaryIntegrals, as_boundary
+from ..boundary import BoundaryIntegrals, BoundarySegments, as_boundary
 from ..boundary.gamma import BAND_RULES
 from ..kernel_sums import kernel_sums
 from ..models.bipi import J_DEFAULT, BIPIModel, support_from_paper
@@ -97,7 +97,7 @@ class BIPICalculator(SPHCalculator):
         if boundary.dim == 2 and p.band_rule != "centroid":
             # runs of collinear segments merged (the polygon's segments): the same integrals over fewer
             # elements (AirFoilFluid: 5224 -> 686); only the "centroid" rule depends on the elements
-            elements = boundary.polygon.segments
+            elements = BoundarySegments.from_polygon(boundary.polygon)
         self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
         self._boundary_pairs = None
 

@@ -10,6 +10,11 @@ return normals of shape ``(P, 3)``.
 The normal returned by :meth:`Domain.phi_and_normal` is the exact gradient of
 the ``phi`` returned (one-sided where ``phi`` has a kink: corners, medial
 axis), so a calculator whose energy contains ``phi`` gets exact forces.
+
+What :class:`Domain` builds lives here too, so that the base class imports no module that imports
+it back: the set operations ``a | b``, ``a & b``, ``a - b`` (:class:`Union`, :class:`Intersection`,
+:class:`Difference`; the ideas in :mod:`.csg`) and ``domain.tabulated(dx)`` (:class:`Tabulated`, on
+the :class:`~.table.CubicTable` of :mod:`.table`).
 """
 from __future__ import annotations
 
@@ -99,26 +104,29 @@ class Domain:
     def tabulated(self, dx, margin=4):
         """Return this domain with ``phi`` tabulated on a grid of spacing ``dx``.
 
-        See :class:`ase_sphrelax.domains.table.Tabulated` (Fan Sec. 2: phi is
-        stored on a Cartesian background mesh of spacing dx).
+        See :class:`Tabulated` (Fan Sec. 2: phi is stored on a Cartesian background mesh of
+        spacing dx).
         """
-        from .table import Tabulated
-
         return Tabulated(self, dx, margin=margin)
 
-    def __or__(self, other):
-        from .csg import Union
+    def area_geometry(self):
+        """A shapely geometry whose booleans give this 2D domain's exact area, or None.
 
+        Polygons and 2D boxes: the domain itself; discs: a regular polygon of the disc's exact
+        area. None (the default: 3D, meshes, tables) makes a CSG volume integrate ``phi``
+        (:func:`smoothed_volume`).
+        """
+        return None
+
+    # The set operations construct the CSG classes below: they live in this module, so that the
+    # base class and what it builds import nothing of each other (no import cycle).
+    def __or__(self, other):
         return Union(self, other)
 
     def __and__(self, other):
-        from .csg import Intersection
-
         return Intersection(self, other)
 
     def __sub__(self, other):
-        from .csg import Difference
-
         return Difference(self, other)
 
     def __repr__(self):
@@ -181,3 +189,139 @@ def smoothed_volume(domain, n_cells=None):
         v1 += _smooth_heaviside(x).sum()
         v2 += _smooth_heaviside(0.5 * x).sum()
     return (4.0 * v1 - v2) / 3.0 * h ** domain.dim
+
+
+# -- constructive solid geometry (see :mod:`.csg` for the idea) ----------------------------------------
+class BooleanDomain(Domain):
+    """A boolean combination of two domains ``a`` and ``b`` of one dimension (base of
+    :class:`Union`, :class:`Intersection`, :class:`Difference`); ``shapely_operation(ga, gb)``
+    applies the same boolean to the operands' shapely geometries."""
+
+    def __init__(self, a, b):
+        for name, d in (("a", a), ("b", b)):
+            if not isinstance(d, Domain):
+                raise TypeError(f"{name} must be a Domain, got {type(d).__name__}")
+        if a.dim != b.dim:
+            raise ValueError(f"dimensions of a ({a.dim}) and b ({b.dim}) must match")
+        self.a, self.b = a, b
+        self.dim = a.dim
+        self._volume = None
+
+    @property
+    def volume(self):
+        """2D polygonal operands (Polygon, Box, Circle, CSG of those): the shapely boolean area of
+        their :meth:`~Domain.area_geometry`; otherwise :func:`smoothed_volume`."""
+        if self._volume is None:
+            geom = self.area_geometry()
+            self._volume = float(geom.area) if geom is not None else smoothed_volume(self)
+        return self._volume
+
+    def area_geometry(self):
+        if self.dim != 2:
+            return None
+        ga, gb = self.a.area_geometry(), self.b.area_geometry()
+        if ga is None or gb is None:
+            return None
+        return self.shapely_operation(ga, gb)
+
+    def __repr__(self):
+        return f"{type(self).__name__}({self.a!r}, {self.b!r})"
+
+
+class Union(BooleanDomain):
+    """``a | b``: ``phi = min(phi_a, phi_b)``."""
+
+    def _phi_grad(self, r_pd):
+        pa, ga = self.a._phi_grad(r_pd)
+        pb, gb = self.b._phi_grad(r_pd)
+        use_a = pa <= pb
+        return np.where(use_a, pa, pb), np.where(use_a[:, None], ga, gb)
+
+    def _phi(self, r_pd):
+        return np.minimum(self.a._phi(r_pd), self.b._phi(r_pd))
+
+    @staticmethod
+    def shapely_operation(ga, gb):
+        return ga.union(gb)
+
+    @property
+    def bounds(self):
+        (la, ha), (lb, hb) = self.a.bounds, self.b.bounds
+        return np.minimum(la, lb), np.maximum(ha, hb)
+
+
+class Intersection(BooleanDomain):
+    """``a & b``: ``phi = max(phi_a, phi_b)``."""
+
+    def _phi_grad(self, r_pd):
+        pa, ga = self.a._phi_grad(r_pd)
+        pb, gb = self.b._phi_grad(r_pd)
+        use_a = pa >= pb
+        return np.where(use_a, pa, pb), np.where(use_a[:, None], ga, gb)
+
+    def _phi(self, r_pd):
+        return np.maximum(self.a._phi(r_pd), self.b._phi(r_pd))
+
+    @staticmethod
+    def shapely_operation(ga, gb):
+        return ga.intersection(gb)
+
+    @property
+    def bounds(self):
+        (la, ha), (lb, hb) = self.a.bounds, self.b.bounds
+        lo, hi = np.maximum(la, lb), np.minimum(ha, hb)
+        return lo, np.maximum(hi, lo)
+
+
+class Difference(BooleanDomain):
+    """``a - b``: ``phi = max(phi_a, -phi_b)``."""
+
+    def _phi_grad(self, r_pd):
+        pa, ga = self.a._phi_grad(r_pd)
+        pb, gb = self.b._phi_grad(r_pd)
+        use_a = pa >= -pb
+        return np.where(use_a, pa, -pb), np.where(use_a[:, None], ga, -gb)
+
+    def _phi(self, r_pd):
+        return np.maximum(self.a._phi(r_pd), -self.b._phi(r_pd))
+
+    @staticmethod
+    def shapely_operation(ga, gb):
+        return ga.difference(gb)
+
+    @property
+    def bounds(self):
+        return self.a.bounds
+
+
+# -- phi tabulated on a background mesh (Fan Sec. 2) -----------------------------------------------
+class Tabulated(Domain):
+    """Any domain with its ``phi`` tabulated on a background mesh of spacing ``dx``.
+
+    ``volume`` and ``bounds`` are those of the wrapped domain; ``phi`` and the
+    normal come from :class:`CubicTable` (C1, normal = exact gradient of the
+    interpolant).
+    """
+
+    def __init__(self, domain, dx, margin=4):
+        if not isinstance(domain, Domain):
+            raise TypeError(f"domain must be a Domain, got {type(domain).__name__}")
+        from .table import CubicTable  # numba: loaded when a domain is tabulated
+
+        self.domain = domain
+        self.dim = domain.dim
+        self.table = CubicTable(domain._phi, domain.bounds, dx, margin)
+
+    def _phi_grad(self, r_pd):
+        return self.table.phi_grad(r_pd)
+
+    @property
+    def bounds(self):
+        return self.domain.bounds
+
+    @property
+    def volume(self):
+        return self.domain.volume
+
+    def __repr__(self):
+        return f"Tabulated({self.domain!r}, dx={self.table.dx})"

@@ -23,62 +23,7 @@ import numpy as np
 
 from ..checks import check_positive
 from .base import SearchedDomain
-
-
-@numba.njit(cache=True)
-def _closest_on_triangle(px, py, pz, t):
-    """Closest point on triangle t = (ax, ay, az, bx, ..., cz) to p (Ericson 5.1.5).
-
-    Returns (dist^2, qx, qy, qz, feature) with feature 0/1/2 = vertex a/b/c,
-    3/4/5 = edge ab/ac/bc, 6 = face interior.
-    """
-    ax, ay, az = t[0], t[1], t[2]
-    abx, aby, abz = t[3] - ax, t[4] - ay, t[5] - az
-    acx, acy, acz = t[6] - ax, t[7] - ay, t[8] - az
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    u = 0.0
-    v = 0.0
-    feature = 6
-    if d1 <= 0.0 and d2 <= 0.0:
-        feature = 0
-    else:
-        bpx, bpy, bpz = px - t[3], py - t[4], pz - t[5]
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        vc = d1 * d4 - d3 * d2
-        if d3 >= 0.0 and d4 <= d3:
-            u = 1.0
-            feature = 1
-        elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            u = d1 / (d1 - d3)
-            feature = 3
-        else:
-            cpx, cpy, cpz = px - t[6], py - t[7], pz - t[8]
-            d5 = abx * cpx + aby * cpy + abz * cpz
-            d6 = acx * cpx + acy * cpy + acz * cpz
-            vb = d5 * d2 - d1 * d6
-            va = d3 * d6 - d5 * d4
-            if d6 >= 0.0 and d5 <= d6:
-                v = 1.0
-                feature = 2
-            elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                v = d2 / (d2 - d6)
-                feature = 4
-            elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-                w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                u = 1.0 - w
-                v = w
-                feature = 5
-            else:
-                denom = 1.0 / (va + vb + vc)
-                u = vb * denom
-                v = vc * denom
-    qx = ax + u * abx + v * acx
-    qy = ay + u * aby + v * acy
-    qz = az + u * abz + v * acz
-    return (px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2, qx, qy, qz, feature
+from .closest import closest_on_triangle
 
 
 @numba.njit(cache=True)
@@ -99,7 +44,7 @@ def _bucket_count(tri, glo, gh, gn, out_start, out_list, fill):
                 cz = glo[2] + (iz + 0.5) * gh
                 best = np.inf
                 for s in range(n_tri):
-                    d = _closest_on_triangle(cx, cy, cz, tri[s])[0]
+                    d = closest_on_triangle(cx, cy, cz, tri[s])[0]
                     d2[s] = d
                     if d < best:
                         best = d
@@ -144,7 +89,7 @@ def _mesh_phi_grad(r_pd, tri, pn, glo, gh, gn, start, cand, phi_p, g_pd):
         qx = qy = qz = 0.0
         for k in range(k0, k1):
             s = cand[k] if inside_grid else k
-            d, x, y, z, f = _closest_on_triangle(px, py, pz, tri[s])
+            d, x, y, z, f = closest_on_triangle(px, py, pz, tri[s])
             if d < best:
                 best = d
                 bs = s
@@ -168,7 +113,7 @@ def _mesh_phi_grad(r_pd, tri, pn, glo, gh, gn, start, cand, phi_p, g_pd):
         g_pd[p, 2] = sgn * ez / dist
 
 
-def _pseudo_normals(mesh):
+def pseudo_normals(mesh):
     """Per face, the pseudo-normals of its 7 features (a, b, c, ab, ac, bc, face)."""
     faces = np.asarray(mesh.faces)
     fn = np.asarray(mesh.face_normals, dtype=float)
@@ -237,7 +182,7 @@ class Mesh(SearchedDomain):
             raise ValueError("mesh encloses no volume")
         self.trimesh = mesh
         self._tri = np.ascontiguousarray(np.asarray(mesh.triangles, dtype=float).reshape(-1, 9))
-        self._pn = _pseudo_normals(mesh)
+        self._pn = pseudo_normals(mesh)
         self._volume = float(mesh.volume)
         self._build_buckets()
         self._table = None
@@ -278,18 +223,6 @@ class Mesh(SearchedDomain):
     def bounds(self):
         b = np.asarray(self.trimesh.bounds, dtype=float)
         return b[0].copy(), b[1].copy()
-
-    _triangles = None
-
-    @property
-    def triangles(self):
-        """The surface as :class:`~ase_sphrelax.boundary.BoundaryTriangles`: vertices, unit inward
-        normals, areas and centroids of the triangles."""
-        if self._triangles is None:
-            from ..boundary import BoundaryTriangles
-
-            self._triangles = BoundaryTriangles.from_mesh(self)
-        return self._triangles
 
     @property
     def volume(self):

@@ -44,23 +44,13 @@ import numpy as np
 
 from ..checks import check_positive
 from .base import SearchedDomain
+from .closest import segment_distance2
+from .loops import EdgeLoop, first_crossing, read_edges, signed_area, validate_loops, vertex_array  # noqa: F401
 
 
 # ----------------------------------------------------------------------------
 # numba kernels
 # ----------------------------------------------------------------------------
-@numba.njit(cache=True, inline="always")
-def _seg_dist2(px, py, ax, ay, ex, ey, inv_len2):
-    t = ((px - ax) * ex + (py - ay) * ey) * inv_len2
-    if t < 0.0:
-        t = 0.0
-    elif t > 1.0:
-        t = 1.0
-    qx = ax + t * ex
-    qy = ay + t * ey
-    return (px - qx) ** 2 + (py - qy) ** 2, t
-
-
 @numba.njit(cache=True)
 def _bucket_count(seg, glo, gh, gn, out_count, out_list, out_dist, fill):
     """Candidate segments per bucket cell (two passes: count, then fill).
@@ -80,7 +70,7 @@ def _bucket_count(seg, glo, gh, gn, out_count, out_list, out_dist, fill):
             cy = glo[1] + (iy + 0.5) * gh
             best = np.inf
             for s in range(n_seg):
-                d, t = _seg_dist2(cx, cy, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
+                d, t = segment_distance2(cx, cy, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
                 d2[s] = d
                 if d < best:
                     best = d
@@ -129,14 +119,14 @@ def _polygon_phi_grad(r_pd, seg, nrm, vna, vnb, glo, gh, gn, start, cand, cdist,
                 if lb > 0.0 and lb * lb > best * (1.0 + 1e-12):
                     break
                 s = cand[k]
-                d, t = _seg_dist2(px, py, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
+                d, t = segment_distance2(px, py, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
                 if d < best:
                     best = d
                     bs = s
                     bt = t
         else:
             for s in range(n_seg):
-                d, t = _seg_dist2(px, py, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
+                d, t = segment_distance2(px, py, seg[s, 0], seg[s, 1], seg[s, 2], seg[s, 3], seg[s, 4])
                 if d < best:
                     best = d
                     bs = s
@@ -170,24 +160,6 @@ def _polygon_phi_grad(r_pd, seg, nrm, vna, vnb, glo, gh, gn, start, cand, cdist,
 # ----------------------------------------------------------------------------
 # loop handling
 # ----------------------------------------------------------------------------
-def _signed_area(v):
-    x, y = v[:, 0], v[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
-def vertex_array(loop, name):
-    """``loop`` as a finite float array of shape (k, 2); errors name ``name``."""
-    try:
-        v = np.array(loop, dtype=float)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be an array of 2D vertices") from None
-    if v.ndim != 2 or v.shape[1] != 2:
-        raise ValueError(f"{name} must have shape (k, 2), got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"{name} has non-finite vertices")
-    return v
-
-
 def _clean_loop(loop, name, tol):
     v = vertex_array(loop, name)
     # drop repeated consecutive vertices and an explicit closing vertex
@@ -210,195 +182,6 @@ def _clean_loop(loop, name, tol):
     if np.count_nonzero(~straight) >= 3:
         v = v[~straight]
     return v
-
-
-def _validate_loops(loops, names):
-    """Each ring simple, rings pairwise disjoint; return nesting depth per loop."""
-    import shapely
-    from shapely.validation import explain_validity
-
-    rings = []
-    for v, name in zip(loops, names):
-        ring = shapely.LinearRing(v)
-        if not ring.is_simple:
-            raise ValueError(f"{name} crosses itself (not a simple closed loop): "
-                             f"{explain_validity(shapely.Polygon(v))}")
-        rings.append(ring)
-    polys = [shapely.Polygon(v) for v in loops]
-    tree = shapely.STRtree(rings)
-    left, right = tree.query(rings, predicate="intersects")
-    for a, b in zip(left, right):
-        if a < b:
-            raise ValueError(f"{names[a]} and {names[b]} intersect; loops must be disjoint")
-    depth = np.zeros(len(loops), int)
-    ptree = shapely.STRtree(polys)
-    for i, ring in enumerate(rings):
-        inside = ptree.query(shapely.Point(ring.coords[0]), predicate="within")
-        depth[i] = sum(1 for j in inside if j != i)
-    return depth
-
-
-class EdgeLoop:
-    """One closed loop chained from an edge file.
-
-    Attributes
-    ----------
-    vertices : ndarray (k, 2)
-        Vertices in the order of the walk (the direction of the loop's first segment in the file).
-    segment_k : ndarray of int (k,)
-        File index (0-based line of data) of the segment from ``vertices[i]`` to ``vertices[i + 1]``.
-    forward_k : ndarray of bool (k,)
-        Whether that segment is written in the walk's direction in the file.
-    """
-
-    def __init__(self, vertices, segment_k, forward_k):
-        self.vertices = vertices
-        self.segment_k = segment_k
-        self.forward_k = forward_k
-
-
-def _segment_name(path, s, line_s=None):
-    line = f"line {line_s[s]}" if line_s is not None else f"data line {s + 1}"
-    return f"{path}: segment {s} ({line})"
-
-
-def _load_edge_file(path):
-    """Segments ``x1 y1 x2 y2`` of an edge file, shape (n, 4), and the file line of each (1-based).
-
-    Blank lines and ``#`` comments are skipped. Every error is one line naming the file and,
-    for a malformed line, its number and what is accepted.
-    """
-    from pathlib import Path
-
-    name = str(path)
-    try:
-        text = Path(path).read_text()
-    except FileNotFoundError:
-        raise ValueError(f"cannot read the edge file {name!r}: no such file") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ValueError(f"cannot read the edge file {name!r}: {err}") from None
-    rows, line_s = [], []
-    for number, line in enumerate(text.splitlines(), 1):
-        content = line.split("#", 1)[0].strip()
-        if not content:
-            continue
-        fields = content.split()
-        try:
-            values = [float(f) for f in fields]
-        except ValueError:
-            values = None
-        if values is None or len(values) != 4:
-            raise ValueError(f"{name}: line {number}: expected 4 numbers 'x1 y1 x2 y2' (one segment per line), "
-                             f"got {content[:60]!r}")
-        rows.append(values)
-        line_s.append(number)
-    if len(rows) < 3:
-        what = "the file has no segment" if not rows else f"got {len(rows)}"
-        raise ValueError(f"{name}: an edge file needs at least 3 lines 'x1 y1 x2 y2' (a closed loop); {what}")
-    return np.array(rows, dtype=float), line_s
-
-
-def _read_edge_loops(path, tol, strict=False):
-    """Read ``x1 y1 x2 y2`` lines and chain the segments into closed loops (list of :class:`EdgeLoop`).
-
-    Errors name the file, the segment index and its line. Zero-length segments are skipped, or with
-    ``strict`` rejected.
-    """
-    from scipy.spatial import cKDTree
-
-    e, line_s = _load_edge_file(path)
-    if not np.all(np.isfinite(e)):
-        s = int(np.nonzero(~np.all(np.isfinite(e), axis=1))[0][0])
-        raise ValueError(f"{_segment_name(path, s, line_s)} has non-finite coordinates")
-    a, b = e[:, :2], e[:, 2:]
-    if tol is None:
-        tol = 1e-9 * max(1.0, float(np.ptp(e.reshape(-1, 2), axis=0).max()))
-    # merge end points into vertices
-    pts = np.concatenate([a, b])
-    tree = cKDTree(pts)
-    vid = -np.ones(len(pts), int)
-    n_v = 0
-    for i in range(len(pts)):
-        if vid[i] < 0:
-            near = tree.query_ball_point(pts[i], tol)
-            vid[near] = n_v
-            n_v += 1
-    va, vb = vid[: len(e)], vid[len(e):]
-    zero = np.nonzero(va == vb)[0]
-    if strict and len(zero):
-        s = int(zero[0])
-        raise ValueError(f"{_segment_name(path, s, line_s)} has zero length (its end points coincide within "
-                         f"{tol:g}); {len(zero)} such segment(s)")
-    adj = [[] for _ in range(n_v)]
-    for s in range(len(e)):
-        if va[s] == vb[s]:
-            continue
-        adj[va[s]].append(s)
-        adj[vb[s]].append(s)
-    for v in range(n_v):
-        if len(adj[v]) not in (0, 2):
-            idx = np.nonzero(vid == v)[0][0]
-            x, y = pts[idx]
-            what = "is not closed" if len(adj[v]) == 1 else "branches"
-            segs = ", ".join(str(s) for s in adj[v])
-            lines = ", ".join(str(line_s[s]) for s in adj[v])
-            raise ValueError(f"the boundary {what} at ({x:.10g}, {y:.10g}): {len(adj[v])} segment end(s) meet there "
-                             f"(tolerance {tol:g}); {path}: segment(s) {segs} (line(s) {lines})")
-    used = np.zeros(len(e), bool)
-    used[va == vb] = True
-    loops = []
-    for s0 in range(len(e)):
-        if used[s0]:
-            continue
-        verts, segs, fwd = [], [], []
-        s, v = s0, va[s0]  # walk in the direction of the first segment
-        while not used[s]:
-            used[s] = True
-            verts.append(a[s] if va[s] == v else b[s])
-            segs.append(s)
-            fwd.append(va[s] == v)
-            v = vb[s] if va[s] == v else va[s]
-            s = adj[v][0] if adj[v][1] == s else adj[v][1]
-        loops.append(EdgeLoop(np.array(verts), np.array(segs), np.array(fwd)))
-    return loops
-
-
-def _read_edges(path, tol):
-    """Vertex loops of an edge file (see :func:`_read_edge_loops`)."""
-    return [loop.vertices for loop in _read_edge_loops(path, tol)]
-
-
-def first_crossing(loops):
-    """First pair of segments that cross or overlap, as ``((loop, k), (loop, k))``, or None.
-
-    ``loops`` are closed vertex loops; segment ``k`` of a loop runs from vertex k to k + 1.
-    Segments that only share their common end point (neighbours along a loop) do not count.
-    """
-    import shapely
-
-    lines, owner = [], []
-    for i, v in enumerate(loops):
-        w = np.roll(v, -1, axis=0)
-        lines += [shapely.LineString([p, q]) for p, q in zip(v, w)]
-        owner += [(i, k) for k in range(len(v))]
-    tree = shapely.STRtree(lines)
-    left, right = tree.query(lines, predicate="intersects")
-    hits = []
-    for x, y in zip(left, right):
-        if x >= y:
-            continue
-        (li, ki), (lj, kj) = owner[x], owner[y]
-        n = len(loops[li])
-        if li == lj and (kj - ki) % n in (1, n - 1):
-            # neighbours: fine if they meet only at the shared vertex
-            shared = loops[li][kj] if (kj - ki) % n == 1 else loops[li][ki]
-            inter = lines[x].intersection(lines[y])
-            if inter.geom_type == "Point" and np.allclose(inter.coords[0], shared, rtol=0, atol=0):
-                continue
-            if inter.geom_type == "Point" and inter.equals(shapely.Point(shared)):
-                continue
-        hits.append((owner[x], owner[y]))
-    return min(hits) if hits else None
 
 
 class Polygon(SearchedDomain):
@@ -451,17 +234,17 @@ class Polygon(SearchedDomain):
             except ValueError:
                 tol = 1e-9
         vloops = [_clean_loop(v, n, tol) for v, n in zip(raw, names)]
-        depth = _validate_loops(vloops, names)
+        depth = validate_loops(vloops, names)
         for i in range(len(loops), len(raw)):
             if depth[i] % 2 == 0:
                 raise ValueError(f"{names[i]} is not inside an outer loop of loops")
         self.loops = []
         for v, dep in zip(vloops, depth):
-            ccw = _signed_area(v) > 0.0
+            ccw = signed_area(v) > 0.0
             if ccw != (dep % 2 == 0):
                 v = v[::-1].copy()
             self.loops.append(np.ascontiguousarray(v))
-        self._area = float(sum(_signed_area(v) for v in self.loops))
+        self._area = float(sum(signed_area(v) for v in self.loops))
         self._build_segments()
         self._table = None
         if grid_spacing is not None:
@@ -478,7 +261,7 @@ class Polygon(SearchedDomain):
         (default ``1e-9 * size``); a dangling or branching end point raises
         ValueError naming its position.
         """
-        return cls(_read_edges(path, tol), grid_spacing=grid_spacing, tol=tol)
+        return cls(read_edges(path, tol), grid_spacing=grid_spacing, tol=tol)
 
     # ------------------------------------------------------------------
     def _build_segments(self):
@@ -532,18 +315,6 @@ class Polygon(SearchedDomain):
     def n_segments(self):
         return len(self._seg)
 
-    _segments = None
-
-    @property
-    def segments(self):
-        """The boundary as :class:`~ase_sphrelax.boundary.BoundarySegments`: end points, unit inward
-        normals, lengths and centroids of every loop's segments (holes included, inside on the left)."""
-        if self._segments is None:
-            from ..boundary import BoundarySegments
-
-            self._segments = BoundarySegments.from_polygon(self)
-        return self._segments
-
     @property
     def bounds(self):
         v = np.concatenate(self.loops)
@@ -554,6 +325,10 @@ class Polygon(SearchedDomain):
         """Exact enclosed area (shoelace over oriented loops, = shapely area)."""
         return self._area
 
+    def area_geometry(self):
+        """The polygon as shapely geometry (exact CSG areas)."""
+        return self.to_shapely()
+
     def to_shapely(self):
         """The domain as a shapely (Multi)Polygon."""
         import shapely
@@ -561,9 +336,9 @@ class Polygon(SearchedDomain):
         # containers are larger than what they contain: add outer loops (ccw),
         # cut holes (cw), from the largest loop down (islands in holes work)
         geom = shapely.Polygon()
-        for v in sorted(self.loops, key=lambda v: -abs(_signed_area(v))):
+        for v in sorted(self.loops, key=lambda v: -abs(signed_area(v))):
             p = shapely.Polygon(v)
-            geom = geom.union(p) if _signed_area(v) > 0 else geom.difference(p)
+            geom = geom.union(p) if signed_area(v) > 0 else geom.difference(p)
         return geom
 
     def __repr__(self):

@@ -18,7 +18,6 @@ import numba
 import numpy as np
 
 from ..checks import check_positive
-from .base import Domain
 
 
 @numba.njit(cache=True, inline="always")
@@ -189,33 +188,3 @@ class CubicTable:
         else:
             _interp3(r_pd, self.values, self.lo, self.dx, phi_p, g_pd)
         return phi_p, g_pd
-
-
-class Tabulated(Domain):
-    """Any domain with its ``phi`` tabulated on a background mesh of spacing ``dx``.
-
-    ``volume`` and ``bounds`` are those of the wrapped domain; ``phi`` and the
-    normal come from :class:`CubicTable` (C1, normal = exact gradient of the
-    interpolant).
-    """
-
-    def __init__(self, domain, dx, margin=4):
-        if not isinstance(domain, Domain):
-            raise TypeError(f"domain must be a Domain, got {type(domain).__name__}")
-        self.domain = domain
-        self.dim = domain.dim
-        self.table = CubicTable(domain._phi, domain.bounds, dx, margin)
-
-    def _phi_grad(self, r_pd):
-        return self.table.phi_grad(r_pd)
-
-    @property
-    def bounds(self):
-        return self.domain.bounds
-
-    @property
-    def volume(self):
-        return self.domain.volume
-
-    def __repr__(self):
-        return f"Tabulated({self.domain!r}, dx={self.table.dx})"

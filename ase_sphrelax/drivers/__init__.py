@@ -2,7 +2,7 @@
 
 Names are imported on first use (ASE's optimisers load scipy): add one line to ``_WHERE``.
 """
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 _WHERE = {
     "FanRelaxation": ".fan_relaxation",
@@ -10,7 +10,7 @@ _WHERE = {
     "make_optimizer": ".optimizers",
     "OPTIMIZERS": ".optimizers",
     "KeepInDomain": ".keep_inside",
-    "NothingRelaxedWarning": ".optimizers",
+    "NothingRelaxedWarning": ".step_scale",
     "SPHScaleWarning": ".optimizers",
     "ALARICDynamics": ".alaric_dynamics",
     "WVTRelaxation": ".wvt",

@@ -15,9 +15,9 @@ import numba
 import numpy as np
 from ase.optimize.optimize import DEFAULT_MAX_STEPS, Optimizer
 
-from ..checks import check_positive
+from ..checks import ASE_DEFAULT_FMAX, check_positive
 from .keep_inside import attach_keep_inside
-from .optimizers import ASE_DEFAULT_FMAX, check_c, mark_scaled, warn_if_nothing_relaxed
+from .step_scale import calculator_h, check_c, mark_scaled, warn_if_nothing_relaxed
 
 __all__ = ["FanRelaxation"]
 
@@ -34,14 +34,6 @@ def _max_norm2(u_pc):
             return u2
         best = max(best, u2)
     return best
-
-
-def _calculator_h(atoms):
-    calc = getattr(atoms, "calc", None)
-    if calc is None and hasattr(atoms, "atoms"):  # a Filter
-        calc = getattr(atoms.atoms, "calc", None)
-    params = getattr(calc, "parameters", {}) or {}
-    return params.get("h")
 
 
 class FanRelaxation(Optimizer):
@@ -70,7 +62,7 @@ class FanRelaxation(Optimizer):
 
     def __init__(self, atoms, c=0.01, h=None, logfile="-", keep_inside=True, **kwargs):
         self.c = check_c(c)  # Eq. 2.4 step coefficient
-        h = _calculator_h(atoms) if h is None else h
+        h = calculator_h(atoms) if h is None else h
         if h is None:
             raise ValueError("h must be given, or the calculator must have a parameter 'h'")
         self.h = check_positive("h", h)
@@ -96,7 +88,7 @@ class FanRelaxation(Optimizer):
     def run(self, fmax=ASE_DEFAULT_FMAX, steps=DEFAULT_MAX_STEPS):
         """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
 
-        Warns (:class:`~ase_sphrelax.drivers.optimizers.NothingRelaxedWarning`) when ``fmax > 0``
+        Warns (:class:`~ase_sphrelax.drivers.step_scale.NothingRelaxedWarning`) when ``fmax > 0``
         stopped it at step 0: SPH forces are small, pass ``fmax=0`` to run all ``steps`` or an
         fmax relative to the forces.
         """

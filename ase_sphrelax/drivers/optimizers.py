@@ -8,53 +8,16 @@ that the first step moves the fastest particle by ``c h``, the step of Eq. 2.4.
 """
 from __future__ import annotations
 
-import math
-import numbers
-import warnings
-
 import numpy as np
 
-from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_positive  # noqa: F401 (SPHScaleWarning re-exported)
+from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning  # noqa: F401 (SPHScaleWarning re-exported)
 from .blas import limit_blas_in_steps, resolve_blas_threads
 from .keep_inside import attach_keep_inside
+# re-exported: NothingRelaxedWarning and check_c have been public names of this module
+from .step_scale import NothingRelaxedWarning, calculator_h, check_c, mark_scaled, warn_if_nothing_relaxed
 
 __all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer", "check_c", "NothingRelaxedWarning", "SPHScaleWarning",
            "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
-
-
-class NothingRelaxedWarning(UserWarning):
-    """An optimiser run stopped at step 0 because ``fmax`` exceeded every force: nothing was relaxed."""
-
-
-def check_c(c, name="c"):
-    """The step scale ``c`` of Eq. 2.4 (step ``c h``) as a float in (0, 1).
-
-    ``c >= 1`` moves a particle by more than the kernel support per step: it jumps over its
-    neighbours and out of the domain (``--c 5`` left 298 particles outside), so it is refused.
-    """
-    c = check_positive(name, c)
-    if c >= 1.0:
-        raise ValueError(f"{name} must be < 1 (a step of c h >= h jumps over the kernel support; Fan uses 0.01), "
-                         f"got {c!r}")
-    return c
-
-
-def warn_if_nothing_relaxed(optimizer, fmax, converged):
-    """Warn (:class:`NothingRelaxedWarning`) when a run with ``fmax > 0`` converged at step 0."""
-    if converged and optimizer.nsteps == 0 and isinstance(fmax, numbers.Real) and fmax > 0 and math.isfinite(fmax):
-        warnings.warn(f"{type(optimizer).__name__}.run(fmax={fmax:g}) stopped at step 0: every force is below fmax, "
-                      "so nothing was relaxed. SPH forces are small (Fan's are about 4e-3 on the default circle, "
-                      "while ASE's default fmax = 0.05 is for eV/Angstrom): give fmax relative to the forces, e.g. "
-                      "1e-3 * max |F|, or fmax=0 to run all steps", NothingRelaxedWarning, stacklevel=3)
-
-
-def mark_scaled(atoms):
-    """Tell the calculator of ``atoms`` that a scaled driver runs it: no :class:`SPHScaleWarning` hint."""
-    calc = getattr(atoms, "calc", None)
-    if calc is None and hasattr(atoms, "atoms"):
-        calc = getattr(atoms.atoms, "calc", None)
-    if calc is not None:
-        getattr(calc, "silence_scale_hint", lambda: None)()  # an SPHCalculator; other calculators never hint
 
 
 _CHECKED = {}
@@ -116,13 +79,13 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     """
     from ase.optimize import BFGS, FIRE, LBFGS
 
-    from .fan_relaxation import FanRelaxation, _calculator_h
+    from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
 
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
     resolve_blas_threads(blas_threads)  # bad values fail before any work
     c = DEFAULT_C[name] if c is None else c
-    h = _calculator_h(atoms) if h is None else h
+    h = calculator_h(atoms) if h is None else h
     if name == "fan":  # Eq. 2.4 does no BLAS work
         return FanRelaxation(atoms, c=c, h=h, logfile=logfile, keep_inside=keep_inside, **kwargs)
     if h is None:

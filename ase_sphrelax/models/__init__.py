@@ -6,7 +6,7 @@ pair loop: calculators sum its pair terms with :mod:`ase_sphrelax.pairs` (or
 LAMMPS). Its submodules load on first use (``ase_sphrelax.models.fan``), so importing the
 package loads nothing.
 """
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 __all__ = ["alaric", "bipi", "fan", "parvi"]
 __getattr__, __dir__ = lazy_exports(globals(), {}, __all__)

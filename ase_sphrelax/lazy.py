@@ -4,6 +4,7 @@
 LAMMPS: a package ``__init__`` lists its public names with the submodule that
 defines them, and its submodules, and :func:`lazy_exports` resolves both when first
 touched (``ase_sphrelax.domains.Circle`` works after a bare ``import ase_sphrelax``).
+Public, so that companion packages (``lammps_io``) use it without another package's private name.
 """
 from __future__ import annotations
 
