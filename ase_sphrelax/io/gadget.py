@@ -53,8 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .particles import (DEFAULT_GAMMA, all_or_none_periodic, box_frame, collect, require, single_fluid,
-                        written_atomically)
+from .particles import all_or_none_periodic, box_frame, collect, require, single_fluid, written_atomically
 
 __all__ = ["write_gadget", "long_bits"]
 
@@ -81,8 +80,7 @@ def long_bits(box_c, dim, periodic):
     return box_size, bits_c
 
 
-def write_gadget(atoms, path, *, dim=None, margin=None, thickness=1.0, masses=None, dx=None, rho0=None,
-                 support=None, internal_energy=None, cs2=None, gamma=DEFAULT_GAMMA):
+def write_gadget(atoms, path, *, dim=None, margin=None, thickness=1.0, **sources):
     """Write ``atoms`` as GADGET-4 HDF5 initial conditions (see the module docstring).
 
     Parameters are those of :func:`ase_sphrelax.io.swift.write_swift` without ``units`` and
@@ -98,8 +96,7 @@ def write_gadget(atoms, path, *, dim=None, margin=None, thickness=1.0, masses=No
         Before anything is written: no masses, NaN, a dimension that disagrees with the geometry,
         particle types other than fluid, mixed periodicity, a periodic side not BoxSize / 2^k.
     """
-    particles = collect(atoms, dim, masses=masses, dx=dx, rho0=rho0, support=support,
-                        internal_energy=internal_energy, cs2=cs2, gamma=gamma)
+    particles = collect(atoms, dim, **sources)
     require(particles, "GADGET-4", m_p=True)
     single_fluid(particles, "GADGET-4")
     periodic = all_or_none_periodic(particles, "GADGET-4")

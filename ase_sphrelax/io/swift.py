@@ -59,8 +59,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .particles import (DEFAULT_GAMMA, all_or_none_periodic, box_frame, collect, require, single_fluid,
-                        written_atomically)
+from .particles import all_or_none_periodic, box_frame, collect, require, single_fluid, written_atomically
 
 __all__ = ["write_swift", "SWIFT_KERNEL_GAMMA", "SWIFT_UNITS", "swift_smoothing_length"]
 
@@ -119,7 +118,7 @@ def _dataset_attributes(unit_system, dimension, a_exponent):
 
 
 def write_swift(atoms, path, *, units="cgs", kernel="cubic-spline", dim=None, margin=None, thickness=1.0,
-                masses=None, dx=None, rho0=None, support=None, internal_energy=None, cs2=None, gamma=DEFAULT_GAMMA):
+                **sources):
     """Write ``atoms`` as SWIFT initial conditions (HDF5; see the module docstring).
 
     Parameters
@@ -133,8 +132,9 @@ def write_swift(atoms, path, *, units="cgs", kernel="cubic-spline", dim=None, ma
     dim : {1, 2, 3, None}
     margin, thickness : float
         See :func:`ase_sphrelax.io.particles.box_frame`.
-    masses, dx, rho0, support, internal_energy, cs2, gamma :
-        See :func:`ase_sphrelax.io.particles.collect`.
+    **sources
+        ``masses``, ``dx``, ``rho0``, ``support``, ``internal_energy``, ``cs2``, ``gamma`` of
+        :func:`ase_sphrelax.io.particles.collect`.
 
     Returns
     -------
@@ -147,8 +147,7 @@ def write_swift(atoms, path, *, units="cgs", kernel="cubic-spline", dim=None, ma
         dimension that disagrees with the geometry, particle types other than fluid, a mixture
         of periodic and bounded axes, an unknown kernel or unit system.
     """
-    particles = collect(atoms, dim, masses=masses, dx=dx, rho0=rho0, support=support,
-                        internal_energy=internal_energy, cs2=cs2, gamma=gamma)
+    particles = collect(atoms, dim, **sources)
     require(particles, "SWIFT", m_p=True, support_p=True, u_p=True)
     single_fluid(particles, "SWIFT")
     periodic = all_or_none_periodic(particles, "SWIFT")

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .particles import DEFAULT_GAMMA, collect, written_atomically
+from .particles import collect, written_atomically
 
 __all__ = ["write_vtu"]
 
@@ -72,8 +72,7 @@ def _add_field_data(path, field_data):
     tree.write(path, xml_declaration=True, encoding="utf-8")
 
 
-def write_vtu(atoms, path, *, dim=None, masses=None, dx=None, rho0=None, support=None, internal_energy=None,
-              cs2=None, gamma=DEFAULT_GAMMA):
+def write_vtu(atoms, path, *, dim=None, **sources):
     """Write ``atoms`` as a VTU file of points with point data (see the module docstring).
 
     Parameters are those of :func:`ase_sphrelax.io.particles.collect`; nothing is required
@@ -89,8 +88,7 @@ def write_vtu(atoms, path, *, dim=None, masses=None, dx=None, rho0=None, support
         Before anything is written: NaN or inf, a dimension that disagrees with the geometry,
         arrays of the wrong shape.
     """
-    particles = collect(atoms, dim, masses=masses, dx=dx, rho0=rho0, support=support,
-                        internal_energy=internal_energy, cs2=cs2, gamma=gamma)
+    particles = collect(atoms, dim, **sources)
     point_data = _point_data(atoms, particles)
     for name, values in point_data.items():
         if values.dtype.kind == "f" and not np.all(np.isfinite(values)):
