@@ -244,8 +244,9 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
             rho_p = m_p / v_p
         if margin is None and not periodic:
             margin = float(np.max(v_p)) ** (1.0 / dim)
+        velocities = atoms.get_velocities() if atoms.has("momenta") else None
         write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=m_p, volume=v_p,
-                   rho=rho_p if atom_style == "sph" else None, margin=margin)
+                   rho=rho_p if atom_style == "sph" else None, margin=margin, velocities=velocities)
         return output
     spacing = _spacing(atoms, dim, dx)
     if margin is None and not periodic:

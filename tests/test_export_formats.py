@@ -231,6 +231,10 @@ def _bad(name):
         atoms.new_array("type", np.where(np.arange(len(atoms)) < 3, 2, 1))
     elif name == "mixed periodicity":
         atoms.pbc = [True, False, False]
+    elif name == "3D motion":
+        momenta = atoms.get_momenta()
+        momenta[0, 2] = 1.0
+        atoms.set_momenta(momenta)
     return atoms
 
 
@@ -242,6 +246,7 @@ def _bad(name):
     ("3D atoms", "2D"),
     ("walls", "fluid particles .type 1. only"),
     ("mixed periodicity", "periodic along every axis or none"),
+    ("3D motion", "2D particles move along z"),
 ])
 def test_bad_input_is_one_line_and_leaves_no_file(tmp_path, writer, name, message):
     atoms = _bad(name)
@@ -346,6 +351,8 @@ def test_lammps_export_of_a_bounded_alaric_set_keeps_masses_and_densities(tmp_pa
     rows = _data_rows(tmp_path / "out.data", "Atoms # sph", len(atoms))
     np.testing.assert_allclose(rows[:, 2], atoms.arrays["rho"], rtol=TOL)
     np.testing.assert_allclose(rows[:, 5:7], atoms.positions[:, :2], rtol=0, atol=TOL)
+    velocities = _data_rows(tmp_path / "out.data", "Velocities", len(atoms))
+    np.testing.assert_allclose(velocities[:, 1:], atoms.get_velocities(), rtol=TOL, atol=TOL)
 
 
 def test_lammps_sphere_export_keeps_each_particles_mass(tmp_path):

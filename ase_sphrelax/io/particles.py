@@ -165,6 +165,9 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
                 raise ValueError("atoms carry momenta but no masses: velocities need masses "
                                  "(atoms.arrays['masses'], or dx and rho0)")
             v_pc = p_pc / m_p[:, None]
+    if np.any(v_pc[:, dim:]):
+        raise ValueError(f"{dim}D particles move along {'y or z' if dim == 1 else 'z'}: velocities of a {dim}D "
+                         f"set must be 0 along the unused axes (a {dim}D set with 3D motion is a dimension mismatch)")
     support_p = _per_particle(atoms, "h", support, n, "support radius h", positive=True)
     if support_p is None and atoms.info.get("h") is not None:
         support_p = _finite("atoms.info['h']", atoms.info["h"], n, positive=True)
