@@ -185,7 +185,7 @@ def test_masses_from_dx_and_rho0_when_the_particles_have_none(tmp_path):
                                                 ("wendland-C2", 3, np.sqrt(15 / 4)),
                                                 ("quartic-spline", 1, np.sqrt(15 / 4))])
 def test_swift_smoothing_length_is_support_over_gamma(kernel, dim, exact):
-    """gamma_K = H / h with h = 2 sigma (Dehnen & Aly 2012): closed forms of the table's entries, to SWIFT's 7 digits."""
+    """gamma_K = H / h, h = 2 sigma (Dehnen & Aly 2012): closed forms of the table's entries, to SWIFT's 7 digits."""
     assert SWIFT_KERNEL_GAMMA[kernel][dim] == pytest.approx(exact, rel=5e-7)
     assert swift_smoothing_length(0.2, kernel, dim) == pytest.approx(0.2 / exact, rel=5e-7)
 
@@ -199,7 +199,7 @@ def test_swift_has_no_1d_wendland_c4():
 @given(st.integers(1, 3), st.lists(st.floats(-50.0, 50.0, allow_nan=False), min_size=3, max_size=30),
        st.floats(-3.0, 3.0, allow_nan=False), st.sampled_from([0.5, 1.0, 3.0]))
 def test_box_frame_wraps_into_the_box_and_keeps_the_periodic_set(dim, values, origin, side):
-    """Positions in [0, L); file position + shift is the atoms' position modulo L (degenerate: all equal, far images)."""
+    """Positions in [0, L); file position + shift = the position modulo L (degenerate: all equal, far images)."""
     n = len(values) // dim
     r_pc = np.zeros((n, 3))
     r_pc[:, :dim] = np.reshape(values[: n * dim], (n, dim))
