@@ -28,6 +28,9 @@ SWIFT kernel        1D         2D         3D
 So a support ``H = 0.2`` in 1D with SWIFT's default cubic spline is written as
 ``h = 0.2 / 1.732051 = 0.11547``; with ``wendland-C2`` in 3D as ``0.2 / 1.936492 = 0.10328``.
 SWIFT has no 1D Wendland C4/C6 (its build stops with an error): asking for them is an error here.
+To start SWIFT with the kernel a set was relaxed with (ALARIC: Wendland C4 in 2D/3D; Fan, BIPI:
+Wendland C2), configure SWIFT ``--with-kernel=wendland-C4`` (``-C2``) and pass the same ``kernel``:
+the support radii then carry over exactly.
 The kernel and its ratio are recorded in the header (``ase_sphrelax_kernel``,
 ``ase_sphrelax_kernel_gamma``).
 
