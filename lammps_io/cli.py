@@ -70,7 +70,7 @@ def add_export_arguments(parser):
                         help="box margin around open (non-periodic) sets (default: dx for LAMMPS; for SWIFT and "
                              "GADGET the largest support radius, and the particles are shifted into [0, L))")
     box_codes = parser.add_argument_group("SWIFT, GADGET-4 and VTU (ase_sphrelax.io; the export extra)")
-    box_codes.add_argument("--h", type=positive(float), default=None, dest="support",
+    box_codes.add_argument("--h", type=positive(float), default=None, dest="support", metavar="H",
                            help="kernel support radius H of every particle (default atoms.arrays['h'] or "
                                 "atoms.info['h']); SWIFT gets h = H / gamma_K, GADGET H itself")
     box_codes.add_argument("--kernel", choices=_swift_kernels(), default="cubic-spline",

@@ -365,3 +365,12 @@ def test_lammps_sphere_export_keeps_each_particles_mass(tmp_path):
     mass_p = rows[:, 3] * 4.0 / 3.0 * np.pi * (rows[:, 2] / 2) ** 3
     np.testing.assert_allclose(mass_p, atoms.get_masses(), rtol=1e-12)
     np.testing.assert_allclose(rows[:, 2], (atoms.get_masses() / atoms.arrays["rho"]) ** (1 / 3), rtol=1e-12)
+
+
+def test_an_explicit_dx_sets_every_mass_and_velocities_keep_the_particles_own_masses(tmp_path):
+    """As for LAMMPS: --dx gives mass rho0 dx^dim and density rho0 to every particle; v = p / own mass."""
+    atoms = alaric_like(3, True)
+    data = swiftsimio.load(str(write_swift(atoms, tmp_path / "s.hdf5", dx=0.1, rho0=2.0, cs2=1.0)))
+    np.testing.assert_allclose(data.gas.masses.v, 2.0 * 0.1**3, rtol=TOL)
+    np.testing.assert_allclose(data.gas.densities.v, 2.0, rtol=TOL)
+    np.testing.assert_allclose(data.gas.velocities.v, atoms.get_momenta() / atoms.get_masses()[:, None], rtol=TOL)

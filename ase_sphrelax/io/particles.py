@@ -119,8 +119,9 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
     masses : float, (N,) array or None
         Overrides ``atoms.arrays["masses"]``.
     dx, rho0 : float or None
-        Masses ``rho0 dx^dim`` (and densities ``rho0``) for particles without masses; ``dx``
-        defaults to ``atoms.info["dx"]``, ``rho0`` to 1. Not used when the particles carry masses.
+        Masses ``rho0 dx^dim`` and densities ``rho0`` (``rho0`` defaults to 1): with ``dx`` given,
+        for every particle (as ``sphrelax export --dx`` does for LAMMPS); without it, for particles
+        without masses, from ``atoms.info["dx"]``. Velocities always use the particles' own masses.
     support : float, (N,) array or None
         Kernel support radius ``H``; overrides ``atoms.arrays["h"]`` / ``atoms.info["h"]``.
     internal_energy : float, (N,) array or None
@@ -145,26 +146,26 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
     pbc_c = np.array(atoms.pbc, dtype=bool)
     if not (np.isscalar(gamma) and np.isfinite(gamma) and gamma > 1):
         raise ValueError(f"gamma must be a finite number > 1 (adiabatic index), got {gamma!r}")
-    m_p = _per_particle(atoms, "masses", masses, n, "masses", positive=True)
+    own_m_p = _per_particle(atoms, "masses", None, n, "masses", positive=True)
     rho_p = _per_particle(atoms, "rho", None, n, "densities", positive=True)
-    if m_p is None:
-        if dx is None:
-            dx = atoms.info.get("dx")
+    m_p = _finite("masses", masses, n, positive=True) if masses is not None else None
+    if m_p is None and (dx is not None or own_m_p is None):
+        dx = atoms.info.get("dx") if dx is None else dx  # an explicit dx wins over the particles' masses
         if dx is not None:
-            rho = 1.0 if rho0 is None else rho0
             dx = _finite("dx", dx, 1, positive=True)[0]
-            rho = _finite("rho0", rho, 1, positive=True)[0]
+            rho = _finite("rho0", 1.0 if rho0 is None else rho0, 1, positive=True)[0]
             m_p = np.full(n, rho * dx**dim)
-            if rho_p is None:
-                rho_p = np.full(n, rho)
+            rho_p = np.full(n, rho)
+    if m_p is None:
+        m_p = own_m_p
     v_pc = np.zeros((n, 3))
     if atoms.has("momenta"):
         p_pc = _finite("atoms momenta", atoms.get_momenta(), n, (3,))
         if np.any(p_pc):
-            if m_p is None:
-                raise ValueError("atoms carry momenta but no masses: velocities need masses "
-                                 "(atoms.arrays['masses'], or dx and rho0)")
-            v_pc = p_pc / m_p[:, None]
+            if own_m_p is None:
+                raise ValueError("atoms carry momenta but no masses (atoms.arrays['masses']): their velocities "
+                                 "are unknown")
+            v_pc = p_pc / own_m_p[:, None]
     if np.any(v_pc[:, dim:]):
         raise ValueError(f"{dim}D particles move along {'y or z' if dim == 1 else 'z'}: velocities of a {dim}D "
                          f"set must be 0 along the unused axes (a {dim}D set with 3D motion is a dimension mismatch)")
