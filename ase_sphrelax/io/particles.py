@@ -4,13 +4,14 @@ What is read (``sphrelax relax``, ``pack`` and ``density`` write these):
 
 =====================  =====================================================================
 ``positions``          ``atoms.positions`` (N, 3); 2D at z = 0, 1D on the x axis
-``velocities``         ``atoms.get_velocities()`` (momenta / masses; zeros without momenta)
-``masses``             ``atoms.arrays["masses"]`` (ALARIC: per particle); without them
-                       ``rho0 dx^dim`` from ``dx`` or ``atoms.info["dx"]`` (Fan, BIPI);
-                       neither: an error, never ASE's default mass of the chemical element
+``velocities``         momenta / the particles' own masses (zeros without momenta)
+``masses``             ``rho0 dx^dim`` for every particle when ``dx`` is given; else
+                       ``atoms.arrays["masses"]`` (ALARIC: per particle); else ``rho0 dx^dim``
+                       with ``atoms.info["dx"]`` (Fan, BIPI); else none (the box codes refuse),
+                       never ASE's default mass of the chemical element
 ``support``            the kernel **support** radius ``H`` (the package's ``h``):
                        ``atoms.arrays["h"]`` (ALARIC) or ``atoms.info["h"]`` (Fan, BIPI)
-``densities``          ``atoms.arrays["rho"]`` (ALARIC); ``rho0`` where masses came from it
+``densities``          ``rho0`` where the masses are ``rho0 dx^dim``, else ``atoms.arrays["rho"]``
 ``internal_energy``    ``atoms.arrays["internal_energy"]``, else the isothermal
                        ``u = c_s^2 / (gamma - 1)`` (ALARIC Eq. 30)
 ``types``              ``atoms.arrays["type"]`` (1 fluid, 2 wall, ...); default all 1
