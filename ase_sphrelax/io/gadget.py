@@ -2,7 +2,8 @@
 
 Layout (GADGET-4 documentation, "Snapshot file format", HDF5 section and header table): a
 ``Header`` group of attributes and one group per particle type, here ``PartType0`` (gas), the
-group name GADGET-4 reads and writes (and SWIFT, pynbody and yt with it):
+group name GADGET-4 reads and writes (its text says ``ParticleType0``, its code
+``snap_io::get_datagroup_name`` writes ``/PartType%d``; SWIFT, pynbody and yt read the same):
 
 =========================  ===================================================================
 ``Header`` attribute       value
