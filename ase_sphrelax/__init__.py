@@ -37,8 +37,8 @@ Submodules (loaded on first use, so ``import ase_sphrelax`` loads no numba)
 triangles and integrals; ``calculators``; ``drivers``; ``analysis`` quality metrics and
 lattice patterns; ``sampling`` SPH-ParVI, targets, metrics and baselines; ``kernels``;
 ``neighbors``; ``pairs`` (the pair mechanism); ``sph`` (shared SPH physics); ``models``
-(one module per method); ``cli`` (the ``sphrelax`` command). LAMMPS export and engines are
-in the separate package ``lammps_io``.
+(one module per method); ``cli`` (the ``sphrelax`` command); ``io`` (SWIFT, GADGET-4 and VTU
+files). LAMMPS export and engines are in the separate package ``lammps_io``.
 
 To export a name, add one line to ``_WHERE`` (name -> defining submodule), never an eager
 import (``tests/test_cli.py`` checks that ``import ase_sphrelax`` loads no numba).
@@ -48,8 +48,8 @@ from .lazy import lazy_exports
 __version__ = "0.1.0"
 
 _SUBMODULES = ("analysis", "boundary", "build", "calculators", "checks", "cli", "domains", "drivers",
-               "kernel_sums", "kernels", "models", "neighbors", "pairs", "parallel", "plotting", "sampling",
-               "sph", "splitting", "tree_neighbors")
+               "io", "kernel_sums", "kernels", "models", "neighbors", "pairs", "parallel", "plotting",
+               "sampling", "sph", "splitting", "tree_neighbors")
 
 _WHERE = {
     # Fan et al.

@@ -1,5 +1,8 @@
 """``sphrelax export`` and ``sphrelax relax --engine lammps``, registered by entry point.
 
+``sphrelax export`` writes LAMMPS data files (here, :mod:`lammps_io.data_file`), extxyz and legacy
+VTK, and dispatches SWIFT, GADGET-4 HDF5 and VTU to the writers of :mod:`ase_sphrelax.io`.
+
 ``pyproject.toml`` registers :class:`ExportCommand` in the entry-point group
 ``ase_sphrelax.commands`` and :class:`LammpsEngine` in ``ase_sphrelax.engines``
 (see :mod:`ase_sphrelax.cli.registry`), so ``ase_sphrelax`` never imports
@@ -23,15 +26,22 @@ MIN_STYLES = ("fire", "cg", "sd", "quickmin")  # the LAMMPS min_style values the
 __all__ = ["EXPORT_FORMATS", "ENGINES", "ExportCommand", "LammpsEngine", "add_export_arguments",
            "add_engine_arguments", "cli_export", "cli_relax", "write_vtk", "export_format_from_path"]
 
-EXPORT_FORMATS = ("lammps", "extxyz", "vtk")
+EXPORT_FORMATS = ("lammps", "extxyz", "vtk", "swift", "gadget", "vtu")
+#: the formats written by :mod:`ase_sphrelax.io` (the ``export`` extra: swiftsimio, h5py, meshio)
+BOX_CODE_FORMATS = ("swift", "gadget")
+#: ``--units`` for SWIFT: lj (reduced numbers) is written as cgs base units, every conversion factor 1
+SWIFT_UNIT_CHOICES = ("lj", "cgs", "si", "galactic", "cosmo")
 # the engines of ``add_engine_arguments`` (a parser of your own); sphrelax lists its engines from the registry
 ENGINES = ("ase", "lammps")
 _SUFFIX_FORMAT = {".data": "lammps", ".lmp": "lammps", ".lammps": "lammps", ".xyz": "extxyz", ".extxyz": "extxyz",
-                  ".vtk": "vtk"}
+                  ".vtk": "vtk", ".vtu": "vtu"}
 
 
 def export_format_from_path(path):
-    """Format implied by the file suffix (.data/.lmp -> lammps, .xyz/.extxyz -> extxyz, .vtk -> vtk)."""
+    """Format implied by the file suffix (.data/.lmp -> lammps, .xyz/.extxyz -> extxyz, .vtk -> vtk, .vtu -> vtu).
+
+    ``.hdf5`` is SWIFT's and GADGET's: give ``--format swift`` or ``--format gadget``.
+    """
     suffix = Path(path).suffix.lower()
     if suffix not in _SUFFIX_FORMAT:
         raise ValueError(f"cannot infer the export format from {str(path)!r}: use --format {'|'.join(EXPORT_FORMATS)} "
@@ -46,14 +56,38 @@ def add_export_arguments(parser):
     parser.add_argument("--format", choices=EXPORT_FORMATS, default=None,
                         help="output format (default: from the output suffix)")
     parser.add_argument("--atom-style", choices=ATOM_STYLES, default="sph", help="LAMMPS atom style (default sph)")
-    parser.add_argument("--units", choices=UNIT_STYLES, default="lj",
-                        help="LAMMPS unit system named in the data file (default lj; coordinates are not converted)")
+    parser.add_argument("--units", choices=tuple(dict.fromkeys(UNIT_STYLES + SWIFT_UNIT_CHOICES)), default="lj",
+                        help="unit system the numbers are in; nothing is converted (default lj). LAMMPS: the "
+                             f"units style named in the data file ({', '.join(UNIT_STYLES)}). SWIFT: the Units "
+                             "group: lj = reduced numbers written as cgs base units (every conversion factor 1, "
+                             "like SWIFT's hydro test examples), cgs (cm, g, s), si (m, kg, s), galactic (kpc, "
+                             "Msun, Myr), cosmo (Mpc, 1e10 Msun, km/s)")
     parser.add_argument("--dx", type=positive(float), default=None,
-                        help="particle spacing (default atoms.info['dx'], else cell measure / N)")
+                        help="particle spacing (default atoms.info['dx'], else cell measure / N); particles "
+                             "with their own masses (sphrelax density) keep them unless --dx is given")
     parser.add_argument("--rho0", type=positive(float), default=1.0, help="SPH density; mass = rho0 dx^dim (default 1)")
     parser.add_argument("--margin", type=float, default=None,
-                        help="box margin around open (non-periodic) sets (default: dx)")
+                        help="box margin around open (non-periodic) sets (default: dx for LAMMPS; for SWIFT and "
+                             "GADGET the largest support radius, and the particles are shifted into [0, L))")
+    box_codes = parser.add_argument_group("SWIFT, GADGET-4 and VTU (ase_sphrelax.io; the export extra)")
+    box_codes.add_argument("--h", type=positive(float), default=None, dest="support", metavar="H",
+                           help="kernel support radius H of every particle (default atoms.arrays['h'] or "
+                                "atoms.info['h']); SWIFT gets h = H / gamma_K, GADGET H itself")
+    box_codes.add_argument("--kernel", choices=_swift_kernels(), default="cubic-spline",
+                           help="SWIFT's kernel (its --with-kernel, default cubic-spline), which sets gamma_K")
+    box_codes.add_argument("--cs2", type=positive(float), default=None,
+                           help="isothermal sound speed squared: internal energy u = cs2 / (gamma - 1) "
+                                "(default atoms.info['cs2']; SWIFT needs u)")
+    box_codes.add_argument("--gamma", type=float, default=5.0 / 3.0, help="adiabatic index of u = cs2/(gamma-1) (5/3)")
+    box_codes.add_argument("--internal-energy", type=float, default=None,
+                           help="specific internal energy of every particle (overrides --cs2)")
     return parser
+
+
+def _swift_kernels():
+    from ase_sphrelax.io.swift import SWIFT_KERNEL_GAMMA  # noqa: PLC0415  (numpy only)
+
+    return tuple(SWIFT_KERNEL_GAMMA)
 
 
 LAMMPS_DEFAULTS = dict(nprocs=1, nthreads=1, lammps_style="table", min_style=None)
@@ -148,24 +182,30 @@ def write_vtk(atoms, path, dim=None):
 
 
 def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx=None, rho0=1.0, margin=None,
-               dim=None):
-    """``sphrelax export``: write particles as a LAMMPS data file, extxyz or VTK.
+               dim=None, support=None, kernel="cubic-spline", cs2=None, gamma=5.0 / 3.0, internal_energy=None):
+    """``sphrelax export``: write particles as LAMMPS data, extxyz, VTK, SWIFT, GADGET-4 HDF5 or VTU.
 
     Parameters
     ----------
     atoms_or_path : ase.Atoms or path readable by ase.io.read
     output : str or Path
-    fmt : {"lammps", "extxyz", "vtk", None}
+    fmt : {"lammps", "extxyz", "vtk", "swift", "gadget", "vtu", None}
         None: from the output suffix.
-    atom_style, units :
-        LAMMPS data file options (:func:`lammps_io.write_data`).
+    atom_style : str
+        LAMMPS atom style (:func:`lammps_io.write_data`).
+    units : str
+        LAMMPS: the units style named in the data file. SWIFT: the unit system of the numbers
+        (``lj`` = reduced numbers written as cgs base units; see :mod:`ase_sphrelax.io.swift`).
     dx : float or None
-        Spacing for the particle volume dx^dim (mass = rho0 dx^dim, rho = rho0). With None and
-        atom style sph, particles with a per-particle ``rho`` array and masses (``sphrelax density``)
-        keep their own mass and density.
+        Spacing for the particle volume dx^dim (mass = rho0 dx^dim, rho = rho0). With None,
+        particles that carry masses (``sphrelax density``) keep each mass, and their densities
+        (``rho`` array) when they have them.
     rho0 : float
     margin : float or None
-        Box margin for open sets (default dx).
+        Box margin for open sets (LAMMPS default dx, or the particle spacing (m / rho)^(1/dim) of
+        particles with their own masses; SWIFT/GADGET: :func:`ase_sphrelax.io.particles.box_frame`).
+    support, kernel, cs2, gamma, internal_energy :
+        SWIFT/GADGET/VTU: :func:`ase_sphrelax.io.swift.write_swift`.
 
     Returns
     -------
@@ -184,22 +224,54 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
 
         write(output, atoms, format="extxyz")
         return output
+    if fmt in ("swift", "gadget", "vtu"):
+        return _export_io(atoms, output, fmt, units=units, dim=dim, dx=dx, rho0=rho0, margin=margin,
+                          support=support, kernel=kernel, cs2=cs2, gamma=gamma, internal_energy=internal_energy)
     dim = infer_dim(atoms) if dim is None else dim
     if fmt == "vtk":
         return write_vtk(atoms, output, dim)
-    spacing = _spacing(atoms, dim, dx)
+    if units not in UNIT_STYLES:
+        raise ValueError(f"units {units!r} is not a LAMMPS units style: use one of {UNIT_STYLES}")
     periodic = all(atoms.pbc[:dim])
+    if dx is None and atoms.has("masses"):
+        # particles that carry their own SPH state (e.g. sphrelax density): keep each mass and density
+        m_p = np.asarray(atoms.get_masses(), dtype=float)
+        if "rho" in atoms.arrays:
+            rho_p = np.asarray(atoms.arrays["rho"], dtype=float)
+            v_p = m_p / rho_p
+        else:
+            v_p = np.full(len(atoms), _spacing(atoms, dim, dx) ** dim)
+            rho_p = m_p / v_p
+        if margin is None and not periodic:
+            margin = float(np.max(v_p)) ** (1.0 / dim)
+        velocities = atoms.get_velocities() if atoms.has("momenta") else None
+        write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=m_p, volume=v_p,
+                   rho=rho_p if atom_style == "sph" else None, margin=margin, velocities=velocities)
+        return output
+    spacing = _spacing(atoms, dim, dx)
     if margin is None and not periodic:
         margin = spacing
     volume = spacing**dim
-    if atom_style == "sph" and dx is None and "rho" in atoms.arrays and atoms.has("masses"):
-        # particles that carry their own SPH state (e.g. sphrelax density): keep each mass and density
-        write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=atoms.get_masses(),
-                   rho=atoms.arrays["rho"], margin=margin)
-        return output
     write_data(atoms, output, atom_style=atom_style, units=units, dim=dim, masses=rho0 * volume, volume=volume,
                rho=rho0 if atom_style == "sph" else None, margin=margin)
     return output
+
+
+def _export_io(atoms, output, fmt, units, dim, dx, rho0, margin, support, kernel, cs2, gamma, internal_energy):
+    """SWIFT, GADGET-4 HDF5 and VTU through :mod:`ase_sphrelax.io` (bad input: ValueError, no file)."""
+    from ase_sphrelax import io  # noqa: PLC0415
+
+    common = dict(dim=dim, dx=dx, rho0=rho0, support=support, internal_energy=internal_energy, cs2=cs2, gamma=gamma)
+    if fmt == "vtu":
+        return io.write_vtu(atoms, output, **common)
+    if margin is not None and not (np.isfinite(margin) and margin > 0):
+        raise ValueError(f"margin must be a positive number for {fmt}, got {margin!r}")
+    if fmt == "gadget":
+        return io.write_gadget(atoms, output, margin=margin, **common)
+    if units not in SWIFT_UNIT_CHOICES:
+        raise ValueError(f"units {units!r} is not a SWIFT unit system: use one of {SWIFT_UNIT_CHOICES}")
+    return io.write_swift(atoms, output, units="cgs" if units == "lj" else units, kernel=kernel, margin=margin,
+                          **common)
 
 
 def cli_relax(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, nthreads=1, style="table", output=None,
@@ -225,11 +297,16 @@ def cli_relax(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, nthreads=1, 
 
 # -- registered with sphrelax (pyproject.toml entry points) ---------------------------------
 class ExportCommand:
-    """convert particles to LAMMPS data, extxyz or VTK
+    """convert particles to LAMMPS data, extxyz, VTK, SWIFT or GADGET-4 HDF5, or VTU (ParaView)
 
     Reads any file ase.io.read understands (e.g. relaxed.extxyz of sphrelax relax).
-    LAMMPS data files get mass = rho0 dx^dim and, for atom style sph, rho = rho0;
-    open (non-periodic) sets get a box margin of dx.
+    LAMMPS data files get mass = rho0 dx^dim and, for atom style sph, rho = rho0, unless the
+    particles carry their own masses (and densities; sphrelax density); open (non-periodic)
+    sets get a box margin of dx. SWIFT and GADGET-4 (--format swift|gadget, .hdf5) write
+    initial conditions in a [0, L) box with per-particle masses, smoothing lengths (SWIFT
+    h = H / gamma_K of --kernel, GADGET H), internal energies (--cs2) and densities; VTU
+    writes every per-particle array as point data. These need the export extra
+    (swiftsimio, h5py, meshio).
     """
 
     add_arguments = staticmethod(add_export_arguments)
@@ -239,12 +316,26 @@ class ExportCommand:
         with usage_errors():
             fmt = args.format or export_format_from_path(args.output)
             atoms = _read(args.input)
-            if fmt == "lammps":
+            if fmt == "lammps" and (args.dx is not None or not atoms.has("masses")):
                 _spacing(atoms, infer_dim(atoms), args.dx)
-        path = cli_export(atoms, args.output, fmt=fmt, atom_style=args.atom_style, units=args.units, dx=args.dx,
-                          rho0=args.rho0, margin=args.margin)
+            if fmt in ("swift", "gadget", "vtu"):
+                _check_export_extra(fmt)
+            path = cli_export(atoms, args.output, fmt=fmt, atom_style=args.atom_style, units=args.units,
+                              dx=args.dx, rho0=args.rho0, margin=args.margin, support=args.support,
+                              kernel=args.kernel, cs2=args.cs2, gamma=args.gamma,
+                              internal_energy=args.internal_energy)
         print(f"wrote {path}")
         return 0
+
+
+def _check_export_extra(fmt):
+    """One line naming the missing library and the extra that installs it."""
+    import importlib.util  # noqa: PLC0415
+
+    needed = {"swift": ("swiftsimio", "h5py"), "gadget": ("h5py",), "vtu": ("meshio",)}[fmt]
+    missing = [name for name in needed if importlib.util.find_spec(name) is None]
+    if missing:
+        raise UsageError(f"--format {fmt} needs {', '.join(missing)}: pip install 'ase-sphrelax[export]'")
 
 
 class LammpsEngine:
