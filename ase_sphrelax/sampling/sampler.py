@@ -25,18 +25,21 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 
 import numpy as np
 
-from ..checks import check_positive
+from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
+from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
+from .target_checks import check_score_matches_log_density, locate_target, probe_target
 
 __all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS"]
 
 #: The default configuration: score force, isothermal EOS with alpha = c0^2 (stationary density p).
 DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", viscosity="linear",
-                viscosity_alpha=0.1, friction=1.0, steps=600, courant=0.5, rule="final")
+                viscosity_alpha=0.1, friction=None, steps=600, courant=0.5, rule="final")
 
 
 class ParVIDivergence(FloatingPointError):
@@ -74,12 +77,18 @@ class ParVISampler:
     steps : int
     dt : float or None
         Fixed time step; None: the CFL step (times ``courant``) at every step.
-    friction : float
-        Drag coefficient beta >= 0.
+    friction : float or None
+        Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
+        per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
+        found). The drag sets the time the fluid takes to settle, ``~ beta s^2``, while the CFL
+        step scales with s: ``beta = 1 / s`` makes the number of steps to rest the same at any scale.
     rule : {"final", "optimal"}
     x0 : ndarray (M, d) or None
-        Initial particles; default N(0, init_scale^2 I) drawn with ``seed``.
-    init_scale : float
+        Initial particles; default drawn with ``seed`` from N(0, init_scale^2 I) or, without
+        ``init_scale``, from N(c, diag(s^2)) with the centre c and per-axis scale s found from the
+        target by :func:`~ase_sphrelax.sampling.target_checks.locate_target` (scale 1 on an axis
+        where the score shows no positive curvature).
+    init_scale : float or None
     seed : int
     record_every : int
         Trace (and optimal-state candidate) every this many steps.
@@ -93,7 +102,7 @@ class ParVISampler:
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=DEFAULTS["courant"], friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
-                 init_scale=1.0, seed=0, record_every=10, progress=False):
+                 init_scale=None, seed=0, record_every=10, progress=False):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -106,7 +115,8 @@ class ParVISampler:
             raise ValueError(f"h_schedule must be 'constant' or 'anneal', got {h_schedule!r}")
         if h_schedule == "anneal" and isinstance(h, str):
             raise ValueError("h_schedule='anneal' needs a number h (the starting support), got h='adaptive'")
-        if not math.isfinite(friction) or friction < 0:
+        if friction is not None and (isinstance(friction, bool) or not isinstance(friction, (int, float))
+                                     or not math.isfinite(friction) or friction < 0):
             raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
         if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
             raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
@@ -127,9 +137,12 @@ class ParVISampler:
             self.h_end = self.h_start / 3.0
         self.dt = check_positive("dt", dt, allow_none=True)
         self.courant = check_positive("courant", courant)
-        self.friction = float(friction)
+        self.friction = None if friction is None else float(friction)
         self.rule = rule
-        self.init_scale = check_positive("init_scale", init_scale)
+        self.init_scale = check_positive("init_scale", init_scale, allow_none=True)
+        self.start = None  # (centre (d,), scale (d,)) of the initial proposal, from look_at_target()
+        self.target_scale = None
+        self._probe = None
         self.seed = seed
         self.record_every = int(record_every)
         self.progress = progress
@@ -148,11 +161,35 @@ class ParVISampler:
                                diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=courant,
                                friction=self.friction, rule=rule, init_scale=init_scale, seed=seed)
 
+    def look_at_target(self):
+        """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
+        locate the target (its scale, and the initial proposal unless ``x0`` or ``init_scale`` is given),
+        reject a score that points away from the mass everywhere, and compare the score with the
+        log-density's central differences at a few initial particles when both are given."""
+        probe = self._probe = probe_target(self.target)
+        centre_c, scale_c = locate_target(probe, self.dim)
+        self.target_scale = scale_c
+        if self.init_scale is not None or not np.all(np.isfinite(centre_c)):
+            self.start = (np.zeros(self.dim), np.full(self.dim, self.init_scale or 1.0))
+        else:
+            self.start = (centre_c, np.where(np.isfinite(scale_c), scale_c, 1.0))
+        if self.friction is None:  # from the target, also when the start is the user's
+            known_c = scale_c[np.isfinite(scale_c)]
+            self.friction = float(1.0 / np.exp(np.mean(np.log(known_c)))) if known_c.size else 1.0
+        self.parameters["friction"] = self.friction
+        points = self.initial_particles()[:4]
+        known_c = np.where(np.isfinite(scale_c), scale_c, np.std(points, axis=0) if len(points) > 1 else 1.0)
+        check_score_matches_log_density(probe, points, np.where(known_c > 0, known_c, 1.0))
+        return probe
+
     def initial_particles(self):
-        """The initial proposal: ``x0`` or N(0, init_scale^2 I) drawn with ``seed``."""
+        """The initial proposal: ``x0``, or N(centre, diag(scale^2)) drawn with ``seed`` (see ``x0``)."""
         if self.x0 is not None:
             return self.x0.copy()
-        return self.init_scale * np.random.default_rng(self.seed).standard_normal((self.n, self.dim))
+        if self.start is None:
+            self.look_at_target()
+        centre_c, scale_c = self.start
+        return centre_c + scale_c * np.random.default_rng(self.seed).standard_normal((self.n, self.dim))
 
     def _separate_coincident(self, r):
         """Coincident particles feel no pressure from each other (the kernel is flat at r = 0) and an
@@ -166,11 +203,24 @@ class ParVISampler:
             return r, 0
         distinct = r[first]
         scale = float(np.sqrt(np.mean(np.var(distinct, axis=0)))) if len(distinct) > 1 else 0.0
-        scale = scale if scale > 0 else self.init_scale
+        scale = scale if scale > 0 else float(np.mean(self.start[1])) if self.start is not None else 1.0
         rng = np.random.default_rng([int(self.seed) if isinstance(self.seed, (int, np.integer)) else 0, 7919])
         r = r.copy()
         r[duplicate] += 1e-3 * scale * rng.standard_normal((int(duplicate.sum()), r.shape[1]))
         return r, int(duplicate.sum())
+
+    def _divergence_hint(self, r0):
+        """What to change after a divergence: the initial spread against the target's scale, then the step."""
+        spread_c = np.std(r0, axis=0)
+        hint = ""
+        scale_c = self.target_scale
+        if scale_c is not None and np.any(np.isfinite(scale_c)):
+            ratio = float(np.nanmax(np.maximum(spread_c / scale_c, scale_c / spread_c)))
+            hint = (f"the initial particles (sd {np.array2string(spread_c, precision=3)}) against the target's scale "
+                    f"from its score's curvature ({np.array2string(scale_c, precision=3)}): a factor {ratio:.3g}"
+                    + ("; start at the target's scale (leave init_scale and x0 unset) or" if ratio > 10 else ";")
+                    + " ")
+        return hint + "use a smaller dt or courant, or more friction"
 
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
@@ -187,8 +237,10 @@ class ParVISampler:
         """
         t0 = time.perf_counter()
         model = self.model
+        probe = self._probe if self._probe is not None else self.look_at_target()
         r = self.initial_particles()
         r, jittered = self._separate_coincident(r)
+        r0 = r.copy()
         v = np.zeros_like(r)
         if self.h_schedule == "anneal":
             model.set_h(self._h_at(0))
@@ -200,6 +252,7 @@ class ParVISampler:
         trace = {k: [] for k in ("step", "time", "dt", "mean_density", "kinetic", "energy", "n_density", "n_score",
                                  "wall")}
         best = dict(step=0, density=-np.inf, samples=r.copy())
+        moments = []  # ensemble mean and covariance of every recorded state (the convergence diagnostics)
         fallback = 0
         sim_time = 0.0
         dt = self.dt or self.courant * model.cfl_step(ev)
@@ -216,6 +269,7 @@ class ParVISampler:
             trace["n_density"].append(self.target.n_density)
             trace["n_score"].append(self.target.n_score)
             trace["wall"].append(time.perf_counter() - t0)
+            moments.append(np.concatenate(ensemble_moments(r)))
             if trace["mean_density"][-1] > best["density"]:
                 best.update(step=step, density=trace["mean_density"][-1], samples=r.copy())
 
@@ -235,7 +289,7 @@ class ParVISampler:
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(v))) or kinetic > 1e6 * scale:
                 raise ParVIDivergence(f"SPH-ParVI diverged at step {step} (dt = {dt:.3g}, kinetic energy "
-                                      f"{kinetic:.3g}): use a smaller dt or courant, or more friction")
+                                      f"{kinetic:.3g}): {self._divergence_hint(r0)}")
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
                                       f"(dt = {dt:.3g}); use a smaller dt or summation densities")
@@ -248,8 +302,24 @@ class ParVISampler:
             bar.close()
         samples = r if self.rule == "final" else best["samples"]
         chosen = self.steps if self.rule == "final" else best["step"]
+        verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r)
+        returned = (f"rule={self.rule!r} returned the state of step {chosen}"
+                    + (" (the initial particles, untouched)" if chosen == 0 else ""))
+        if verdict["converged"] and chosen < verdict["window"][0]:
+            verdict.update(converged=False, reason=f"{returned}, before the last half of the run where the fluid was "
+                                                   f"found at rest")
+        elif not verdict["converged"] and self.rule != "final":
+            verdict["reason"] += f"; {returned}"
         info = dict(self.parameters, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
-                    optimal_step=best["step"], final_h_median=float(np.median(ev.h)))
+                    optimal_step=best["step"], final_h_median=float(np.median(ev.h)),
+                    converged=verdict["converged"], convergence_reason=verdict["reason"],
+                    convergence=verdict, start_centre=self.start[0].tolist() if self.x0 is None else None,
+                    start_scale=self.start[1].tolist() if self.x0 is None else None,
+                    target_scale=self.target_scale.tolist(), n_check_density=probe.n_density,
+                    n_check_score=probe.n_score)
+        if not verdict["converged"]:
+            warnings.warn(f"SPH-ParVI did not converge after {self.steps} steps: {verdict['reason']}",
+                          NotConvergedWarning, stacklevel=3)
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
                             info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"])))
