@@ -9,7 +9,7 @@ Examples::
 logistic) or ``module:function``, a vectorised log-density ``(M, d) -> (M,)`` (``--dim`` is then
 required; ``--score module:function`` adds its gradient, otherwise it is taken by central differences).
 The run uses SPH-ParVI's default configuration (score force, isothermal EOS with alpha = c0^2,
-adaptive h, friction 1) unless options change it. Writes ``OUT/samples.npy`` (M, d),
+adaptive h, friction 1 / the target's scale) unless options change it. Writes ``OUT/samples.npy`` (M, d),
 ``OUT/samples.extxyz`` (particles as atoms: positions for d <= 3, the per-atom array ``sample`` for
 any d), ``OUT/trace.json`` (the run's trace and parameters), ``OUT/summary.json`` (every parameter,
 the seed, the target, ``converged`` and its reason) and ``OUT/samples.png`` (2D: particles over the
