@@ -4,16 +4,18 @@ A particle sampler returns one ensemble of M particles; the user reads moments o
 judged converged when, over the last half of the run, nothing the user would read moves by more
 than its own Monte-Carlo error:
 
-* **mean and covariance drift.** The moments are averaged over the recorded states of the second,
-  third and fourth quarter of the run. Three changes are compared with the Monte-Carlo standard
-  errors of the final ensemble (``sd_c / sqrt(M)`` for a mean, ``std((x_i - mu_i)(x_j - mu_j)) /
-  sqrt(M)`` for a covariance entry: the particles' own fourth moments, no Gaussian assumption):
-  the change from the third to the fourth quarter, the spread (max - min) within the fourth
-  quarter, and the change still to come if the approach is geometric (Aitken:
-  ``delta4 rho / (1 - rho)``, ``rho = delta4 / delta3``; infinite when the change does not shrink).
-  A change larger than one standard error means the answer still depends on when the run stopped
-  more than on the sample size. A slow approach (a run shorter than the fluid's relaxation
-  time) moves little per quarter but shrinks slowly: the projection catches it.
+* **mean and covariance drift.** Each moment of the recorded states is compared with the
+  Monte-Carlo standard error of the final ensemble (``sd_c / sqrt(M)`` for a mean,
+  ``std((x_i - mu_i)(x_j - mu_j)) / sqrt(M)`` for a covariance entry: the particles' own fourth
+  moments, no Gaussian assumption) in three ways: the change of its average from the third to the
+  fourth quarter of the run, its range (max - min) within the fourth quarter, and the change still
+  to come. The last is projected from the ranges R3, R4 of the last two quarters: in a geometric
+  approach (exponential, or a damped oscillation) the range shrinks by ``rho = R4 / R3`` per
+  quarter and the moment still moves by ``R4 rho / (1 - rho)``; when ``rho >= 1`` there is no limit
+  in sight and the projection is the change over another run as long as this one, ``4 R4``. A change larger than one standard error means the answer
+  depends on when the run stopped more than on the sample size. A slow approach (a run shorter
+  than the fluid's relaxation time) moves little per quarter but shrinks slowly: the projection
+  catches it.
 * **kinetic energy.** The mean kinetic energy of the fourth quarter must not exceed that of the
   third (a damped fluid at rest loses energy; a rising one is being driven or expelled), unless the
   particles' motion is too slow to move any mean by one standard error within a quarter of the
@@ -74,30 +76,31 @@ def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc):
     """
     steps_k = np.asarray(steps_k, dtype=float)
     total = steps_k[-1]
-    q2 = (steps_k > 0.25 * total) & (steps_k <= 0.5 * total)
     q3 = (steps_k > 0.5 * total) & (steps_k <= 0.75 * total)
     q4 = steps_k > 0.75 * total
     out = dict(converged=False, mean_drift_se=None, cov_drift_se=None, kinetic_ratio=None,
                window=[float(0.5 * total), float(total)])
-    if not (q2.any() and q3.any() and q4.any()):
-        out["reason"] = (f"too short to judge: {int(total)} steps leave no recorded state in the second, third or "
-                         f"fourth quarter (record_every too large or too few steps)")
+    if q3.sum() < 2 or q4.sum() < 2:
+        out["reason"] = (f"too short to judge: {int(total)} steps leave fewer than two recorded states in the third "
+                         f"or the fourth quarter (record_every too large or too few steps)")
         return out
     moments_k = np.asarray(moments_k, dtype=float)
     dim = x_final_pc.shape[1]
     se_mean, se_cov = moment_standard_errors(x_final_pc)
     se = np.concatenate([se_mean, se_cov])
     se = np.where(se > 0, se, np.finfo(float).tiny)
-    avg2, avg3, avg4 = (moments_k[q].mean(axis=0) for q in (q2, q3, q4))
-    delta3, delta4 = np.abs(avg3 - avg2), np.abs(avg4 - avg3)
-    # what is still to come: a geometric (exponential) approach continues by delta4 rho / (1 - rho),
-    # rho = delta4 / delta3; a change that does not shrink has no limit in sight
+    avg3, avg4 = moments_k[q3].mean(axis=0), moments_k[q4].mean(axis=0)
+    delta4 = np.abs(avg4 - avg3)
+    # what is still to come: the range of a moment within a quarter shrinks by rho = R4 / R3 per quarter
+    # in a geometric (exponential or damped oscillating) approach, which continues by R4 rho / (1 - rho);
+    # a range that does not shrink has no limit in sight: its change over another run as long as this one
+    # (four quarters) is what is to come
+    range3, range4 = np.ptp(moments_k[q3], axis=0), np.ptp(moments_k[q4], axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rho = np.where(delta3 > 0, delta4 / delta3, np.where(delta4 > 0, np.inf, 0.0))
-        to_come = np.where(rho < 1.0, delta4 * rho / (1.0 - rho), np.inf)
-    to_come = np.where(delta4 <= ROUND_OFF * np.maximum(np.abs(avg4), se), 0.0, to_come)
-    spread = np.ptp(moments_k[q4], axis=0)
-    drift = np.maximum(np.maximum(delta4, spread), to_come) / se
+        rho = np.where(range3 > 0, range4 / range3, np.where(range4 > 0, np.inf, 0.0))
+        to_come = np.where(rho < 1.0, range4 * rho / (1.0 - rho), 4.0 * range4)
+    to_come = np.where(range4 <= ROUND_OFF * np.maximum(np.abs(avg4), se), 0.0, to_come)
+    drift = np.maximum(np.maximum(delta4, range4), to_come) / se
     out["mean_drift_se"] = float(drift[:dim].max())
     out["cov_drift_se"] = float(drift[dim:].max())
     kinetic_k = np.asarray(kinetic_k, dtype=float)
@@ -110,10 +113,11 @@ def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc):
     worst = int(np.argmax(drift))
     if drift[worst] > 1.0:
         names = _moment_names(dim)
-        still = "without slowing down" if not np.isfinite(to_come[worst]) else (
-            f"and is projected to move {to_come[worst] / se[worst]:.3g} more" if to_come[worst] > delta4[worst] else "")
-        reasons.append(f"{names[worst]} still moves: {avg2[worst]:.4g} -> {avg3[worst]:.4g} -> {avg4[worst]:.4g} "
-                       f"over the last three quarters of the run {still} (standard error {se[worst]:.2g})")
+        still = (f"not slowing down: {to_come[worst]:.3g} over another run as long" if rho[worst] >= 1.0 else
+                 f"projected to move {to_come[worst]:.3g} more")
+        reasons.append(f"{names[worst]} still moves: {avg3[worst]:.4g} -> {avg4[worst]:.4g} (averages of the third "
+                       f"and fourth quarter of the run), by {range4[worst]:.3g} within the last quarter, {still} "
+                       f"(standard error {se[worst]:.2g})")
     if ke4 > ke3 and reach > se_mean.min():
         reasons.append(f"kinetic energy rising over the last half ({ke3:.3g} -> {ke4:.3g})")
     out["converged"] = not reasons
