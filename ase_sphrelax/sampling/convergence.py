@@ -16,6 +16,11 @@ than its own Monte-Carlo error:
   depends on when the run stopped more than on the sample size. A slow approach (a run shorter
   than the fluid's relaxation time) moves little per quarter but shrinks slowly: the projection
   catches it.
+* **damping time.** With a drag ``beta`` velocities are forgotten over ``1 / beta``: a window (the
+  last half of the run) shorter than that is shorter than the memory of the dynamics, and its
+  slow modes move too little within it to be seen (e.g. the spread of a 1D fluid whose CFL step
+  is small: 600 steps are 0.5 time units at M = 500). Such a run is not converged whatever its
+  moments do.
 * **kinetic energy.** The mean kinetic energy of the fourth quarter must not exceed that of the
   third (a damped fluid at rest loses energy; a rising one is being driven or expelled), unless the
   particles' motion is too slow to move any mean by one standard error within a quarter of the
@@ -55,7 +60,7 @@ def _moment_names(dim):
     return [f"mean[{c}]" for c in range(dim)] + [f"cov[{i},{j}]" for i, j in zip(iu, ju)]
 
 
-def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc):
+def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc, friction=0.0):
     """Judge a run from its recorded states (see the module docstring).
 
     Parameters
@@ -66,6 +71,10 @@ def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc):
         :func:`ensemble_moments` of each recorded state, concatenated.
     x_final_pc : array (M, d)
         The final particles (for the standard errors).
+    friction : float
+        The drag ``beta`` of the run (0: none). A run whose last half is shorter than the drag's
+        damping time ``1 / beta`` is not converged: the window judged is shorter than the memory of
+        the dynamics, so slow modes are invisible in it.
 
     Returns
     -------
@@ -120,6 +129,13 @@ def assess_convergence(steps_k, times_k, kinetic_k, moments_k, x_final_pc):
                        f"(standard error {se[worst]:.2g})")
     if ke4 > ke3 and reach > se_mean.min():
         reasons.append(f"kinetic energy rising over the last half ({ke3:.3g} -> {ke4:.3g})")
+    times_k = np.asarray(times_k, dtype=float)
+    window_time = float(times_k[-1] - times_k[steps_k <= 0.5 * total][-1])
+    out["window_time"] = window_time
+    if friction > 0 and window_time * friction < 1.0:
+        reasons.append(f"the last half of the run lasted {window_time:.3g} time units, less than the damping time "
+                       f"of the friction (1 / friction = {1.0 / friction:.3g}): too short to see the fluid settle "
+                       f"(more steps)")
     out["converged"] = not reasons
     out["reason"] = ("at rest: every mean and covariance entry moved by less than one standard error over the last "
                      "half, kinetic energy not rising") if not reasons else "; ".join(reasons)

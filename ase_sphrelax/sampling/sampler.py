@@ -302,7 +302,8 @@ class ParVISampler:
             bar.close()
         samples = r if self.rule == "final" else best["samples"]
         chosen = self.steps if self.rule == "final" else best["step"]
-        verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r)
+        verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                                     friction=self.friction)
         returned = (f"rule={self.rule!r} returned the state of step {chosen}"
                     + (" (the initial particles, untouched)" if chosen == 0 else ""))
         if verdict["converged"] and chosen < verdict["window"][0]:
