@@ -176,3 +176,36 @@ def test_cli_inconsistent_target_is_one_line_exit_2(tmp_path, capsys, mismatched
                  "--dim", "2", "--n", "50", "--steps", "5", "--out", str(tmp_path / "o"), "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.fixture
+def truncated_module(tmp_path, monkeypatch):
+    (tmp_path / "truncated_target.py").write_text(textwrap.dedent("""
+        import numpy as np
+        def log_density(x):  # zero density beyond |x| = 3
+            lp = -0.5 * np.einsum("pc,pc->p", x, x)
+            return np.where(np.linalg.norm(x, axis=1) < 3.0, lp, -np.inf)
+        def nan_far(x):  # a bug: NaN beyond |x| = 2.5
+            lp = -0.5 * np.einsum("pc,pc->p", x, x)
+            return np.where(np.linalg.norm(x, axis=1) < 2.5, lp, np.nan)
+    """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield "truncated_target"
+    sys.modules.pop("truncated_target", None)
+
+
+def test_cli_divergence_and_a_nan_target_are_one_line(tmp_path, capsys, truncated_module):
+    from ase_sphrelax.cli import sample as sample_cli
+
+    # 1/(alpha (p + eps)) jumps to 1/(alpha eps) where p = 0: the paper's pressure diverges at once
+    out = tmp_path / "div"
+    code = main(["sample", "--target", f"{truncated_module}:log_density", "--dim", "2", "--n", "200", "--formulation",
+                 "pressure-inverse", "--steps", "80", "--out", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == sample_cli.EXIT_NOT_CONVERGED and "diverged at step" in err and len(err.strip().splitlines()) == 1
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["converged"] is False and "diverged" in summary["convergence_reason"]
+    code = main(["sample", "--target", f"{truncated_module}:nan_far", "--dim", "2", "--n", "200", "--steps", "80",
+                 "--out", str(tmp_path / "nan"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "log_density returned NaN" in err and len(err.strip().splitlines()) == 1

@@ -191,6 +191,8 @@ def run(args):
         (out / "summary.json").write_text(json.dumps(summary, indent=1))
         print(f"sphrelax sample: not converged: {error}; wrote {out}/summary.json", file=sys.stderr)
         return EXIT_NOT_CONVERGED
+    except ValueError as error:  # the target misbehaved during the run (NaN, +inf, a wrong shape): the user's input
+        raise UsageError(str(error)) from error
     x = result.samples
     np.save(out / "samples.npy", x)
     from ase import Atoms
