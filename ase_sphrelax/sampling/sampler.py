@@ -17,6 +17,18 @@ Smoothing length: ``h="adaptive"`` (the default: ``rho_a H_a^d = m eta^d``, abou
 ``n_neighbours`` particles per support), a number (constant), or ``h_schedule="anneal"`` from
 ``h`` to ``h_end`` geometrically over the run (Sec. 4 "time-varying annealing").
 
+Before any work (:meth:`ParVISampler.look_at_target`, :mod:`.target_checks`) a short diagonal
+Newton search on the score finds a mode and per-axis scale of the target: the particles start there
+(unless ``x0`` or ``init_scale`` is given) and the friction defaults to 1 / scale, so that a target of
+any scale and location runs like the unit Gaussian. A score that points away from the mass
+everywhere (a flipped sign) or that disagrees with the log-density's central differences is an
+error naming ``score``.
+
+At the end the run is judged (:mod:`.convergence`): the drift of the ensemble's mean and
+covariance and of its kinetic energy over the last half of the run against their Monte-Carlo
+standard errors. ``info["converged"]`` and ``info["convergence_reason"]`` say the verdict; a run
+that is not converged warns with :class:`~ase_sphrelax.checks.NotConvergedWarning`.
+
 Divergence (a step too large, a force that explodes) is detected after every step — non-finite
 positions or velocities, or a kinetic energy beyond ``1e6`` times its scale — and raised as
 :class:`ParVIDivergence` naming the step and the time step; nothing returns NaN silently.
@@ -24,6 +36,7 @@ positions or velocities, or a kinetic energy beyond ``1e6`` times its scale — 
 from __future__ import annotations
 
 import math
+import numbers
 import time
 import warnings
 
@@ -115,7 +128,7 @@ class ParVISampler:
             raise ValueError(f"h_schedule must be 'constant' or 'anneal', got {h_schedule!r}")
         if h_schedule == "anneal" and isinstance(h, str):
             raise ValueError("h_schedule='anneal' needs a number h (the starting support), got h='adaptive'")
-        if friction is not None and (isinstance(friction, bool) or not isinstance(friction, (int, float))
+        if friction is not None and (isinstance(friction, bool) or not isinstance(friction, numbers.Real)
                                      or not math.isfinite(friction) or friction < 0):
             raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
         if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
@@ -233,7 +246,12 @@ class ParVISampler:
         ``trace`` columns: ``step, time, dt, mean_density, kinetic, energy`` (NaN where the
         configuration is not conservative or p is not known), ``n_density, n_score, wall``.
         ``info``: the parameters, ``rule``, ``chosen_step``, ``fallback`` (zero-density pulls),
-        ``jittered`` (coincident starting particles moved apart, see :meth:`_separate_coincident`).
+        ``jittered`` (coincident starting particles moved apart, see :meth:`_separate_coincident`),
+        ``converged``, ``convergence_reason`` and ``convergence`` (the numbers of
+        :func:`~ase_sphrelax.sampling.convergence.assess_convergence`), ``start_centre``,
+        ``start_scale``, ``target_scale``, ``n_check_density``, ``n_check_score`` (the checks'
+        own evaluations, not in ``n_density``/``n_score``). Warns :class:`NotConvergedWarning`
+        when not converged.
         """
         t0 = time.perf_counter()
         model = self.model
