@@ -80,7 +80,8 @@ def test_optimal_rule_returning_the_start_is_not_converged():
 def test_cli_optimal_rule_exits_non_zero_and_says_which_step(tmp_path, capsys, monkeypatch):
     from ase_sphrelax.cli import sample as sample_cli
 
-    monkeypatch.setattr(sample_cli, "DEFAULT_STEPS", 80)  # the default length, judged; short for the test
+    monkeypatch.setattr(sample_cli, "DEFAULT_STEPS", 80)  # the stopping rule, short for the test
+    monkeypatch.setattr(sample_cli, "DEFAULT_MAX_STEPS", 160)
     out = tmp_path / "banana"
     code = main(["sample", "--target", "banana", "--n", "200", "--rule", "optimal", "--out", str(out),
                  "--no-progress"])
@@ -116,6 +117,10 @@ def test_one_dimensional_default_length_is_honest():
     res, caught = _run(target, n=300, seed=0)
     _assert_honest(res, caught, target.mean, 1.0)
     assert not res.info["converged"] and "damping time" in res.info["convergence_reason"]
+    ruled, caught = _run(target, n=300, seed=0, max_steps=9600)  # the stopping rule: 600, 1200, ... steps
+    assert ruled.info["converged"], ruled.info["convergence_reason"]
+    assert 600 < ruled.info["steps"] <= 9600 and ruled.info["steps"] == ruled.trace["step"][-1]
+    _assert_honest(ruled, caught, target.mean, 1.0)
 
 
 @pytest.mark.parametrize("kwargs, words", [(dict(formulation="pressure-log"), ("kinetic energy rising", "still moves")),

@@ -22,10 +22,14 @@ away from the mass everywhere, or that does not match the central differences of
 log-density, is a usage error; the initial particles are placed at the scale (and mode) found from
 the score unless ``--init-scale`` is given.
 
-Exit status: 0 when the run converged, or when ``--steps`` was given (a fixed number of steps
-asked for: an unconverged run then warns and records ``converged: false``); 3 when a run of the
-default length did not converge or diverged (the last line says why, summary.json has the
-reason); 2 for a usage error (one line, before any work).
+Length: without ``--steps`` the run stops by its own rule: 600 steps, doubled while it is not
+converged, up to ``--max-steps`` (default 9600). ``--steps N`` alone is a fixed length;
+``--steps N --max-steps K`` starts the rule at N.
+
+Exit status: 0 when the run converged, or when ``--steps`` alone fixed the length (an unconverged
+run then warns and records ``converged: false``); 3 when the stopping rule reached its cap without
+converging, or the run diverged (the last line says why, summary.json has the reason); 2 for a
+usage error (one line, before any work).
 """
 from __future__ import annotations
 
@@ -36,8 +40,10 @@ __all__ = ["add_arguments", "run", "EXIT_NOT_CONVERGED", "DEFAULT_STEPS"]
 
 #: exit status of a run of the default length that did not converge (or diverged)
 EXIT_NOT_CONVERGED = 3
-#: steps of a run when ``--steps`` is not given (then judged: unconverged exits with EXIT_NOT_CONVERGED)
+#: the first length of a run when ``--steps`` is not given; the stopping rule then doubles it while the run
+#: is not converged, up to DEFAULT_MAX_STEPS (unconverged there: exit EXIT_NOT_CONVERGED)
 DEFAULT_STEPS = 600
+DEFAULT_MAX_STEPS = 16 * DEFAULT_STEPS
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
 EOS = ("isothermal", "tait")
@@ -67,7 +73,11 @@ def add_arguments(parser):
                              "'adaptive' (default: per-particle H from the density)")
     parser.add_argument("--steps", type=positive(int), default=None,
                         help=f"a fixed number of time steps: the run exits 0 even if it did not converge (default: "
-                             f"{DEFAULT_STEPS} steps, exit {EXIT_NOT_CONVERGED} unless converged)")
+                             f"the stopping rule: {DEFAULT_STEPS} steps, doubled while not converged up to "
+                             f"--max-steps; exit {EXIT_NOT_CONVERGED} if still not converged)")
+    parser.add_argument("--max-steps", type=positive(int), default=None,
+                        help=f"the stopping rule's cap (default {DEFAULT_MAX_STEPS} without --steps; with --steps N "
+                             f"the rule starts at N)")
     parser.add_argument("--friction", type=float, default=None,
                         help="drag coefficient (default 1 / the target's scale found from its score: 1 for a unit "
                              "target)")
@@ -169,18 +179,22 @@ def run(args):
             if args.dim is None:
                 raise UsageError("--dim is required with a module:function target")
             dim = args.dim
+        fixed = args.steps is not None and args.max_steps is None
+        max_steps = None if fixed else args.max_steps or DEFAULT_MAX_STEPS
+        if max_steps is not None and max_steps < (args.steps or DEFAULT_STEPS):
+            raise UsageError(f"--max-steps must be >= --steps ({args.steps or DEFAULT_STEPS}), got {max_steps}")
         if args.friction is not None and args.friction < 0:
             raise UsageError(f"--friction must be >= 0, got {args.friction}")
         sampler = ParVISampler(log_density=log_density, score=score, dim=dim, n=args.n, formulation=args.formulation,
                                eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support,
-                               steps=DEFAULT_STEPS if args.steps is None else args.steps,
+                               steps=DEFAULT_STEPS if args.steps is None else args.steps, max_steps=max_steps,
                                friction=args.friction, rule=args.rule, init_scale=args.init_scale, seed=args.seed,
                                progress=not args.no_progress)
         sampler.look_at_target()  # a score of the wrong sign or of another target: exit 2 before any work
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-    fixed = args.steps is not None
     summary = dict(command="sample", target=args.target, score=args.score, seed=args.seed, steps_fixed=fixed,
+                   max_steps=max_steps,
                    version=_version())
     try:
         with warnings.catch_warnings():

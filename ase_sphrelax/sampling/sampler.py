@@ -107,6 +107,10 @@ class ParVISampler:
         Trace (and optimal-state candidate) every this many steps.
     progress : bool
         tqdm progress bar.
+    max_steps : int or None
+        The stopping rule: None runs exactly ``steps``; a number runs ``steps``, then, while the run
+        is not converged (:mod:`.convergence`, judged on the last half of the run so far), doubles
+        its length, up to ``max_steps`` (annealed supports stay at ``h_end`` after ``steps``).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -115,7 +119,7 @@ class ParVISampler:
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=DEFAULTS["courant"], friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
-                 init_scale=None, seed=0, record_every=10, progress=False):
+                 init_scale=None, seed=0, record_every=10, progress=False, max_steps=None):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -131,6 +135,9 @@ class ParVISampler:
         if friction is not None and (isinstance(friction, bool) or not isinstance(friction, numbers.Real)
                                      or not math.isfinite(friction) or friction < 0):
             raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+                                      or max_steps < steps):
+            raise ValueError(f"max_steps must be None or an integer >= steps ({steps}), got {max_steps!r}")
         if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
             raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
         alpha = check_positive("alpha", alpha)
@@ -158,6 +165,7 @@ class ParVISampler:
         self._probe = None
         self.seed = seed
         self.record_every = int(record_every)
+        self.max_steps = None if max_steps is None else int(max_steps)
         self.progress = progress
         self.x0 = None
         if x0 is not None:
@@ -172,7 +180,8 @@ class ParVISampler:
                                n_neighbours=self.model.n_neighbours, viscosity=viscosity,
                                viscosity_alpha=viscosity_alpha, nu=nu, regularisation=regularisation, density=density,
                                diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=courant,
-                               friction=self.friction, rule=rule, init_scale=init_scale, seed=seed)
+                               friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
+                               max_steps=self.max_steps)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -238,7 +247,7 @@ class ParVISampler:
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
-        return self.h_start * (self.h_end / self.h_start) ** (step / self.steps)
+        return self.h_start * (self.h_end / self.h_start) ** (min(step, self.steps) / self.steps)
 
     def run(self):
         """Integrate and return a :class:`~ase_sphrelax.sampling.result.SampleResult`.
@@ -292,7 +301,11 @@ class ParVISampler:
                 best.update(step=step, density=trace["mean_density"][-1], samples=r.copy())
 
         record(0, dt)
-        for step in range(1, self.steps + 1):
+        limit = self.steps  # the stopping rule may double it (max_steps)
+        step = 0
+        verdict = None
+        while step < limit:
+            step += 1
             decay = math.exp(-0.5 * self.friction * dt)
             v = v * decay + (0.5 * dt / m) * ev.forces
             if rho is not None:
@@ -311,17 +324,26 @@ class ParVISampler:
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
                                       f"(dt = {dt:.3g}); use a smaller dt or summation densities")
-            if step % self.record_every == 0 or step == self.steps:
+            if step % self.record_every == 0 or step == limit:
                 record(step, dt)
             dt = self.dt or self.courant * model.cfl_step(ev)
             if bar is not None:
                 bar.update(1)
+            if step == limit:
+                verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                                             friction=self.friction)
+                if not verdict["converged"] and self.max_steps is not None and limit < self.max_steps:
+                    limit = min(2 * limit, self.max_steps)  # a new last half, judged afresh
+                    if bar is not None:
+                        bar.total = limit
+                        bar.refresh()
         if bar is not None:
             bar.close()
+        if verdict is None:  # steps = 0
+            verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                                         friction=self.friction)
         samples = r if self.rule == "final" else best["samples"]
-        chosen = self.steps if self.rule == "final" else best["step"]
-        verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
-                                     friction=self.friction)
+        chosen = step if self.rule == "final" else best["step"]
         returned = (f"rule={self.rule!r} returned the state of step {chosen}"
                     + (" (the initial particles, untouched)" if chosen == 0 else ""))
         if verdict["converged"] and chosen < verdict["window"][0]:
@@ -329,7 +351,7 @@ class ParVISampler:
                                                    f"found at rest")
         elif not verdict["converged"] and self.rule != "final":
             verdict["reason"] += f"; {returned}"
-        info = dict(self.parameters, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
+        info = dict(self.parameters, steps=step, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
                     optimal_step=best["step"], final_h_median=float(np.median(ev.h)),
                     converged=verdict["converged"], convergence_reason=verdict["reason"],
                     convergence=verdict, start_centre=self.start[0].tolist() if self.x0 is None else None,
@@ -337,7 +359,7 @@ class ParVISampler:
                     target_scale=self.target_scale.tolist(), n_check_density=probe.n_density,
                     n_check_score=probe.n_score)
         if not verdict["converged"]:
-            warnings.warn(f"SPH-ParVI did not converge after {self.steps} steps: {verdict['reason']}",
+            warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
                           NotConvergedWarning, stacklevel=3)
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
