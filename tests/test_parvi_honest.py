@@ -159,6 +159,16 @@ def test_tiny_target_starts_at_its_scale_and_a_forced_wide_start_names_the_scale
         ParVISampler(target.log_density, target.score, n=150, steps=300, init_scale=1.0).run()
 
 
+def test_tiny_target_with_only_a_log_density_differences_at_its_scale():
+    """Central differences of log p with a step of 1e-5 see nothing of a target of sd 1e-6."""
+    target = _gaussian([3e-6, 0.0], 1e-6)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = ParVISampler(log_density=target.log_density, n=150, steps=300, seed=2).run()
+    _assert_honest(res, [w for w in caught if issubclass(w.category, NotConvergedWarning)], target.mean, 1e-6)
+    assert res.info["converged"], res.info["convergence_reason"]
+
+
 @pytest.fixture
 def mismatched_module(tmp_path, monkeypatch):
     (tmp_path / "mismatched_target.py").write_text(textwrap.dedent("""

@@ -191,6 +191,10 @@ class ParVISampler:
         probe = self._probe = probe_target(self.target)
         centre_c, scale_c = locate_target(probe, self.dim)
         self.target_scale = scale_c
+        if not self.target.has_score and np.any(np.isfinite(scale_c)):
+            # central differences of log p with steps of 1e-5 max(1, |x|) see nothing of a target narrower
+            # than that: scale the step down with the target (never up: unit targets keep theirs)
+            self.target.fd_step = min(self.target.fd_step, self.target.fd_step * float(np.nanmin(scale_c)))
         if self.init_scale is not None or not np.all(np.isfinite(centre_c)):
             self.start = (np.zeros(self.dim), np.full(self.dim, self.init_scale or 1.0))
         else:
