@@ -7,7 +7,7 @@ import numbers
 import numpy as np
 
 __all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
-           "ASE_DEFAULT_FMAX"]
+           "NotConvergedWarning", "ASE_DEFAULT_FMAX"]
 
 #: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
 ASE_DEFAULT_FMAX = 0.05
@@ -15,6 +15,11 @@ ASE_DEFAULT_FMAX = 0.05
 
 class SPHScaleWarning(UserWarning):
     """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
+
+
+class NotConvergedWarning(UserWarning):
+    """A run ended without reaching its own convergence criterion; the message names the criterion
+    that failed (the result's ``info["converged"]`` is False and ``info["convergence_reason"]`` says why)."""
 
 
 def check_positive(name, value, allow_none=False):

@@ -9,17 +9,41 @@ Examples::
 logistic) or ``module:function``, a vectorised log-density ``(M, d) -> (M,)`` (``--dim`` is then
 required; ``--score module:function`` adds its gradient, otherwise it is taken by central differences).
 The run uses SPH-ParVI's default configuration (score force, isothermal EOS with alpha = c0^2,
-adaptive h, friction 1) unless options change it. Writes ``OUT/samples.npy`` (M, d),
+adaptive h, friction 1 / the target's scale) unless options change it. Writes ``OUT/samples.npy`` (M, d),
 ``OUT/samples.extxyz`` (particles as atoms: positions for d <= 3, the per-atom array ``sample`` for
-any d), ``OUT/trace.json`` (the run's trace and parameters) and ``OUT/samples.png`` (2D: particles
-over the target's contours; 1D: histogram and density; d > 2: pair marginals of the first axes).
+any d), ``OUT/trace.json`` (the run's trace and parameters), ``OUT/summary.json`` (every parameter,
+the seed, the target, ``converged`` and its reason) and ``OUT/samples.png`` (2D: particles over the
+target's contours; 1D: histogram and density; d > 2: pair marginals of the first axes).
+
+Convergence: the run is judged at its end by the drift of the ensemble's mean and covariance and of
+its kinetic energy over the last half of the run, against their Monte-Carlo standard errors
+(``ase_sphrelax.sampling.convergence``). Before any work the target is checked: a score that points
+away from the mass everywhere, or that does not match the central differences of ``--target``'s
+log-density, is a usage error; the initial particles are placed at the scale (and mode) found from
+the score unless ``--init-scale`` is given.
+
+Length: without ``--steps`` the run stops by its own rule: 600 steps, doubled while it is not
+converged, up to ``--max-steps`` (default 9600). ``--steps N`` alone is a fixed length;
+``--steps N --max-steps K`` starts the rule at N.
+
+Exit status: 0 when the run converged, or when ``--steps`` alone fixed the length (an unconverged
+run then warns and records ``converged: false``); 3 when the stopping rule reached its cap without
+converging, or the run diverged (the last line says why, summary.json has the reason); 2 for a
+usage error (one line, before any work).
 """
 from __future__ import annotations
 
 
 from .usage import UsageError, positive, usage_errors
 
-__all__ = ["add_arguments", "run"]
+__all__ = ["add_arguments", "run", "EXIT_NOT_CONVERGED", "DEFAULT_STEPS"]
+
+#: exit status of a run of the default length that did not converge (or diverged)
+EXIT_NOT_CONVERGED = 3
+#: the first length of a run when ``--steps`` is not given; the stopping rule then doubles it while the run
+#: is not converged, up to DEFAULT_MAX_STEPS (unconverged there: exit EXIT_NOT_CONVERGED)
+DEFAULT_STEPS = 600
+DEFAULT_MAX_STEPS = 16 * DEFAULT_STEPS
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
 EOS = ("isothermal", "tait")
@@ -47,12 +71,22 @@ def add_arguments(parser):
     parser.add_argument("--support", type=_h, default="adaptive",
                         help="kernel support radius h as a length (not in units of dx, as relax's --h), or "
                              "'adaptive' (default: per-particle H from the density)")
-    parser.add_argument("--steps", type=positive(int), default=600, help="time steps (default 600)")
-    parser.add_argument("--friction", type=float, default=1.0, help="drag coefficient (default 1)")
+    parser.add_argument("--steps", type=positive(int), default=None,
+                        help=f"a fixed number of time steps: the run exits 0 even if it did not converge (default: "
+                             f"the stopping rule: {DEFAULT_STEPS} steps, doubled while not converged up to "
+                             f"--max-steps; exit {EXIT_NOT_CONVERGED} if still not converged)")
+    parser.add_argument("--max-steps", type=positive(int), default=None,
+                        help=f"the stopping rule's cap (default {DEFAULT_MAX_STEPS} without --steps; with --steps N "
+                             f"the rule starts at N)")
+    parser.add_argument("--friction", type=float, default=None,
+                        help="drag coefficient (default 1 / the target's scale found from its score: 1 for a unit "
+                             "target)")
     parser.add_argument("--rule", choices=("final", "optimal"), default="final",
                         help="which state to return: final (default) or the paper's optimal state (maximum mean "
                              "density; measured 7-400x worse, see examples/results/parvi)")
-    parser.add_argument("--init-scale", type=positive(float), default=1.0, help="sd of the initial N(0, s^2 I)")
+    parser.add_argument("--init-scale", type=positive(float), default=None,
+                        help="sd of the initial N(0, s^2 I) (default: centre and per-axis scale found from the "
+                             "target's score by a short mode search)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the initial particles (default 0)")
     parser.add_argument("--out", default="sample_out", help="output folder (default sample_out)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -124,7 +158,11 @@ def run(args):
 
     import numpy as np
 
-    from ..sampling.sampler import ParVISampler
+    import sys
+    import warnings
+
+    from ..checks import NotConvergedWarning
+    from ..sampling.sampler import ParVIDivergence, ParVISampler
     from ..sampling.targets import TARGET_NAMES, get_target
 
     with usage_errors():
@@ -141,15 +179,34 @@ def run(args):
             if args.dim is None:
                 raise UsageError("--dim is required with a module:function target")
             dim = args.dim
-        if args.friction < 0:
+        fixed = args.steps is not None and args.max_steps is None
+        max_steps = None if fixed else args.max_steps or DEFAULT_MAX_STEPS
+        if max_steps is not None and max_steps < (args.steps or DEFAULT_STEPS):
+            raise UsageError(f"--max-steps must be >= --steps ({args.steps or DEFAULT_STEPS}), got {max_steps}")
+        if args.friction is not None and args.friction < 0:
             raise UsageError(f"--friction must be >= 0, got {args.friction}")
         sampler = ParVISampler(log_density=log_density, score=score, dim=dim, n=args.n, formulation=args.formulation,
-                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support, steps=args.steps,
+                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support,
+                               steps=DEFAULT_STEPS if args.steps is None else args.steps, max_steps=max_steps,
                                friction=args.friction, rule=args.rule, init_scale=args.init_scale, seed=args.seed,
                                progress=not args.no_progress)
+        sampler.look_at_target()  # a score of the wrong sign or of another target: exit 2 before any work
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-    result = sampler.run()
+    summary = dict(command="sample", target=args.target, score=args.score, seed=args.seed, steps_fixed=fixed,
+                   max_steps=max_steps,
+                   version=_version())
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotConvergedWarning)  # said once below, on the last line
+            result = sampler.run()
+    except ParVIDivergence as error:
+        summary.update(converged=False, convergence_reason=str(error), parameters=_plain(sampler.parameters))
+        (out / "summary.json").write_text(json.dumps(summary, indent=1))
+        print(f"sphrelax sample: not converged: {error}; wrote {out}/summary.json", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
+    except ValueError as error:  # the target misbehaved during the run (NaN, +inf, a wrong shape): the user's input
+        raise UsageError(str(error)) from error
     x = result.samples
     np.save(out / "samples.npy", x)
     from ase import Atoms
@@ -161,12 +218,49 @@ def run(args):
     atoms.new_array("sample", x)
     write(out / "samples.extxyz", atoms, format="extxyz")
     trace = {k: np.asarray(v).tolist() for k, v in result.trace.items()}
-    info = {k: (v if isinstance(v, (int, float, str, bool, type(None))) else str(v)) for k, v in result.info.items()}
-    summary = dict(info=info, n_density=result.n_density, n_score=result.n_score, wall_time=result.wall_time,
-                   mean=x.mean(axis=0).tolist(), variance=x.var(axis=0).tolist(), trace=trace)
-    (out / "trace.json").write_text(json.dumps(summary, indent=1))
+    info = _plain(result.info)
+    costs = dict(n_density=result.n_density, n_score=result.n_score, wall_time=result.wall_time,
+                 mean=x.mean(axis=0).tolist(), variance=x.var(axis=0).tolist())
+    (out / "trace.json").write_text(json.dumps(dict(info=info, trace=trace, **costs), indent=1))
+    converged = bool(result.info["converged"])
+    summary.update(converged=converged, convergence_reason=result.info["convergence_reason"],
+                   chosen_step=result.info["chosen_step"], parameters=info, **costs)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
     _plot(out / "samples.png", x, log_density)
-    print(f"{len(x)} samples in {dim}D after {result.info['steps']} steps ({result.wall_time:.1f} s), "
+    chosen = result.info["chosen_step"]
+    state = "" if chosen == result.info["steps"] else f", the state of step {chosen} (--rule {args.rule})"
+    print(f"{len(x)} samples in {dim}D after {result.info['steps']} steps{state} ({result.wall_time:.1f} s), "
           f"mean {np.array2string(x.mean(axis=0)[:4], precision=3)}; wrote {out}/samples.npy, samples.extxyz, "
-          f"trace.json, samples.png")
-    return 0
+          f"trace.json, summary.json, samples.png")
+    if converged:
+        return 0
+    print(f"sphrelax sample: not converged: {result.info['convergence_reason']}"
+          + ("" if not fixed else " (exit 0: --steps fixed the length)"), file=sys.stderr)
+    return 0 if fixed else EXIT_NOT_CONVERGED
+
+
+def _plain(info):
+    """JSON-ready copy of a result's info: numbers, strings, lists and dicts of them kept, the rest as text."""
+    import numpy as np
+
+    def plain(v):
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not np.isfinite(v):
+            return str(v)  # strict JSON has no inf or NaN
+        if isinstance(v, (int, float, str, bool, type(None))):
+            return v
+        if isinstance(v, (list, tuple, np.ndarray)):
+            return [plain(u) for u in np.asarray(v, dtype=object).tolist()] if isinstance(v, np.ndarray) else [
+                plain(u) for u in v]
+        if isinstance(v, dict):
+            return {str(k): plain(u) for k, u in v.items()}
+        return str(v)
+
+    return {k: plain(v) for k, v in info.items()}
+
+
+def _version():
+    from .. import __version__
+
+    return __version__

@@ -5,7 +5,9 @@
 * :mod:`.baselines` — SVGD, ULA, MALA and emcee, run like the SPH sampler;
 * :mod:`.result` — :class:`SampleResult` and the evaluation-counting wrapper;
 * :mod:`.sampler` — :class:`ParVISampler` and :func:`sample` (the default configuration);
-* :mod:`.theory` — the predicted stationary densities.
+* :mod:`.theory` — the predicted stationary densities;
+* :mod:`.convergence` — has a run come to rest (moment and kinetic-energy drift against Monte-Carlo errors);
+* :mod:`.target_checks` — the target's mode and scale, a flipped score, a score of another target.
 """
 from .result import CountingTarget, SampleResult
 from .sampler import ParVIDivergence, ParVISampler, sample

@@ -17,6 +17,18 @@ Smoothing length: ``h="adaptive"`` (the default: ``rho_a H_a^d = m eta^d``, abou
 ``n_neighbours`` particles per support), a number (constant), or ``h_schedule="anneal"`` from
 ``h`` to ``h_end`` geometrically over the run (Sec. 4 "time-varying annealing").
 
+Before any work (:meth:`ParVISampler.look_at_target`, :mod:`.target_checks`) a short diagonal
+Newton search on the score finds a mode and per-axis scale of the target: the particles start there
+(unless ``x0`` or ``init_scale`` is given) and the friction defaults to 1 / scale, so that a target of
+any scale and location runs like the unit Gaussian. A score that points away from the mass
+everywhere (a flipped sign) or that disagrees with the log-density's central differences is an
+error naming ``score``.
+
+At the end the run is judged (:mod:`.convergence`): the drift of the ensemble's mean and
+covariance and of its kinetic energy over the last half of the run against their Monte-Carlo
+standard errors. ``info["converged"]`` and ``info["convergence_reason"]`` say the verdict; a run
+that is not converged warns with :class:`~ase_sphrelax.checks.NotConvergedWarning`.
+
 Divergence (a step too large, a force that explodes) is detected after every step — non-finite
 positions or velocities, or a kinetic energy beyond ``1e6`` times its scale — and raised as
 :class:`ParVIDivergence` naming the step and the time step; nothing returns NaN silently.
@@ -24,19 +36,23 @@ positions or velocities, or a kinetic energy beyond ``1e6`` times its scale — 
 from __future__ import annotations
 
 import math
+import numbers
 import time
+import warnings
 
 import numpy as np
 
-from ..checks import check_positive
+from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
+from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
+from .target_checks import check_score_matches_log_density, locate_target, probe_target
 
 __all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS"]
 
 #: The default configuration: score force, isothermal EOS with alpha = c0^2 (stationary density p).
 DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", viscosity="linear",
-                viscosity_alpha=0.1, friction=1.0, steps=600, courant=0.5, rule="final")
+                viscosity_alpha=0.1, friction=None, steps=600, courant=0.5, rule="final")
 
 
 class ParVIDivergence(FloatingPointError):
@@ -74,17 +90,27 @@ class ParVISampler:
     steps : int
     dt : float or None
         Fixed time step; None: the CFL step (times ``courant``) at every step.
-    friction : float
-        Drag coefficient beta >= 0.
+    friction : float or None
+        Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
+        per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
+        found). The drag sets the time the fluid takes to settle, ``~ beta s^2``, while the CFL
+        step scales with s: ``beta = 1 / s`` makes the number of steps to rest the same at any scale.
     rule : {"final", "optimal"}
     x0 : ndarray (M, d) or None
-        Initial particles; default N(0, init_scale^2 I) drawn with ``seed``.
-    init_scale : float
+        Initial particles; default drawn with ``seed`` from N(0, init_scale^2 I) or, without
+        ``init_scale``, from N(c, diag(s^2)) with the centre c and per-axis scale s found from the
+        target by :func:`~ase_sphrelax.sampling.target_checks.locate_target` (scale 1 on an axis
+        where the score shows no positive curvature).
+    init_scale : float or None
     seed : int
     record_every : int
         Trace (and optimal-state candidate) every this many steps.
     progress : bool
         tqdm progress bar.
+    max_steps : int or None
+        The stopping rule: None runs exactly ``steps``; a number runs ``steps``, then, while the run
+        is not converged (:mod:`.convergence`, judged on the last half of the run so far), doubles
+        its length, up to ``max_steps`` (annealed supports stay at ``h_end`` after ``steps``).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -93,7 +119,7 @@ class ParVISampler:
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=DEFAULTS["courant"], friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
-                 init_scale=1.0, seed=0, record_every=10, progress=False):
+                 init_scale=None, seed=0, record_every=10, progress=False, max_steps=None):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -106,8 +132,12 @@ class ParVISampler:
             raise ValueError(f"h_schedule must be 'constant' or 'anneal', got {h_schedule!r}")
         if h_schedule == "anneal" and isinstance(h, str):
             raise ValueError("h_schedule='anneal' needs a number h (the starting support), got h='adaptive'")
-        if not math.isfinite(friction) or friction < 0:
+        if friction is not None and (isinstance(friction, bool) or not isinstance(friction, numbers.Real)
+                                     or not math.isfinite(friction) or friction < 0):
             raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+                                      or max_steps < steps):
+            raise ValueError(f"max_steps must be None or an integer >= steps ({steps}), got {max_steps!r}")
         if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
             raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
         alpha = check_positive("alpha", alpha)
@@ -127,11 +157,15 @@ class ParVISampler:
             self.h_end = self.h_start / 3.0
         self.dt = check_positive("dt", dt, allow_none=True)
         self.courant = check_positive("courant", courant)
-        self.friction = float(friction)
+        self.friction = None if friction is None else float(friction)
         self.rule = rule
-        self.init_scale = check_positive("init_scale", init_scale)
+        self.init_scale = check_positive("init_scale", init_scale, allow_none=True)
+        self.start = None  # (centre (d,), scale (d,)) of the initial proposal, from look_at_target()
+        self.target_scale = None
+        self._probe = None
         self.seed = seed
         self.record_every = int(record_every)
+        self.max_steps = None if max_steps is None else int(max_steps)
         self.progress = progress
         self.x0 = None
         if x0 is not None:
@@ -146,13 +180,42 @@ class ParVISampler:
                                n_neighbours=self.model.n_neighbours, viscosity=viscosity,
                                viscosity_alpha=viscosity_alpha, nu=nu, regularisation=regularisation, density=density,
                                diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=courant,
-                               friction=self.friction, rule=rule, init_scale=init_scale, seed=seed)
+                               friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
+                               max_steps=self.max_steps)
+
+    def look_at_target(self):
+        """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
+        locate the target (its scale, and the initial proposal unless ``x0`` or ``init_scale`` is given),
+        reject a score that points away from the mass everywhere, and compare the score with the
+        log-density's central differences at a few initial particles when both are given."""
+        probe = self._probe = probe_target(self.target)
+        centre_c, scale_c = locate_target(probe, self.dim)
+        self.target_scale = scale_c
+        if not self.target.has_score and np.any(np.isfinite(scale_c)):
+            # central differences of log p with steps of 1e-5 max(1, |x|) see nothing of a target narrower
+            # than that: scale the step down with the target (never up: unit targets keep theirs)
+            self.target.fd_step = min(self.target.fd_step, self.target.fd_step * float(np.nanmin(scale_c)))
+        if self.init_scale is not None or not np.all(np.isfinite(centre_c)):
+            self.start = (np.zeros(self.dim), np.full(self.dim, self.init_scale or 1.0))
+        else:
+            self.start = (centre_c, np.where(np.isfinite(scale_c), scale_c, 1.0))
+        if self.friction is None:  # from the target, also when the start is the user's
+            known_c = scale_c[np.isfinite(scale_c)]
+            self.friction = float(1.0 / np.exp(np.mean(np.log(known_c)))) if known_c.size else 1.0
+        self.parameters["friction"] = self.friction
+        points = self.initial_particles()[:4]
+        known_c = np.where(np.isfinite(scale_c), scale_c, np.std(points, axis=0) if len(points) > 1 else 1.0)
+        check_score_matches_log_density(probe, points, np.where(known_c > 0, known_c, 1.0))
+        return probe
 
     def initial_particles(self):
-        """The initial proposal: ``x0`` or N(0, init_scale^2 I) drawn with ``seed``."""
+        """The initial proposal: ``x0``, or N(centre, diag(scale^2)) drawn with ``seed`` (see ``x0``)."""
         if self.x0 is not None:
             return self.x0.copy()
-        return self.init_scale * np.random.default_rng(self.seed).standard_normal((self.n, self.dim))
+        if self.start is None:
+            self.look_at_target()
+        centre_c, scale_c = self.start
+        return centre_c + scale_c * np.random.default_rng(self.seed).standard_normal((self.n, self.dim))
 
     def _separate_coincident(self, r):
         """Coincident particles feel no pressure from each other (the kernel is flat at r = 0) and an
@@ -166,16 +229,29 @@ class ParVISampler:
             return r, 0
         distinct = r[first]
         scale = float(np.sqrt(np.mean(np.var(distinct, axis=0)))) if len(distinct) > 1 else 0.0
-        scale = scale if scale > 0 else self.init_scale
+        scale = scale if scale > 0 else float(np.mean(self.start[1])) if self.start is not None else 1.0
         rng = np.random.default_rng([int(self.seed) if isinstance(self.seed, (int, np.integer)) else 0, 7919])
         r = r.copy()
         r[duplicate] += 1e-3 * scale * rng.standard_normal((int(duplicate.sum()), r.shape[1]))
         return r, int(duplicate.sum())
 
+    def _divergence_hint(self, r0):
+        """What to change after a divergence: the initial spread against the target's scale, then the step."""
+        spread_c = np.std(r0, axis=0)
+        hint = ""
+        scale_c = self.target_scale
+        if scale_c is not None and np.any(np.isfinite(scale_c)):
+            ratio = float(np.nanmax(np.maximum(spread_c / scale_c, scale_c / spread_c)))
+            hint = (f"the initial particles (sd {np.array2string(spread_c, precision=3)}) against the target's scale "
+                    f"from its score's curvature ({np.array2string(scale_c, precision=3)}): a factor {ratio:.3g}"
+                    + ("; start at the target's scale (leave init_scale and x0 unset) or" if ratio > 10 else ";")
+                    + " ")
+        return hint + "use a smaller dt or courant, or more friction"
+
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
-        return self.h_start * (self.h_end / self.h_start) ** (step / self.steps)
+        return self.h_start * (self.h_end / self.h_start) ** (min(step, self.steps) / self.steps)
 
     def run(self):
         """Integrate and return a :class:`~ase_sphrelax.sampling.result.SampleResult`.
@@ -183,12 +259,19 @@ class ParVISampler:
         ``trace`` columns: ``step, time, dt, mean_density, kinetic, energy`` (NaN where the
         configuration is not conservative or p is not known), ``n_density, n_score, wall``.
         ``info``: the parameters, ``rule``, ``chosen_step``, ``fallback`` (zero-density pulls),
-        ``jittered`` (coincident starting particles moved apart, see :meth:`_separate_coincident`).
+        ``jittered`` (coincident starting particles moved apart, see :meth:`_separate_coincident`),
+        ``converged``, ``convergence_reason`` and ``convergence`` (the numbers of
+        :func:`~ase_sphrelax.sampling.convergence.assess_convergence`), ``start_centre``,
+        ``start_scale``, ``target_scale``, ``n_check_density``, ``n_check_score`` (the checks'
+        own evaluations, not in ``n_density``/``n_score``). Warns :class:`NotConvergedWarning`
+        when not converged.
         """
         t0 = time.perf_counter()
         model = self.model
+        probe = self._probe if self._probe is not None else self.look_at_target()
         r = self.initial_particles()
         r, jittered = self._separate_coincident(r)
+        r0 = r.copy()
         v = np.zeros_like(r)
         if self.h_schedule == "anneal":
             model.set_h(self._h_at(0))
@@ -200,6 +283,7 @@ class ParVISampler:
         trace = {k: [] for k in ("step", "time", "dt", "mean_density", "kinetic", "energy", "n_density", "n_score",
                                  "wall")}
         best = dict(step=0, density=-np.inf, samples=r.copy())
+        moments = []  # ensemble mean and covariance of every recorded state (the convergence diagnostics)
         fallback = 0
         sim_time = 0.0
         dt = self.dt or self.courant * model.cfl_step(ev)
@@ -216,11 +300,16 @@ class ParVISampler:
             trace["n_density"].append(self.target.n_density)
             trace["n_score"].append(self.target.n_score)
             trace["wall"].append(time.perf_counter() - t0)
+            moments.append(np.concatenate(ensemble_moments(r)))
             if trace["mean_density"][-1] > best["density"]:
                 best.update(step=step, density=trace["mean_density"][-1], samples=r.copy())
 
         record(0, dt)
-        for step in range(1, self.steps + 1):
+        limit = self.steps  # the stopping rule may double it (max_steps)
+        step = 0
+        verdict = None
+        while step < limit:
+            step += 1
             decay = math.exp(-0.5 * self.friction * dt)
             v = v * decay + (0.5 * dt / m) * ev.forces
             if rho is not None:
@@ -235,21 +324,47 @@ class ParVISampler:
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(v))) or kinetic > 1e6 * scale:
                 raise ParVIDivergence(f"SPH-ParVI diverged at step {step} (dt = {dt:.3g}, kinetic energy "
-                                      f"{kinetic:.3g}): use a smaller dt or courant, or more friction")
+                                      f"{kinetic:.3g}): {self._divergence_hint(r0)}")
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
                                       f"(dt = {dt:.3g}); use a smaller dt or summation densities")
-            if step % self.record_every == 0 or step == self.steps:
+            if step % self.record_every == 0 or step == limit:
                 record(step, dt)
             dt = self.dt or self.courant * model.cfl_step(ev)
             if bar is not None:
                 bar.update(1)
+            if step == limit:
+                verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                                             friction=self.friction)
+                if not verdict["converged"] and self.max_steps is not None and limit < self.max_steps:
+                    limit = min(2 * limit, self.max_steps)  # a new last half, judged afresh
+                    if bar is not None:
+                        bar.total = limit
+                        bar.refresh()
         if bar is not None:
             bar.close()
+        if verdict is None:  # steps = 0
+            verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                                         friction=self.friction)
         samples = r if self.rule == "final" else best["samples"]
-        chosen = self.steps if self.rule == "final" else best["step"]
-        info = dict(self.parameters, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
-                    optimal_step=best["step"], final_h_median=float(np.median(ev.h)))
+        chosen = step if self.rule == "final" else best["step"]
+        returned = (f"rule={self.rule!r} returned the state of step {chosen}"
+                    + (" (the initial particles, untouched)" if chosen == 0 else ""))
+        if verdict["converged"] and chosen < verdict["window"][0]:
+            verdict.update(converged=False, reason=f"{returned}, before the last half of the run where the fluid was "
+                                                   f"found at rest")
+        elif not verdict["converged"] and self.rule != "final":
+            verdict["reason"] += f"; {returned}"
+        info = dict(self.parameters, steps=step, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
+                    optimal_step=best["step"], final_h_median=float(np.median(ev.h)),
+                    converged=verdict["converged"], convergence_reason=verdict["reason"],
+                    convergence=verdict, start_centre=self.start[0].tolist() if self.x0 is None else None,
+                    start_scale=self.start[1].tolist() if self.x0 is None else None,
+                    target_scale=self.target_scale.tolist(), n_check_density=probe.n_density,
+                    n_check_score=probe.n_score)
+        if not verdict["converged"]:
+            warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
+                          NotConvergedWarning, stacklevel=3)
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
                             info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"])))
