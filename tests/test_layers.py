@@ -48,6 +48,7 @@ LAYERS = (
     ("drivers", ("ase_sphrelax.drivers",)),
     ("analysis", ("ase_sphrelax.analysis", "ase_sphrelax.plotting")),
     ("sampling", ("ase_sphrelax.sampling",)),
+    ("export formats", ("ase_sphrelax.io",)),
     ("package face", ("ase_sphrelax",)),
     ("command line", ("ase_sphrelax.cli",)),
     ("LAMMPS", ("lammps_io",)),

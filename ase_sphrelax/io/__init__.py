@@ -9,7 +9,7 @@
 The libraries are the optional extra ``export`` (``pip install ase-sphrelax[export]``), imported
 when a file is written. ``sphrelax export`` (``lammps_io.cli``) dispatches to these writers.
 """
-from .._lazy import lazy_exports
+from ..lazy import lazy_exports
 
 _WHERE = {
     "ParticleArrays": ".particles",
