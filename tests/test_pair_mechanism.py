@@ -22,10 +22,8 @@ from ase_sphrelax.pairs import Output, PairInteraction
 
 # -- the toy method: physics (one pure function) + a thin calculator ------------------------------
 @numba.njit(cache=True, inline="always")
-def soft_sphere_pair(a, b, r2, d, params, inp):
+def soft_sphere_pair(a, b, r2, d, k, gamma, radius_s, v_sc):
     """phi = k/2 (1 - r/s)^2 for r < s = R_a + R_b, and damping -gamma (1 - r/s) (v_ab . e) e."""
-    k, gamma = params
-    radius_s, v_sc = inp
     s = radius_s[a] + radius_s[b]
     if r2 >= s * s or r2 == 0.0:
         return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -42,7 +40,8 @@ def soft_sphere_pair(a, b, r2, d, params, inp):
 
 
 SOFT_SPHERES = PairInteraction(soft_sphere_pair, dict(energies=Output(()), forces=Output((3,)),
-                                                      virial=Output((6,), per_point=False)))
+                                                      virial=Output((6,), per_point=False)),
+                               params=("k", "gamma"), inputs=("radius_s", "v_sc"))
 
 
 class SoftSphereCalculator(SPHCalculator):
@@ -59,7 +58,8 @@ class SoftSphereCalculator(SPHCalculator):
         p, atoms = self.parameters, self.atoms
         radius_p = atoms.get_array("radius")
         r_pc, _ = self.prepare(atoms, cutoff=radius_p + radius_p.max(), skin=p.skin)
-        out = SOFT_SPHERES.compute(self.nlist, r_pc, params=(p.k, p.gamma), inputs=(radius_p, atoms.get_velocities()),
+        out = SOFT_SPHERES.compute(self.nlist, r_pc, params=dict(k=p.k, gamma=p.gamma),
+                                   inputs=dict(radius_s=radius_p, v_sc=atoms.get_velocities()),
                                    reach=2.0 * radius_p.max())
         self.results.update(energy=out.energies.sum(), free_energy=out.energies.sum(), energies=out.energies,
                             forces=out.forces)
@@ -135,16 +135,15 @@ def test_velocity_dependent_forces_are_not_served_from_the_cache():
 
 
 @numba.njit(cache=True, inline="always")
-def count_within(a, b, r2, d, params, inp):
+def count_within(a, b, r2, d, radius_s):
     """Gather-style: a counts the partners within its own radius R_a (and weighs them by r^2)."""
-    radius_s, = inp
     if r2 < radius_s[a] ** 2:
         return (1.0, r2), (r2,)
     return (0.0, 0.0), (0.0,)
 
 
 COUNTS = PairInteraction(count_within, dict(count=Output(()), r2_sum=Output(()), total=Output((), per_point=False)),
-                         symmetric=False)
+                         inputs=("radius_s",), symmetric=False)
 
 
 def brute_counts(r_pc, cell, pbc, radius_p):
@@ -165,7 +164,7 @@ def test_gather_interaction_uses_each_points_own_radius():
     cell, pbc = np.diag([4.0] * 3), [True, True, False]
     nlist = NeighborList(radius_p, skin=0.2)
     nlist.update(r_pc, cell, pbc)
-    out = COUNTS.compute(nlist, r_pc, inputs=(radius_p,))
+    out = COUNTS.compute(nlist, r_pc, inputs=dict(radius_s=radius_p))
     np.testing.assert_array_equal(out.count, brute_counts(r_pc, cell, pbc, radius_p))
     assert out.total[0] == pytest.approx(out.r2_sum.sum(), rel=1e-12)
 
@@ -180,20 +179,20 @@ def test_cutoffs_growing_within_the_skin_reuse_the_list_and_beyond_it_rebuild():
     grown = radius_p + 0.1
     moved = r_pc + rng.uniform(-0.02, 0.02, r_pc.shape)  # 2 * 0.035 + 0.1 <= skin
     assert not nlist.update(moved, cell, pbc, cutoff=grown)
-    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=(grown,)).count,
+    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=dict(radius_s=grown)).count,
                                   brute_counts(moved, cell, pbc, grown))
     assert nlist.builds == 1
     too_far = radius_p + 0.25
     assert nlist.update(moved, cell, pbc, cutoff=too_far)
     assert nlist.builds == 2
-    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=(too_far,)).count,
+    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=dict(radius_s=too_far)).count,
                                   brute_counts(moved, cell, pbc, too_far))
 
 
 def test_points_of_higher_dimension_walk_a_stored_list():
     """dim=D interactions take D-component separations (point sets beyond ASE's 3 axes)."""
     @numba.njit(inline="always")
-    def squared(a, b, r2, d, params, inp):
+    def squared(a, b, r2, d):
         return (r2, d[4]), (r2, -d[4]), ()
 
     interaction = PairInteraction(squared, dict(r2=Output(()), d4=Output(())), dim=5)
