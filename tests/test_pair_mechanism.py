@@ -257,3 +257,43 @@ def test_gather_copies_values_to_ghosts_without_image_shifts():
     assert np.abs(x_sc - r_pc[nlist.src_s]).max() > 1.0  # positions do move with their image
     with pytest.raises(ValueError, match="one row per particle"):
         nlist.gather(v_pc[:5])
+
+
+def test_pair_data_are_checked_by_name():
+    """A misspelt, missing or extra name is a one-line error naming it, at construction and at compute."""
+    outputs = dict(energies=Output(()), forces=Output((3,)), virial=Output((6,), per_point=False))
+    with pytest.raises(ValueError, match="has no argument 'gama'"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gama"), inputs=("radius_s", "v_sc"))
+    with pytest.raises(ValueError, match="argument 'v_sc' is declared in none"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gamma"), inputs=("radius_s",))
+    with pytest.raises(ValueError, match="'k' is declared more than once"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gamma"), inputs=("radius_s", "v_sc", "k"))
+    atoms = make_atoms(1, True)
+    nlist = NeighborList(1.2, skin=0.1)
+    nlist.update(atoms.positions, atoms.cell.array, atoms.pbc)
+    inputs = dict(radius_s=atoms.get_array("radius"), v_sc=np.zeros((len(atoms), 3)))
+    with pytest.raises(ValueError, match="needs 'gamma'"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(k=1.0), inputs=inputs)
+    with pytest.raises(ValueError, match="has no param 'gama'"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(k=1.0, gamma=0.0, gama=0.0), inputs=inputs)
+    with pytest.raises(TypeError, match="dict by name"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=(1.0, 0.0), inputs=inputs)
+    out = SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(gamma=0.0, k=2.0), inputs=inputs)  # any order
+    assert out.energies.sum() == pytest.approx(brute_force(atoms, 2.0, 0.0)[0], rel=1e-12)
+
+
+def test_kernel_placeholders_need_a_kernel_and_constants_give_variants():
+    from ase_sphrelax.kernel_sums import PAIR_POTENTIAL, PAIR_POTENTIAL_VIRIAL
+    from ase_sphrelax.kernels import get_kernel
+
+    atoms = make_atoms(2, True)
+    nlist = NeighborList(1.0, skin=0.1)
+    nlist.update(atoms.positions, atoms.cell.array, atoms.pbc)
+    with pytest.raises(ValueError, match="kernel"):
+        PAIR_POTENTIAL.compute(nlist, atoms.positions, params=dict(inv_h=1.0, scale=1.0))
+    results = [interaction.compute(nlist, atoms.positions, params=dict(inv_h=1.0, scale=1.0),
+                                   kernel=get_kernel(name, 3))
+               for interaction in (PAIR_POTENTIAL, PAIR_POTENTIAL_VIRIAL) for name in ("wendland_c2", "cubic_spline")]
+    np.testing.assert_array_equal(results[0].forces, results[2].forces)  # the virial flag changes nothing else
+    assert np.abs(results[0].forces - results[1].forces).max() > 1e-3  # each kernel its own loop
+    assert "virial" in results[2] and "virial" not in results[0]
