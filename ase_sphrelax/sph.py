@@ -185,21 +185,9 @@ def _viscosity_pair(a, b, r2, d, v_sig, beta, approaching_only, ih_s, g_s, m_s, 
 
 
 @numba.njit(cache=True, inline="always")
-def _divergence_pair(a, b, r2, d, ih_s, g_s, m_s, rho_s, v_sc):
-    """a gathers Eq. 21 from b with its own H_a."""
-    if r2 == 0.0:
-        return (0.0,), ()
-    r = math.sqrt(r2)
-    vd = 0.0
-    for c in range(len(d)):
-        vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
-    ga = g_s[a] * kernel_profile(r * ih_s[a])[1]
-    return (m_s[b] / rho_s[b] * vd / r * ga,), ()
-
-
-@numba.njit(cache=True, inline="always")
-def _continuity_pair(a, b, r2, d, diffusion, c0, ih_s, g_s, m_s, rho_s, v_sc):
-    """a gathers drho/dt = sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b V_b psi_ab . grad_a W_ab."""
+def _continuity_pair(a, b, r2, d, diffusion, c0, ih_s, g_s, m_s, rho_s, v_sc, divergence):
+    """a gathers drho/dt = sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b V_b psi_ab . grad_a W_ab, or
+    (``divergence``) Eq. 21, div_a = sum_b m_b/rho_b v_ab . r_ab F_ab(H_a), from the same terms."""
     if r2 == 0.0:
         return (0.0,), ()
     r = math.sqrt(r2)
@@ -207,6 +195,8 @@ def _continuity_pair(a, b, r2, d, diffusion, c0, ih_s, g_s, m_s, rho_s, v_sc):
     for c in range(len(d)):
         vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
     ga = g_s[a] * kernel_profile(r * ih_s[a])[1]  # dW/dr <= 0, zero beyond H_a
+    if divergence:
+        return (m_s[b] / rho_s[b] * vd / r * ga,), ()
     # grad_a W = ga (x_a - x_b)/r = -ga d / r
     rate = -m_s[b] * ga * vd / r
     if diffusion != 0.0:
@@ -252,11 +242,12 @@ def _build_interaction(name, dim_points):
                                params=("v_sig", "beta", "approaching_only"), inputs=_GRADIENT_INPUTS[:4] + (
                                    "alpha_s", "v_sc"), symmetric=True, dim=dim_points)
     if name == "divergence":
-        return PairInteraction(_divergence_pair, dict(div_v=scalar), inputs=_GRADIENT_INPUTS, symmetric=False,
-                               dim=dim_points)
+        return PairInteraction(_continuity_pair, dict(div_v=scalar), inputs=_GRADIENT_INPUTS, symmetric=False,
+                               constants=dict(divergence=True, diffusion=0.0, c0=0.0), dim=dim_points)
     if name == "continuity":
         return PairInteraction(_continuity_pair, dict(rate=scalar), params=("diffusion", "c0"),
-                               inputs=_GRADIENT_INPUTS, symmetric=False, dim=dim_points)
+                               inputs=_GRADIENT_INPUTS, constants=dict(divergence=False), symmetric=False,
+                               dim=dim_points)
     raise KeyError(name)  # pragma: no cover
 
 
