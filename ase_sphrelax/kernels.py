@@ -360,7 +360,10 @@ class Kernel:
         self.coef = np.zeros((len(pieces), deg + 1))
         for s, p in enumerate(self._pieces_u):
             self.coef[s, : len(p)] = p
-        self._stamp = hashlib.sha1(self.breaks.tobytes() + self.coef.tobytes()).hexdigest()[:8]
+        # the closed forms' source (coefficients and generator): in the names of everything compiled from them,
+        # so that numba's disk cache never serves code inlined from an older kernel or generator
+        sources = "".join(_closed_form_source("f", self.breaks, self._pieces_u, order) for order in _ORDERS.values())
+        self._stamp = hashlib.sha1(sources.encode()).hexdigest()[:8]
         # exact moments of the profile: int_0^1 f(q) q^(d-1) dq
         self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))
         self.sigma_1d = 1.0 / (2.0 * self._moment(0))

@@ -26,7 +26,8 @@ the signature at construction and the data at each :meth:`PairInteraction.comput
 Kernel placeholders: a pair function that calls ``kernel_profile(q)`` (-> ``f, f'``) or
 ``kernel_derivatives(q)`` (-> ``f, f', f'', f''', f''''``) of :mod:`ase_sphrelax.kernels` is
 re-compiled per kernel (``compute(..., kernel=k)``) with those names bound to the kernel's
-generated closed forms: no pair function branches on the kernel.
+generated closed forms: no pair function branches on the kernel. The placeholders must be
+called by the pair function itself (a helper of its own is another function, not re-compiled).
 The terms are the per-point outputs flattened in their declared order (a scalar output
 takes one term, a ``(3,)`` output three), and the global outputs (e.g. a virial) flattened
 the same way. :class:`PairInteraction` turns the function into the loops:
