@@ -11,6 +11,8 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from ase import Atoms
 from ase.calculators.fd import calculate_numerical_forces
 from numpy.polynomial import polynomial as P
@@ -76,6 +78,21 @@ def test_closed_forms_of_every_registered_kernel_equal_its_polynomials(dim):
         # near the cut-off the u form keeps relative accuracy: f ~ c (1 - q)^k
         near = q[(q > 1 - 1e-3) & (q < 1)]
         np.testing.assert_allclose([forms["kernel_profile"](x)[0] for x in near], kernel.profile(near), rtol=1e-12)
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(q=st.one_of(st.floats(0.0, 1.5), st.sampled_from([0.0, 0.5, 1.0, 1.0 - 2.0**-52, 0.5 - 2.0**-53])),
+       dim=st.integers(1, 3))
+def test_closed_forms_equal_the_polynomials_at_any_q(q, dim):
+    """Property: at any q >= 0 (breaks, the cut-off and its neighbours included) every registered kernel's
+    closed forms equal its polynomials in q (value and four derivatives)."""
+    for name in KERNEL_NAMES:
+        kernel = get_kernel(name, dim)
+        closed = np.array(kernel.closed_forms()["kernel_derivatives"](q))
+        reference = _definition_derivatives(name, dim, np.array([q]))[:, 0]
+        scale = np.abs(_definition_derivatives(name, dim, np.linspace(0, 1, 101))).max(axis=1)
+        np.testing.assert_allclose(closed, reference, rtol=1e-12, atol=1e-12 * scale.max())
+        assert kernel.closed_forms()["kernel_profile"](q) == tuple(closed[:2])
 
 
 def _jittered_square(n_side, spacing, rng, jitter=0.2):
