@@ -12,6 +12,10 @@ Fan's one-dimensional boundary profile ``W1`` and its tail integral
 
 Kernels
 -------
+Each is one :func:`register_kernel` entry at the end of this module: its breaks and
+piecewise-polynomial coefficients in ``q`` (per dimension where they differ), Phantom's
+``eta`` and the smoothing-length solve's extrapolation step.
+
 ``wendland_c2``
     Fan et al. Sec. 2: f = (1 - q)^4 (1 + 4q); sigma_2 = 7/pi, sigma_3 = 21/(2 pi).
 ``wendland_c4``
@@ -24,12 +28,27 @@ Kernels
 Each segment ``[b_s, b_{s+1})`` is stored in powers of ``u = b_{s+1} - q``,
 the distance to the segment's right end: near the cut-off the profile is a
 small power of ``u`` and is evaluated without the cancellation that powers of
-``q`` would suffer. The numba hot loops evaluate the profile through
-:func:`profile_by_kind` (closed forms) or :func:`profile_value_and_slope` with the arrays ``Kernel.breaks`` and ``Kernel.coef``.
+``q`` would suffer.
+
+From that one definition follow the numpy profile and its derivatives
+(:meth:`Kernel.profile`), the normalisation and moments, Fan's ``W1`` and its tail
+integral, and the numba closed forms of the hot loops (:meth:`Kernel.closed_forms`):
+Python source with the coefficients written in (Horner in ``u``, the lowest power of
+``u`` factored out), compiled with ``cache=True`` against this file under a name
+holding the kernel, its dimension and a hash of its coefficients. A pair function calls
+the placeholders :func:`kernel_profile` and :func:`kernel_derivatives`;
+:class:`~ase_sphrelax.pairs.PairInteraction` re-compiles it with them bound to a
+kernel's closed forms. :func:`profile_value_and_slope` evaluates the arrays
+``Kernel.breaks``/``Kernel.coef`` generically (lattice sums).
 """
 from __future__ import annotations
 
+import hashlib
 import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numba
 import numpy as np
@@ -37,17 +56,27 @@ from numpy.polynomial import polynomial as P
 
 from .checks import check_dim
 
-__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "profile_value_and_slope", "profile_by_kind",
-           "profile_derivatives_by_kind", "PIECEWISE"]
+__all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "register_kernel", "KernelDefinition", "kernel_profile",
+           "kernel_derivatives", "KERNEL_FUNCTIONS", "profile_value_and_slope"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
 
 
+def _exact(coefficients):
+    """Coefficients as exact fractions (a float is taken at its exact binary value)."""
+    return tuple(Fraction(c) for c in coefficients)
+
+
 def _poly(*factors):
-    """Product of polynomials given as ascending coefficient lists."""
-    out = np.array([1.0])
+    """Exact product of polynomials given as ascending coefficient lists."""
+    out = (Fraction(1),)
     for factor in factors:
-        out = P.polymul(out, np.asarray(factor, dtype=float))
+        factor = _exact(factor)
+        prod = [Fraction(0)] * (len(out) + len(factor) - 1)
+        for i, x in enumerate(out):
+            for j, y in enumerate(factor):
+                prod[i + j] += x * y
+        out = tuple(prod)
     return out
 
 
@@ -55,23 +84,149 @@ def _power(base, n):
     return _poly(*([base] * n))
 
 
-def _profiles(name, dim):
-    """(breaks, list of ascending coefficient arrays) of the profile f(q)."""
-    one_minus_q = [1.0, -1.0]
-    if name == "wendland_c2":
-        return [0.0, 1.0], [_poly(_power(one_minus_q, 4), [1.0, 4.0])]
-    if name == "wendland_c4":
-        if dim == 1:
-            return [0.0, 1.0], [_poly(_power(one_minus_q, 5), [1.0, 5.0, 8.0])]
-        return [0.0, 1.0], [_poly(_power(one_minus_q, 6), [1.0, 6.0, 35.0 / 3.0])]
-    if name == "cubic_spline":
-        inner = np.array([1.0, 0.0, -6.0, 6.0])
-        outer = 2.0 * _power(one_minus_q, 3)
-        return [0.0, 0.5, 1.0], [inner, outer]
-    raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {name!r}")
+def _to_u(piece_q, right):
+    """Coefficients in u = right - q of a polynomial given in powers of q, composed exactly (so that
+    a factor (1 - q)^k gives exact zeros below u^k), then rounded to floats."""
+    right = Fraction(right)
+    out = [Fraction(0)] * len(piece_q)
+    for k, c in enumerate(_exact(piece_q)):
+        # c q^k = c (right - u)^k = c sum_j binom(k, j) right^(k-j) (-u)^j
+        for j in range(k + 1):
+            out[j] += c * math.comb(k, j) * right ** (k - j) * (-1) ** j
+    return np.array([float(c) for c in out])
 
 
-KERNEL_NAMES = ("wendland_c2", "wendland_c4", "cubic_spline")
+# -- the registry: one entry per kernel --------------------------------------------------------------
+@dataclass(frozen=True)
+class KernelDefinition:
+    """One kernel: its profile ``f(q)`` on [0, 1] as a piecewise polynomial.
+
+    Attributes
+    ----------
+    name : str
+    breaks : tuple of float
+        ``0 = b_0 < b_1 < ... < b_n = 1``.
+    pieces : tuple of tuple of Fraction
+        Ascending coefficients in ``q`` of the ``n`` pieces, exact (floats at their binary value).
+    per_dim : dict
+        ``{dim: (breaks, pieces)}`` where a dimension has a profile of its own (Wendland C4 in 1D).
+    eta : float or None
+        ``rho H^d = m eta^d`` for support ``H`` (Phantom's value for support 2h, times 2).
+    extrapolation_step : float
+        The factor of the smoothing-length solve's extrapolated steps
+        (:func:`ase_sphrelax.sph.solve_smoothing_lengths`); 0 unless the profile is C^4 across the
+        support edge and inside.
+    """
+
+    name: str
+    breaks: tuple
+    pieces: tuple
+    per_dim: dict = field(default_factory=dict)
+    eta: float | None = None
+    extrapolation_step: float = 0.0
+
+    def profile(self, dim):
+        """(breaks, pieces) in ``dim`` dimensions."""
+        return self.per_dim.get(dim, (self.breaks, self.pieces))
+
+
+_REGISTRY: dict = {}
+_CACHE: dict = {}
+
+
+def _checked_profile(name, breaks, pieces):
+    breaks = tuple(float(b) for b in breaks)
+    if len(breaks) < 2 or breaks[0] != 0.0 or breaks[-1] != 1.0 or any(b <= a for a, b in zip(breaks, breaks[1:])):
+        raise ValueError(f"kernel {name!r}: breaks must increase from 0 to 1, got {breaks}")
+    try:
+        pieces = tuple(_exact(np.atleast_1d(p).tolist() if isinstance(p, np.ndarray) else p) for p in pieces)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"kernel {name!r}: pieces must be lists of finite numbers (ascending powers of q)") from None
+    if len(pieces) != len(breaks) - 1:
+        raise ValueError(f"kernel {name!r}: breaks {breaks} need {len(breaks) - 1} pieces, got {len(pieces)}")
+    if not all(pieces) or not all(any(pieces_k) for pieces_k in pieces):
+        raise ValueError(f"kernel {name!r}: every piece needs a non-zero coefficient (ascending powers of q)")
+    return breaks, pieces
+
+
+def register_kernel(name, breaks, pieces, per_dim=None, eta=None, extrapolation_step=0.0, replace=False):
+    """Add a kernel: the one place a kernel is defined.
+
+    Parameters
+    ----------
+    name : str
+        An identifier (letters, digits, underscores), e.g. ``"wendland_c2"``.
+    breaks : sequence of float
+        ``0 = b_0 < ... < b_n = 1``.
+    pieces : sequence of sequence of float
+        Ascending coefficients in ``q`` of each piece; the normalisation follows (``Kernel.sigma``).
+    per_dim : dict or None
+        ``{dim: (breaks, pieces)}`` for dimensions with a profile of their own.
+    eta : float or None
+        Default ``eta`` of the adaptive smoothing lengths (support ``H``); None: callers must pass one.
+    extrapolation_step : float
+        See :class:`KernelDefinition`.
+    replace : bool
+        Allow redefining a registered name.
+
+    Returns
+    -------
+    KernelDefinition
+    """
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+        raise ValueError(f"kernel name must be an identifier (letters, digits, underscores), got {name!r}")
+    if name in _REGISTRY and not replace:
+        raise ValueError(f"kernel {name!r} is already registered (pass replace=True to redefine it)")
+    if eta is not None and not (math.isfinite(eta) and eta > 0):
+        raise ValueError(f"eta must be a number > 0 or None, got {eta!r}")
+    breaks, pieces = _checked_profile(name, breaks, pieces)
+    own = {check_dim(d): _checked_profile(name, *bp) for d, bp in (per_dim or {}).items()}
+    definition = KernelDefinition(name, breaks, pieces, own, None if eta is None else float(eta),
+                                  float(extrapolation_step))
+    _REGISTRY[name] = definition
+    for key in [k for k in _CACHE if k[0] == name]:
+        del _CACHE[key]
+    return definition
+
+
+class _RegisteredNames(Sequence):
+    """The registered kernel names, read live (kernels registered later included)."""
+
+    def __getitem__(self, index):
+        return tuple(_REGISTRY)[index]
+
+    def __len__(self):
+        return len(_REGISTRY)
+
+    def __contains__(self, name):
+        return isinstance(name, str) and name in _REGISTRY
+
+    def __repr__(self):
+        return repr(tuple(_REGISTRY))
+
+
+KERNEL_NAMES = _RegisteredNames()
+
+
+# -- placeholders of the pair functions ---------------------------------------------------------------
+def kernel_profile(q):
+    """f(q) and df/dq (zero for q >= 1): a placeholder in pair functions, bound to a kernel's closed
+    form by :class:`~ase_sphrelax.pairs.PairInteraction` (``compute(..., kernel=k)``)."""
+    raise NotImplementedError("kernel_profile is bound by PairInteraction(...).compute(..., kernel=k)")
+
+
+def kernel_derivatives(q):
+    """f(q) and its first four derivatives in q (zero for q >= 1): a placeholder, as :func:`kernel_profile`.
+
+    For the smoothing-length solve of :func:`ase_sphrelax.sph.solve_smoothing_lengths` (Halley steps,
+    and the sums carried to the new H by their Taylor series). At a break, where a derivative may
+    jump, the piece on the right counts (the cubic spline's f''' at q = 1/2; its f'''' is zero).
+    """
+    raise NotImplementedError("kernel_derivatives is bound by PairInteraction(...).compute(..., kernel=k)")
+
+
+KERNEL_FUNCTIONS = ("kernel_profile", "kernel_derivatives")
+_ORDERS = {"kernel_profile": 1, "kernel_derivatives": 4}
 
 
 @numba.njit(cache=True, inline="always")
@@ -102,97 +257,66 @@ def profile_value_and_slope(q, breaks, coef):
     return value, -slope
 
 
-# closed forms (in u = 1 - q) for the hot loops; ids index Kernel.kind
-WENDLAND_C2, WENDLAND_C4, WENDLAND_C4_1D, CUBIC_SPLINE, PIECEWISE = 0, 1, 2, 3, 4
+# -- closed forms, generated from the coefficients ----------------------------------------------------
+def _horner(coef_u):
+    """Source of ``sum_k coef_u[k] u^k``: the lowest power ``u^m`` factored out, Horner in u for the rest;
+    and ``m``."""
+    nonzero = np.nonzero(coef_u)[0]
+    if nonzero.size == 0:
+        return "0.0", 0
+    low, high = int(nonzero[0]), int(nonzero[-1])
+    expr = repr(float(coef_u[high]))
+    for k in range(high - 1, low - 1, -1):
+        expr = f"{float(coef_u[k])!r} + u * ({expr})" if coef_u[k] != 0.0 else f"u * ({expr})"
+    if low == 0:
+        return expr, 0
+    return (f"u * ({expr})" if low == 1 else f"u{low} * ({expr})"), low
 
 
-@numba.njit(cache=True, inline="always")
-def profile_by_kind(q, kind, breaks, coef):
-    """Profile f(q) and df/dq (zero for q >= 1) for the hot loops.
-
-    ``kind`` (``Kernel.kind``) selects a closed form, a loop-invariant branch that
-    costs less than the generic evaluation; ``PIECEWISE`` falls back to
-    :func:`profile_value_and_slope` with ``breaks``/``coef``.
-    """
-    if q >= 1.0:
-        return 0.0, 0.0
-    u = 1.0 - q
-    if kind == WENDLAND_C2:  # u^4 (5 - 4u)
-        u3 = u * u * u
-        return u3 * u * (5.0 - 4.0 * u), -20.0 * u3 * (1.0 - u)
-    if kind == WENDLAND_C4:  # u^6 (35 q^2 / 3 + 6 q + 1)
-        u5 = u * u * u * u * u
-        poly = (35.0 / 3.0) * q * q + 6.0 * q + 1.0
-        return u5 * u * poly, u5 * (u * ((70.0 / 3.0) * q + 6.0) - 6.0 * poly)
-    if kind == WENDLAND_C4_1D:  # u^5 (8 q^2 + 5 q + 1)
-        u4 = u * u * u * u
-        poly = 8.0 * q * q + 5.0 * q + 1.0
-        return u4 * u * poly, u4 * (u * (16.0 * q + 5.0) - 5.0 * poly)
-    if kind == CUBIC_SPLINE:
-        if q < 0.5:
-            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0)
-        return 2.0 * u * u * u, -6.0 * u * u
-    return profile_value_and_slope(q, breaks, coef)
+def _derivative_in_q(coef_u, order):
+    """Coefficients in u of ``d^order f / dq^order`` (``= (-1)^order d^order p / du^order``)."""
+    poly = np.asarray(coef_u, dtype=float)
+    for _ in range(order):
+        poly = -P.polyder(poly) if poly.size > 1 else np.zeros(1)
+    return poly
 
 
-@numba.njit(cache=True, inline="always")
-def profile_derivatives_by_kind(q, kind, breaks, coef):
-    """Profile f(q) and its first four derivatives in q (zero for q >= 1).
-
-    :func:`profile_by_kind` plus f'', f''' and f'''', for the smoothing-length solve of
-    :func:`ase_sphrelax.sph.solve_smoothing_lengths` (Halley steps, and the sums carried to the
-    new H by their Taylor series). The cubic spline's f'''' is zero between its knots (its f'''
-    jumps at q = 1/2; the jump is left out).
-    """
-    if q >= 1.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0
-    u = 1.0 - q
-    if kind == WENDLAND_C2:  # f' = -20 q u^3, f'' = 20 u^2 (4 q - 1), f''' = 120 u (1 - 2 q), f'''' = 120 (4 q - 3)
-        u2 = u * u
-        return (u2 * u2 * (5.0 - 4.0 * u), -20.0 * q * u2 * u, 20.0 * u2 * (4.0 * q - 1.0), 120.0 * u * (1.0 - 2.0 * q),
-                120.0 * (4.0 * q - 3.0))
-    if kind == WENDLAND_C4:
-        # f' = -(56/3) q (1 + 5 q) u^5, f'' = -(56/3) u^4 (1 + 4 q - 35 q^2), f''' = 560 q u^3 (3 - 7 q),
-        # f'''' = 560 u^2 (3 - 26 q + 35 q^2)
-        u2 = u * u
-        u3 = u2 * u
-        u4 = u3 * u
-        poly = (35.0 / 3.0) * q * q + 6.0 * q + 1.0
-        return (u4 * u2 * poly, (-56.0 / 3.0) * q * (1.0 + 5.0 * q) * u4 * u,
-                (-56.0 / 3.0) * u4 * (1.0 + 4.0 * q - 35.0 * q * q), 560.0 * q * u3 * (3.0 - 7.0 * q),
-                560.0 * u2 * (3.0 - 26.0 * q + 35.0 * q * q))
-    if kind == WENDLAND_C4_1D:
-        # f' = -14 q (1 + 4 q) u^4, f'' = -14 u^3 (1 + 3 q - 24 q^2), f''' = 840 q u^2 (1 - 2 q),
-        # f'''' = 840 u (1 - 7 q + 8 q^2)
-        u2 = u * u
-        u3 = u2 * u
-        poly = 8.0 * q * q + 5.0 * q + 1.0
-        return (u3 * u2 * poly, -14.0 * q * (1.0 + 4.0 * q) * u3 * u, -14.0 * u3 * (1.0 + 3.0 * q - 24.0 * q * q),
-                840.0 * q * u2 * (1.0 - 2.0 * q), 840.0 * u * (1.0 - 7.0 * q + 8.0 * q * q))
-    if kind == CUBIC_SPLINE:
-        if q < 0.5:
-            return 1.0 - 6.0 * q * q + 6.0 * q * q * q, q * (18.0 * q - 12.0), 36.0 * q - 12.0, 36.0, 0.0
-        return 2.0 * u * u * u, -6.0 * u * u, 12.0 * u, -12.0, 0.0
-    s, u = _piece(q, breaks)
-    deg = coef.shape[1] - 1
-    value = coef[s, deg]
-    d1 = 0.0
-    d2 = 0.0
-    d3 = 0.0
-    d4 = 0.0
-    for k in range(deg - 1, -1, -1):  # Horner with derivatives in u = breaks[s+1] - q
-        d4 = d4 * u + d3
-        d3 = d3 * u + d2
-        d2 = d2 * u + d1
-        d1 = d1 * u + value
-        value = value * u + coef[s, k]
-    return value, -d1, 2.0 * d2, -6.0 * d3, 24.0 * d4
+def _closed_form_source(name, breaks, pieces_u, orders):
+    """Source of ``name(q)`` -> (f, f', ..., f^(orders)) of the piecewise profile, zeros for q >= 1."""
+    zeros = "(" + "0.0, " * (orders + 1) + ")"
+    lines = [f"def {name}(q):", "    if q >= 1.0:", f"        return {zeros}"]
+    for s, coef_u in enumerate(pieces_u):
+        right = min(float(breaks[s + 1]), 1.0)
+        last = s == len(pieces_u) - 1
+        pad = " " * (4 if last else 8)
+        if not last:
+            lines.append(f"    if q < {right!r}:")
+        lines.append(f"{pad}u = {right!r} - q")
+        terms = [_horner(_derivative_in_q(coef_u, j)) for j in range(orders + 1)]
+        top = max(low for _, low in terms)
+        lines += [f"{pad}u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
+        lines.append(f"{pad}return ({''.join(expr + ', ' for expr, _ in terms)})")
+    return "\n".join(lines) + "\n"
 
 
-def _to_u(piece_q, right):
-    """Coefficients in u = right - q of a polynomial given in powers of q."""
-    composed = P.Polynomial(piece_q)(P.Polynomial([right, -1.0]))
-    return composed.coef
+_CLOSED_FORMS: dict = {}
+
+
+def _closed_forms(kernel):
+    """The numba closed forms of ``kernel`` by placeholder name, compiled against this file (disk cache)."""
+    if kernel.key not in _CLOSED_FORMS:
+        namespace = {}
+        functions = {}
+        for placeholder in KERNEL_FUNCTIONS:
+            name = f"_{placeholder}__{kernel.key}"
+            source = _closed_form_source(name, kernel.breaks, kernel._pieces_u, _ORDERS[placeholder])
+            exec(compile(source, __file__, "exec"), namespace)  # noqa: S102 (generated from the coefficients)
+            function = namespace[name]
+            function.__module__ = __name__
+            functions[placeholder] = numba.njit(cache=True, inline="always")(function)
+            functions[placeholder].generated_source = source
+        _CLOSED_FORMS[kernel.key] = functions
+    return _CLOSED_FORMS[kernel.key]
 
 
 class Kernel:
@@ -200,7 +324,8 @@ class Kernel:
 
     Parameters
     ----------
-    name : {"wendland_c2", "wendland_c4", "cubic_spline"}
+    name : str
+        A registered name (:data:`KERNEL_NAMES`, :func:`register_kernel`).
     dim : {1, 2, 3}
 
     Attributes
@@ -212,31 +337,50 @@ class Kernel:
         ``W1 = A W`` (Eq. 3.5), times ``h**dim / h``.
     breaks, coef : ndarray
         Piecewise-polynomial profile for :func:`profile_value_and_slope`.
-    kind : int
-        Closed form used by the hot loops (``PIECEWISE`` evaluates ``breaks``/``coef``).
+    eta, extrapolation_step : float or None
+        From the kernel's definition (:class:`KernelDefinition`).
+    key : str
+        Identifier of the profile (name, dimension, hash of the coefficients): names its closed forms.
     """
 
     def __init__(self, name: str = "wendland_c2", dim: int = 2):
         dim = check_dim(dim)
-        breaks, pieces = _profiles(name, dim)
+        if name not in KERNEL_NAMES:
+            raise ValueError(f"kernel must be one of {KERNEL_NAMES}, got {name!r}")
+        definition = _REGISTRY[name]
+        breaks, pieces = definition.profile(dim)
         self.name = name
         self.dim = dim
-        self.breaks = np.asarray(breaks + [np.inf], dtype=float)
-        self._pieces = pieces
+        self.eta = definition.eta
+        self.extrapolation_step = definition.extrapolation_step
+        self.breaks = np.asarray(list(breaks) + [np.inf], dtype=float)
+        self._pieces = [np.array([float(c) for c in p]) for p in pieces]
         self._pieces_u = [_to_u(p, self.breaks[s + 1]) for s, p in enumerate(pieces)]
         deg = max(len(p) for p in self._pieces_u) - 1
         self.coef = np.zeros((len(pieces), deg + 1))
         for s, p in enumerate(self._pieces_u):
             self.coef[s, : len(p)] = p
+        # the closed forms' source (coefficients and generator): in the names of everything compiled from them,
+        # so that numba's disk cache never serves code inlined from an older kernel or generator
+        sources = "".join(_closed_form_source("f", self.breaks, self._pieces_u, order) for order in _ORDERS.values())
+        self._stamp = hashlib.sha1(sources.encode()).hexdigest()[:8]
         # exact moments of the profile: int_0^1 f(q) q^(d-1) dq
         self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))
         self.sigma_1d = 1.0 / (2.0 * self._moment(0))
         self.f0 = float(P.polyval(self.breaks[1], self._pieces_u[0]))  # f(0)
-        self.kind = {"wendland_c2": WENDLAND_C2, "cubic_spline": CUBIC_SPLINE,
-                     "wendland_c4": WENDLAND_C4_1D if dim == 1 else WENDLAND_C4}.get(name, PIECEWISE)
 
     def __repr__(self):
         return f"Kernel({self.name!r}, dim={self.dim})"
+
+    @property
+    def key(self):
+        return f"{self.name}_{self.dim}d_{self._stamp}"
+
+    def closed_forms(self):
+        """``{"kernel_profile": q -> (f, f'), "kernel_derivatives": q -> (f, f', f'', f''', f'''')}``:
+        numba functions generated from the coefficients (zeros for q >= 1), bound to the pair
+        functions' placeholders by :class:`~ase_sphrelax.pairs.PairInteraction`."""
+        return _closed_forms(self)
 
     def _moment(self, power):
         total = 0.0
@@ -254,21 +398,17 @@ class Kernel:
             yield mask, right - q[mask], seg
 
     # -- dimensionless profile -------------------------------------------------
-    def profile(self, q):
-        """f(q) for an array of q >= 0."""
+    def profile(self, q, derivative=0):
+        """f(q), or its ``derivative``-th derivative in q, for an array of q >= 0 (zero for q >= 1)."""
         q = np.asarray(q, dtype=float)
         out = np.zeros_like(q)
         for mask, u, seg in self._segments(q):
-            out[mask] = P.polyval(u, self._pieces_u[seg])
+            out[mask] = P.polyval(u, _derivative_in_q(self._pieces_u[seg], derivative))
         return out
 
     def profile_slope(self, q):
         """df/dq for an array of q >= 0."""
-        q = np.asarray(q, dtype=float)
-        out = np.zeros_like(q)
-        for mask, u, seg in self._segments(q):
-            out[mask] = -P.polyval(u, P.polyder(self._pieces_u[seg]))
-        return out
+        return self.profile(q, derivative=1)
 
     # -- dimensional kernel ------------------------------------------------------
     def w(self, r, h):
@@ -316,9 +456,6 @@ class Kernel:
         return out[()] if out.ndim == 0 else out
 
 
-_CACHE: dict = {}
-
-
 def get_kernel(name="wendland_c2", dim=2) -> Kernel:
     """Return the (cached) :class:`Kernel` ``name`` in ``dim`` dimensions.
 
@@ -334,3 +471,20 @@ def get_kernel(name="wendland_c2", dim=2) -> Kernel:
     if key not in _CACHE:
         _CACHE[key] = Kernel(name, dim)
     return _CACHE[key]
+
+
+# -- the kernels: one entry each ------------------------------------------------------------------------
+_ONE_MINUS_Q = [1.0, -1.0]
+# eta: Phantom's default for support 2h (cubic 1.2, Wendland C2 1.3, C4 1.5), times 2 for support H.
+register_kernel("wendland_c2", [0.0, 1.0], [_poly(_power(_ONE_MINUS_Q, 4), [1.0, 4.0])], eta=2.6)
+# Wendland C4's extrapolation step: a Halley step |d ln H| <= 0.22 tol^(1/4) of the smoothing-length solve may
+# be accepted without a further density pass, its sums carried to the new H by their Taylor series. The
+# truncation error in t is |s^(5)/t| dl^4 / 24; measured (jittered lattices, 1D-3D, dl = 1e-3 to 1e-2)
+# |s^(5)/t| <= 1300 for Wendland C4, so the factor 0.22 keeps it below 0.4 tol with |s^(5)/t| up to 4000. Only
+# for kernels whose profile is C^4 across the support edge and inside: the series of Wendland C2 (4th
+# derivative jumps at q = 1) and of the cubic spline (3rd derivative jumps at q = 1/2 and 1) converge only like
+# dl^3 and dl^2 (measured), so they always take the check pass.
+register_kernel("wendland_c4", [0.0, 1.0], [_poly(_power(_ONE_MINUS_Q, 6), [1.0, 6.0, 35.0 / 3.0])],
+                per_dim={1: ([0.0, 1.0], [_poly(_power(_ONE_MINUS_Q, 5), [1.0, 5.0, 8.0])])},
+                eta=3.0, extrapolation_step=0.22)
+register_kernel("cubic_spline", [0.0, 0.5, 1.0], [[1.0, 0.0, -6.0, 6.0], _poly([2.0], _power(_ONE_MINUS_Q, 3))], eta=2.4)

@@ -4,15 +4,30 @@ A method writes its pair physics as one small, pure numba function (PySPH's
 ``Equation.loop``, JAX-MD's ``smap.pair``) that *returns* the terms it adds::
 
     @numba.njit(cache=True, inline="always")
-    def soft_sphere(a, b, r2, d, params, inp):
-        k, = params                    # global parameters (numbers, small arrays)
-        radius_s, v_sc = inp           # per-point inputs, indexed by sorted extended point
+    def soft_sphere(a, b, r2, d, k, radius_s, v_sc):
+        # k: a global parameter; radius_s, v_sc: per-point inputs, indexed by sorted extended point
         ...
         return (e_half, fx, fy, fz), (e_half, -fx, -fy, -fz), ()   # to a, to b, global
+
+    SOFT = PairInteraction(soft_sphere, dict(energies=Output(()), forces=Output((3,))),
+                           params=("k",), inputs=("radius_s", "v_sc"))
+    out = SOFT.compute(nlist, r_pc, params=dict(k=2.0), inputs=dict(radius_s=radius_p, v_sc=v_pc))
 
 Arguments: ``a`` and ``b`` are sorted extended points (particles and their periodic
 ghosts, see :mod:`ase_sphrelax.neighbors`), ``d`` the tuple ``x_b - x_a`` of length D
 (the dimension of the stored coordinates: 3 for ASE Atoms) and ``r2 = |d|^2``.
+The data after ``(a, b, r2, d)`` are named in the signature: each name is declared
+either a global parameter (``params``: numbers, small arrays, the same for every pair), a
+per-particle input (``inputs``: arrays gathered to the extended points, read as ``v_s[a]``)
+or a constant of the specialisation (``constants``: compiled in, so that a branch on a bool
+constant is pruned and each value gives the flat form). The declaration is checked against
+the signature at construction and the data at each :meth:`PairInteraction.compute`, by name.
+
+Kernel placeholders: a pair function that calls ``kernel_profile(q)`` (-> ``f, f'``) or
+``kernel_derivatives(q)`` (-> ``f, f', f'', f''', f''''``) of :mod:`ase_sphrelax.kernels` is
+re-compiled per kernel (``compute(..., kernel=k)``) with those names bound to the kernel's
+generated closed forms: no pair function branches on the kernel. The placeholders must be
+called by the pair function itself (a helper of its own is another function, not re-compiled).
 The terms are the per-point outputs flattened in their declared order (a scalar output
 takes one term, a ``(3,)`` output three), and the global outputs (e.g. a virial) flattened
 the same way. :class:`PairInteraction` turns the function into the loops:
@@ -52,17 +67,24 @@ gathered for the ghosts without image shifts
 The loops are generated as Python source and compiled by numba against the physics
 function's own source file, so that numba's disk cache holds them like any other jitted
 function (numba functions that receive a jitted function as an argument, or capture one in
-a closure, are recompiled in every process).
+a closure, are recompiled in every process). A specialised pair function (its constants and
+kernel bound as globals) is re-compiled from its source against the same file, under a name
+that carries the kernel and a hash of the bound values, so that cache files never collide.
 """
 from __future__ import annotations
 
+import ast
+import hashlib
 import inspect
 import itertools
+import textwrap
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 
+from .kernels import KERNEL_FUNCTIONS
 from .neighbors import bin_coords, is_canonical_pair, stencil_range
 from .parallel import chunk_bounds, run_chunks, thread_count
 
@@ -197,32 +219,44 @@ def _targets(outputs, per_point, point):
     return names
 
 
-def _loop_source(template, name, outputs, dim, symmetric, indent):
-    """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``."""
+def _bound_name(name, params):
+    """The generated loop's local holding the pair argument ``name`` (prefixed: never a loop variable)."""
+    return f"p__{name}" if name in params else f"i__{name}"
+
+
+def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=()):
+    """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
+
+    ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
+    declared order); the pair function is called with ``arguments`` (its data, in its signature's order).
+    """
     own = _targets(outputs, True, "a")
     other = _targets(outputs, True, "b")
     glob_t = _targets(outputs, False, None)
     pad = "\n" + " " * indent
     d = "(" + "".join(f"d{c}, " for c in range(dim)) + ")"
     minus_d = "(" + "".join(f"-d{c}, " for c in range(dim)) + ")"
+    data = "".join(f", {_bound_name(n, params)}" for n in arguments)
+    unpack = [f"({''.join(_bound_name(n, params) + ', ' for n in names)}) = {tup}"
+              for names, tup in ((params, "params"), (inputs, "inp")) if names]
     lines = []
     if symmetric:
-        lines.append(f"ta, tb, tg = pair(a, b, r2, {d}, params, inp)")
+        lines.append(f"ta, tb, tg = pair(a, b, r2, {d}{data})")
         lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
         lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     else:
-        lines.append(f"ta, tg = pair(a, b, r2, {d}, params, inp)")
+        lines.append(f"ta, tg = pair(a, b, r2, {d}{data})")
         lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
-        lines.append(f"tb, tg = pair(b, a, r2, {minus_d}, params, inp)")
+        lines.append(f"tb, tg = pair(b, a, r2, {minus_d}{data})")
         lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     pad_a = "\n" + " " * 8
     pad_t = "\n" + " " * 4
     return template.format(
         name=name,
-        views=pad_t.join(f"o{k} = out[{k}]" for k in range(len(outputs))),
+        views=pad_t.join([f"o{k} = out[{k}]" for k in range(len(outputs))] + unpack),
         # each thread zeroes its own buffers at the start of its chunk (in parallel)
         zero_buffers=pad_t.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
         zero_buffers_nested=pad_a.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
@@ -245,8 +279,6 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    import hashlib
-
     text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + "".join(
         inspect.getsource(f.py_func) for f in (bin_coords, stencil_range, is_canonical_pair))
     return hashlib.sha1(text.encode()).hexdigest()[:8]
@@ -255,14 +287,57 @@ def _core_stamp():
 _CORE_STAMP = None
 
 
-def _compile(pair, template, kind, outputs, dim, symmetric):
+def _data_names(py_func):
+    """The pair function's data: its argument names after ``(a, b, r2, d)``."""
+    names = list(inspect.signature(py_func).parameters)
+    if names[:4] != ["a", "b", "r2", "d"]:
+        raise TypeError(f"{py_func.__name__}: a pair function's arguments start with (a, b, r2, d), got {names[:4]}")
+    return names[4:]
+
+
+def _stamp(*values):
+    return hashlib.sha1(repr(values).encode()).hexdigest()[:8]
+
+
+def _specialise(pair, constants, kernel):
+    """``pair`` re-compiled from its source with ``constants`` (arguments, removed from its signature)
+    and the kernel's closed forms (``kernel_profile``, ``kernel_derivatives``) bound as globals:
+    numba treats globals as compile-time constants, so a branch on a bool constant is pruned.
+
+    Returns ``(dispatcher, arguments)``, the arguments left to pass. Without anything to bind,
+    ``pair`` itself.
+    """
+    py_func = pair.py_func
+    arguments = [n for n in _data_names(py_func) if n not in constants]
+    if not constants and kernel is None:
+        return pair, arguments
+    tree = ast.parse(textwrap.dedent(inspect.getsource(py_func)))
+    function = tree.body[0]
+    function.decorator_list = []
+    function.args.args = [arg for arg in function.args.args if arg.arg not in constants]
+    suffix = (f"{kernel.key}_" if kernel is not None else "") + _stamp(sorted(constants.items(), key=str))
+    name = function.name = f"{py_func.__name__}__{suffix}"
+    ast.increment_lineno(tree, py_func.__code__.co_firstlineno - 1)
+    namespace = dict(py_func.__globals__)
+    namespace.update(constants)
+    if kernel is not None:
+        namespace.update(kernel.closed_forms())
+    # compiled against the pair function's own file, as the loops are: numba's disk cache holds it
+    exec(compile(tree, inspect.getfile(py_func), "exec"), namespace)  # noqa: S102
+    specialised = namespace[name]
+    specialised.__module__ = py_func.__module__
+    return numba.njit(cache=True, inline="always")(specialised), arguments
+
+
+def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=()):
     global _CORE_STAMP
     if _CORE_STAMP is None:
         _CORE_STAMP = _core_stamp()
     base = pair.py_func.__name__
+    # the declared order of params/inputs is part of the loop's bytecode; the stamp keeps the name unique
     name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
-    source = _loop_source(template, name, outputs, dim, symmetric, indent)
+    source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments)
     namespace = {"pair": pair, "bin_coords": bin_coords, "stencil_range": stencil_range,
                  "is_canonical_pair": is_canonical_pair}
     # compiled against the physics function's file: numba's disk cache then keys the loop by
@@ -274,55 +349,131 @@ def _compile(pair, template, kind, outputs, dim, symmetric):
     return numba.njit(cache=True, nogil=True)(function), source
 
 
+def _names(what, names):
+    """A declaration as a tuple of names."""
+    if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+        raise TypeError(f"{what} must be a tuple of argument names, got {names!r}")
+    return tuple(names)
+
+
+def _by_name(interaction, what, declared, given):
+    """The values of ``given`` (a dict) in the ``declared`` order; a one-line error for a missing or unknown name."""
+    given = {} if given is None else given
+    fname = interaction.pair.py_func.__name__
+    if not isinstance(given, Mapping):
+        raise TypeError(f"{what} of {fname} must be a dict by name {declared}, got {type(given).__name__}")
+    for name in given:
+        if name not in declared:
+            raise ValueError(f"{what}: {fname} has no {what[:-1]} {name!r} (declared: {declared})")
+    for name in declared:
+        if name not in given:
+            raise ValueError(f"{what}: {fname} needs {name!r} (declared: {declared})")
+    return tuple(given[name] for name in declared)
+
+
 class PairInteraction:
     """Per-pair physics turned into list walks and bin scans (see the module docstring).
 
     Parameters
     ----------
     pair : numba dispatcher
-        ``pair(a, b, r2, d, params, inp)``, jitted with ``inline="always"``, returning
-        ``(terms_a, terms_b, terms_global)`` (symmetric) or ``(terms_a, terms_global)`` (gather).
+        ``pair(a, b, r2, d, <data>)``, jitted with ``inline="always"``, returning
+        ``(terms_a, terms_b, terms_global)`` (symmetric) or ``(terms_a, terms_global)`` (gather);
+        ``<data>`` are argument names, each declared in exactly one of ``params``, ``inputs``,
+        ``constants``.
     outputs : dict of str to Output
         The accumulators, in the order of ``out``.
+    params : tuple of str
+        Global parameters (numbers, small arrays), passed by name to :meth:`compute`.
+    inputs : tuple of str
+        Per-particle arrays (N, ...), passed by name to :meth:`compute` and gathered to the
+        sorted extended points.
     symmetric : bool
         True: called once per pair, writes both partners. False: written for a gathering
         from b, called for both orientations.
     dim : int
         Number of stored coordinates (3 for ASE positions; any D for point sets of higher
         dimension walked over a stored list).
+    constants : dict or None
+        Arguments fixed at construction and compiled in (a flag gives its flat form).
+
+    Raises
+    ------
+    ValueError
+        When the declaration does not match the pair function's signature (the name is given).
     """
 
-    def __init__(self, pair, outputs, symmetric=True, dim=3):
+    def __init__(self, pair, outputs, params=(), inputs=(), symmetric=True, dim=3, constants=None):
         if not hasattr(pair, "py_func"):
             raise TypeError(f"pair must be a numba.njit function, got {type(pair).__name__}")
         if not outputs:
             raise ValueError("outputs: an interaction needs at least one accumulator")
         self.pair = pair
+        self.params = _names("params", params)
+        self.inputs = _names("inputs", inputs)
+        self.constants = dict(constants or {})
+        fname = pair.py_func.__name__
+        arguments = _data_names(pair.py_func)
+        declared = list(self.params) + list(self.inputs) + list(self.constants)
+        for name in declared:
+            if declared.count(name) > 1:
+                raise ValueError(f"{fname}: {name!r} is declared more than once in params/inputs/constants")
+            if name not in arguments:
+                raise ValueError(f"{fname} has no argument {name!r} (its data are {arguments})")
+        for name in arguments:
+            if name not in declared:
+                raise ValueError(f"{fname}: argument {name!r} is declared in none of params, inputs, constants")
+        self.uses_kernel = any(name in pair.py_func.__code__.co_names for name in KERNEL_FUNCTIONS)
         self.outputs = {name: (o if isinstance(o, Output) else Output(tuple(o))) for name, o in outputs.items()}
         self.symmetric = bool(symmetric)
         self.dim = int(dim)
+        self._pairs = {}
         self._loops = {}
         self._buffers = {}
         self._stacked = None
 
     def __repr__(self):
         kind = "symmetric" if self.symmetric else "gather"
-        return f"PairInteraction({self.pair.py_func.__name__}, {kind}, outputs={list(self.outputs)})"
+        return (f"PairInteraction({self.pair.py_func.__name__}, {kind}, params={self.params}, inputs={self.inputs}, "
+                f"outputs={list(self.outputs)})")
 
-    def loop(self, kind):
+    def _kernel(self, kernel):
+        if not self.uses_kernel:
+            return None
+        if kernel is None:
+            raise ValueError(f"kernel: {self.pair.py_func.__name__} calls a kernel placeholder "
+                             f"({', '.join(KERNEL_FUNCTIONS)}): pass compute(..., kernel=Kernel)")
+        if not hasattr(kernel, "closed_forms"):
+            raise TypeError(f"kernel must be a Kernel (ase_sphrelax.kernels.get_kernel), got {type(kernel).__name__}")
+        return kernel
+
+    def specialised(self, kernel=None):
+        """The pair function with its constants and ``kernel`` bound (compiled on first use)."""
+        kernel = self._kernel(kernel)
+        key = None if kernel is None else kernel.key
+        if key not in self._pairs:
+            self._pairs[key] = _specialise(self.pair, self.constants, kernel)
+        return self._pairs[key]
+
+    def loop(self, kind, kernel=None):
         """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
         (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
-        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`)."""
-        if kind not in self._loops:
+        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`), for ``kernel``
+        when the pair function calls a kernel placeholder."""
+        kernel = self._kernel(kernel)
+        key = (kind, None if kernel is None else kernel.key)
+        if key not in self._loops:
             template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
-            self._loops[kind] = _compile(self.pair, template, kind, list(self.outputs.values()), self.dim,
-                                         self.symmetric)
-        return self._loops[kind][0]
+            pair, arguments = self.specialised(kernel)
+            self._loops[key] = _compile(pair, template, kind, list(self.outputs.values()), self.dim, self.symmetric,
+                                        self.params, self.inputs, arguments)
+        return self._loops[key][0]
 
-    def source(self, kind="list"):
+    def source(self, kind="list", kernel=None):
         """Python source of a generated loop (for reading and debugging)."""
-        self.loop(kind)
-        return self._loops[kind][1]
+        self.loop(kind, kernel)
+        kernel = self._kernel(kernel)
+        return self._loops[(kind, None if kernel is None else kernel.key)][1]
 
     def _thread_buffers(self, nthreads, n_ext, forward):
         """Per-thread accumulators ``(buffers[t][k], bases[t])``, reused between calls of the
@@ -350,7 +501,7 @@ class PairInteraction:
             self._buffers[key] = (buffers, bases)
         return self._buffers[key]
 
-    def compute(self, neighbors, positions, params=(), inputs=(), reach=None):
+    def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
 
         Parameters
@@ -360,12 +511,14 @@ class PairInteraction:
             any object of the same interface (``extend``, ``gather``, ``loop_arrays``,
             ``fold_threads``).
         positions : ndarray (N, D)
-        params : tuple
-            Passed unchanged to the pair function (numbers, small arrays).
-        inputs : tuple of ndarray
-            Per-particle arrays (N, ...), gathered to the sorted extended points.
+        params : dict of str
+            The declared parameters by name (numbers, small arrays).
+        inputs : dict of str to ndarray
+            The declared per-particle arrays (N, ...) by name, gathered to the sorted extended points.
         reach : float or None
             Largest interaction distance (default: the neighbour list's largest cut-off).
+        kernel : Kernel or None
+            The kernel bound to the pair function's placeholders (required when it calls one).
 
         Returns
         -------
@@ -373,6 +526,9 @@ class PairInteraction:
             Per-point outputs folded onto particles, shape (N,) + shape; global outputs
             summed over threads.
         """
+        params = _by_name(self, "params", self.params, params)
+        inputs = _by_name(self, "inputs", self.inputs, inputs)
+        self._kernel(kernel)  # a missing kernel fails before any work
         x_sc = neighbors.extend(positions)
         inp = tuple(neighbors.gather(values, slot=k) for k, values in enumerate(inputs))
         reach = neighbors.max_cutoff if reach is None else float(reach)
@@ -391,14 +547,14 @@ class PairInteraction:
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
         if getattr(neighbors, "build_pending", False):
             # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
-            loop = self.loop("build")
+            loop = self.loop("build", kernel)
             pre = (x_sc, *neighbors.build_arrays())
             post = (reach * reach, tuple(params), inp)
             neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
                 *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            run_chunks(self.loop(kind), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
+            run_chunks(self.loop(kind, kernel), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
                        per_thread=per_thread)
         return self._fold(neighbors, buffers, bases, forward)
 

@@ -6,7 +6,7 @@ Conventions
 -----------
 ``H`` is the kernel **support** radius (ALARIC Eq. 5, Fan): ``W(r, H) = sigma / H^d f(r/H)``,
 ``f(q) = 0`` for ``q >= 1``. Phantom (Price 2012) writes a smoothing length with support ``2h``;
-its ``eta`` is converted here: ``eta_H = 2 eta_h`` (:data:`ETA_SUPPORT`). Positions are
+its ``eta`` is converted here: ``eta_H = 2 eta_h`` (each kernel's ``eta``). Positions are
 ``(N, D)`` arrays: ``D = 3`` for ASE Atoms (zeros beyond the dimension ``d`` of the kernel) or
 any ``D`` for point sets walked over a stored list (SPH-ParVI's k-d tree); ``d`` (the kernel's
 dimension) sets the normalisation and the grad-h terms.
@@ -57,22 +57,21 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from .kernels import profile_by_kind, profile_derivatives_by_kind
+from .kernels import get_kernel, kernel_derivatives, kernel_profile
 from .pairs import Output, PairInteraction
 
-__all__ = ["ETA_SUPPORT", "default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
+__all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
            "SmoothingLengthError", "initial_smoothing_length", "pressure_forces", "viscosity_forces",
            "velocity_divergence", "continuity_rate", "update_alpha", "isothermal_pressure", "tait_pressure",
            "scaled"]
 
-# Phantom's default eta for support 2h (cubic 1.2, Wendland C2 1.3, C4 1.5), times 2 for support H
-ETA_SUPPORT = {"cubic_spline": 2.4, "wendland_c2": 2.6, "wendland_c4": 3.0}
-
-
 def default_eta(kernel):
-    """``eta`` for support radius ``H``: ``rho H^d = m eta^d`` (Phantom's value for support 2h, times 2)."""
-    name = kernel if isinstance(kernel, str) else kernel.name
-    return ETA_SUPPORT[name]
+    """``eta`` for support radius ``H``: ``rho H^d = m eta^d`` (the kernel's registered value: Phantom's value
+    for support 2h, times 2)."""
+    kernel = get_kernel(kernel, 1) if isinstance(kernel, str) else kernel
+    if kernel.eta is None:
+        raise ValueError(f"eta: kernel {kernel.name!r} registers no default eta; pass eta explicitly")
+    return kernel.eta
 
 
 class SmoothingLengthError(ValueError):
@@ -95,76 +94,40 @@ def _scaled_overload(g, d):
 
 
 # -- pair physics -------------------------------------------------------------------------------
+# Each pair function calls the kernel placeholders of ase_sphrelax.kernels, bound per kernel by PairInteraction;
+# flags bound as constants (equal_masses, with_virial) give each variant's flat form from one source.
 @numba.njit(cache=True, inline="always")
-def _density_pair(a, b, r2, d, params, inp):
+def _density_pair(a, b, r2, d, ih_s, m_s, active_s):
     """a gathers from b with its own H_a: sum m_b f(q), sum m_b q f'(q), sum f(q), neighbour count.
 
     The inputs carry 1/H, so that q is a product rather than a division per pair. The early return
     is tested in this order on purpose: with ``q >= 1.0 or not active`` the pass was 6x slower
     (measured on 1e5 points in 2D; LLVM then evaluates the kernel for every listed pair).
     """
-    kind, breaks, coef = params
-    ih_s, m_s, active_s = inp
     q = math.sqrt(r2) * ih_s[a]
     if not active_s[a] or q >= 1.0:
         return (0.0, 0.0, 0.0, 0.0), ()
-    value, slope = profile_by_kind(q, kind, breaks, coef)
+    value, slope = kernel_profile(q)
     mb = m_s[b]
     return (mb * value, mb * q * slope, value, 1.0), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _solve_pair(a, b, r2, d, params, inp):
-    """The smoothing-length solve's gather, equal masses: the moments sum q^k f^(k)(q), k = 0..4, and the
-    neighbour count."""
-    kind, breaks, coef = params
-    ih_s, active_s = inp
+def _solve_pair(a, b, r2, d, ih_s, m_s, active_s, equal_masses):
+    """The smoothing-length solve's gather. Equal masses (``m_s`` unused): the moments sum q^k f^(k)(q),
+    k = 0..4, and the neighbour count; per-particle masses: sum m f, sum m q f', sum m q^2 f'', sum f, count."""
     q = math.sqrt(r2) * ih_s[a]
-    if not active_s[a] or q >= 1.0:
-        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), ()
-    value, slope, curv, third, fourth = profile_derivatives_by_kind(q, kind, breaks, coef)
-    q2 = q * q
-    return (value, q * slope, q2 * curv, q2 * q * third, q2 * q2 * fourth, 1.0), ()
-
-
-@numba.njit(cache=True, inline="always")
-def _solve_pair_masses(a, b, r2, d, params, inp):
-    """As :func:`_solve_pair` with per-particle masses: sum m f, sum m q f', sum m q^2 f'', sum f, count."""
-    kind, breaks, coef = params
-    ih_s, m_s, active_s = inp
-    q = math.sqrt(r2) * ih_s[a]
+    if equal_masses:
+        if not active_s[a] or q >= 1.0:
+            return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), ()
+        value, slope, curv, third, fourth = kernel_derivatives(q)
+        q2 = q * q
+        return (value, q * slope, q2 * curv, q2 * q * third, q2 * q2 * fourth, 1.0), ()
     if not active_s[a] or q >= 1.0:
         return (0.0, 0.0, 0.0, 0.0, 0.0), ()
-    value, slope, curv, _, _ = profile_derivatives_by_kind(q, kind, breaks, coef)
+    value, slope, curv, _, _ = kernel_derivatives(q)
     mb = m_s[b]
     return (mb * value, mb * q * slope, mb * q * q * curv, value, 1.0), ()
-
-
-# The pressure pairs are written out flat (no helper for the shared slope sum): in these loops a nested
-# inline helper, or one per-point array more per pair, cost 2-4x (measured on 1e5 points in 2D).
-@numba.njit(cache=True, inline="always")
-def _pressure_pair(a, b, r2, d, params, inp):
-    """The symmetric grad-h force (see :func:`pressure_forces`): F_a = k d, F_b = -k d with
-    k = m_a m_b (c_a f'(r/H_a) + c_b f'(r/H_b)) / r, c = P/(Omega rho^2) sigma/H^(d+1)."""
-    kind, breaks, coef = params
-    ih_s, m_s, c_s = inp
-    r = math.sqrt(r2)
-    g = (c_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]
-         + c_s[b] * profile_by_kind(r * ih_s[b], kind, breaks, coef)[1])
-    k = m_s[a] * m_s[b] * g / r if r2 > 0.0 else 0.0
-    return scaled(k, d), scaled(-k, d), ()
-
-
-@numba.njit(cache=True, inline="always")
-def _pressure_pair_equal_masses(a, b, r2, d, params, inp):
-    """The same force for equal masses m (``params[3] = m^2``): one per-point array fewer per pair."""
-    kind, breaks, coef, m2 = params
-    ih_s, c_s = inp
-    r = math.sqrt(r2)
-    g = (c_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]
-         + c_s[b] * profile_by_kind(r * ih_s[b], kind, breaks, coef)[1])
-    k = m2 * g / r if r2 > 0.0 else 0.0
-    return scaled(k, d), scaled(-k, d), ()
 
 
 @numba.njit(cache=True, inline="always")
@@ -176,35 +139,28 @@ def _voigt(k, d):
     return (k * d0 * d0, k * d1 * d1, k * d2 * d2, k * d1 * d2, k * d0 * d2, k * d0 * d1)
 
 
+# The pressure pair is written out flat (no helper for the shared slope sum): in these loops a nested inline
+# helper, or one per-point array more per pair, cost 2-4x (measured on 1e5 points in 2D). Its four variants
+# are this one source with ``equal_masses`` and ``with_virial`` bound.
 @numba.njit(cache=True, inline="always")
-def _pressure_virial_pair(a, b, r2, d, params, inp):
-    """:func:`_pressure_pair` with the pair virial k d d^T."""
-    kind, breaks, coef = params
-    ih_s, m_s, c_s = inp
+def _pressure_pair(a, b, r2, d, m2, ih_s, m_s, c_s, equal_masses, with_virial):
+    """The symmetric grad-h force (see :func:`pressure_forces`): F_a = k d, F_b = -k d with
+    k = m_a m_b (c_a f'(r/H_a) + c_b f'(r/H_b)) / r, c = P/(Omega rho^2) sigma/H^(d+1); with equal masses
+    m_a m_b = ``m2`` (one per-point array fewer per pair); with the pair virial k d d^T."""
     r = math.sqrt(r2)
-    g = (c_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]
-         + c_s[b] * profile_by_kind(r * ih_s[b], kind, breaks, coef)[1])
-    k = m_s[a] * m_s[b] * g / r if r2 > 0.0 else 0.0
-    return scaled(k, d), scaled(-k, d), _voigt(k, d)
+    g = c_s[a] * kernel_profile(r * ih_s[a])[1] + c_s[b] * kernel_profile(r * ih_s[b])[1]
+    if equal_masses:
+        k = m2 * g / r if r2 > 0.0 else 0.0
+    else:
+        k = m_s[a] * m_s[b] * g / r if r2 > 0.0 else 0.0
+    if with_virial:
+        return scaled(k, d), scaled(-k, d), _voigt(k, d)
+    return scaled(k, d), scaled(-k, d), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _pressure_virial_pair_equal_masses(a, b, r2, d, params, inp):
-    """:func:`_pressure_pair_equal_masses` with the pair virial k d d^T."""
-    kind, breaks, coef, m2 = params
-    ih_s, c_s = inp
-    r = math.sqrt(r2)
-    g = (c_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]
-         + c_s[b] * profile_by_kind(r * ih_s[b], kind, breaks, coef)[1])
-    k = m2 * g / r if r2 > 0.0 else 0.0
-    return scaled(k, d), scaled(-k, d), _voigt(k, d)
-
-
-@numba.njit(cache=True, inline="always")
-def _viscosity_pair(a, b, r2, d, params, inp):
+def _viscosity_pair(a, b, r2, d, v_sig, beta, approaching_only, ih_s, g_s, m_s, rho_s, alpha_s, v_sc):
     """Pi_ab grad Wbar_ab forces and the Eq. 21 divergence of both partners."""
-    kind, breaks, coef, v_sig, beta, approaching_only = params
-    ih_s, g_s, m_s, rho_s, alpha_s, v_sc = inp
     if r2 == 0.0:
         z = scaled(0.0, d)
         return (0.0,) + z, (0.0,) + z, ()
@@ -214,8 +170,8 @@ def _viscosity_pair(a, b, r2, d, params, inp):
     for c in range(len(d)):
         vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
     w = -vd / r
-    ga = g_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]  # dW/dr (H_a) <= 0, zero beyond H_a
-    gb = g_s[b] * profile_by_kind(r * ih_s[b], kind, breaks, coef)[1]
+    ga = g_s[a] * kernel_profile(r * ih_s[a])[1]  # dW/dr (H_a) <= 0, zero beyond H_a
+    gb = g_s[b] * kernel_profile(r * ih_s[b])[1]
     # Eq. 21: div_a = sum_b m_b/rho_b (v_ab . r_ab) F_ab(H_a), F = -(dW/dr)/r
     div_a = -m_s[b] / rho_s[b] * w * ga
     div_b = -m_s[a] / rho_s[a] * w * gb
@@ -229,32 +185,18 @@ def _viscosity_pair(a, b, r2, d, params, inp):
 
 
 @numba.njit(cache=True, inline="always")
-def _divergence_pair(a, b, r2, d, params, inp):
-    """a gathers Eq. 21 from b with its own H_a."""
-    kind, breaks, coef = params
-    ih_s, g_s, m_s, rho_s, v_sc = inp
+def _continuity_pair(a, b, r2, d, diffusion, c0, ih_s, g_s, m_s, rho_s, v_sc, divergence):
+    """a gathers drho/dt = sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b V_b psi_ab . grad_a W_ab, or
+    (``divergence``) Eq. 21, div_a = sum_b m_b/rho_b v_ab . r_ab F_ab(H_a), from the same terms."""
     if r2 == 0.0:
         return (0.0,), ()
     r = math.sqrt(r2)
     vd = 0.0
     for c in range(len(d)):
         vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
-    ga = g_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]
-    return (m_s[b] / rho_s[b] * vd / r * ga,), ()
-
-
-@numba.njit(cache=True, inline="always")
-def _continuity_pair(a, b, r2, d, params, inp):
-    """a gathers drho/dt = sum_b m_b v_ab . grad_a W_ab(H_a) + a_d H_a c0 sum_b V_b psi_ab . grad_a W_ab."""
-    kind, breaks, coef, diffusion, c0 = params
-    ih_s, g_s, m_s, rho_s, v_sc = inp
-    if r2 == 0.0:
-        return (0.0,), ()
-    r = math.sqrt(r2)
-    vd = 0.0
-    for c in range(len(d)):
-        vd += (v_sc[a, c] - v_sc[b, c]) * d[c]
-    ga = g_s[a] * profile_by_kind(r * ih_s[a], kind, breaks, coef)[1]  # dW/dr <= 0, zero beyond H_a
+    ga = g_s[a] * kernel_profile(r * ih_s[a])[1]  # dW/dr <= 0, zero beyond H_a
+    if divergence:
+        return (m_s[b] / rho_s[b] * vd / r * ga,), ()
     # grad_a W = ga (x_a - x_b)/r = -ga d / r
     rate = -m_s[b] * ga * vd / r
     if diffusion != 0.0:
@@ -265,39 +207,59 @@ def _continuity_pair(a, b, r2, d, params, inp):
     return (rate,), ()
 
 
+_GRADIENT_INPUTS = ("ih_s", "g_s", "m_s", "rho_s", "v_sc")
+
+
+def _pressure_interaction(dim_points, equal_masses, with_virial):
+    outputs = dict(forces=Output((dim_points,)))
+    if with_virial:
+        outputs["virial"] = Output((6,), per_point=False)
+    if equal_masses:
+        data = dict(params=("m2",), inputs=("ih_s", "c_s"), constants=dict(m_s=None))
+    else:
+        data = dict(inputs=("ih_s", "m_s", "c_s"), constants=dict(m2=None))
+    data["constants"].update(equal_masses=equal_masses, with_virial=with_virial)
+    return PairInteraction(_pressure_pair, outputs, symmetric=True, dim=dim_points, **data)
+
+
+def _build_interaction(name, dim_points):
+    scalar = Output(())
+    if name == "density":
+        return PairInteraction(_density_pair, dict(s=scalar, t=scalar, n=scalar, count=scalar),
+                               inputs=("ih_s", "m_s", "active_s"), symmetric=False, dim=dim_points)
+    if name == "solve":  # equal masses
+        return PairInteraction(_solve_pair, dict(s=scalar, t=scalar, w=scalar, x=scalar, y=scalar, count=scalar),
+                               inputs=("ih_s", "active_s"), constants=dict(equal_masses=True, m_s=None),
+                               symmetric=False, dim=dim_points)
+    if name == "solve_masses":
+        return PairInteraction(_solve_pair, dict(s=scalar, t=scalar, w=scalar, n=scalar, count=scalar),
+                               inputs=("ih_s", "m_s", "active_s"), constants=dict(equal_masses=False),
+                               symmetric=False, dim=dim_points)
+    if name.startswith("pressure"):
+        return _pressure_interaction(dim_points, name.endswith("_equal"), "virial" in name)
+    if name == "viscosity":
+        return PairInteraction(_viscosity_pair, dict(div_v=scalar, forces=Output((dim_points,))),
+                               params=("v_sig", "beta", "approaching_only"), inputs=_GRADIENT_INPUTS[:4] + (
+                                   "alpha_s", "v_sc"), symmetric=True, dim=dim_points)
+    if name == "divergence":
+        return PairInteraction(_continuity_pair, dict(div_v=scalar), inputs=_GRADIENT_INPUTS, symmetric=False,
+                               constants=dict(divergence=True, diffusion=0.0, c0=0.0), dim=dim_points)
+    if name == "continuity":
+        return PairInteraction(_continuity_pair, dict(rate=scalar), params=("diffusion", "c0"),
+                               inputs=_GRADIENT_INPUTS, constants=dict(divergence=False), symmetric=False,
+                               dim=dim_points)
+    raise KeyError(name)  # pragma: no cover
+
+
 _INTERACTIONS: dict = {}
 
 
 def _interaction(name, dim_points):
-    """The PairInteraction ``name`` for points with ``dim_points`` stored coordinates (cached)."""
+    """The PairInteraction ``name`` for points with ``dim_points`` stored coordinates (cached; each
+    specialises its loops per kernel, ``compute(..., kernel=k)``)."""
     key = (name, dim_points)
     if key not in _INTERACTIONS:
-        vec = Output((dim_points,))
-        if name == "density":
-            inter = PairInteraction(_density_pair, dict(s=Output(()), t=Output(()), n=Output(()), count=Output(())),
-                                    symmetric=False, dim=dim_points)
-        elif name == "solve":
-            moments = dict(s=Output(()), t=Output(()), w=Output(()), x=Output(()), y=Output(()), count=Output(()))
-            inter = PairInteraction(_solve_pair, moments, symmetric=False, dim=dim_points)
-        elif name == "solve_masses":
-            inter = PairInteraction(_solve_pair_masses, dict(s=Output(()), t=Output(()), w=Output(()), n=Output(()),
-                                                             count=Output(())), symmetric=False, dim=dim_points)
-        elif name.startswith("pressure"):
-            pair = {"pressure": _pressure_pair, "pressure_equal": _pressure_pair_equal_masses,
-                    "pressure_virial": _pressure_virial_pair,
-                    "pressure_virial_equal": _pressure_virial_pair_equal_masses}[name]
-            outputs = dict(forces=vec, virial=Output((6,), per_point=False)) if "virial" in name else dict(forces=vec)
-            inter = PairInteraction(pair, outputs, symmetric=True, dim=dim_points)
-        elif name == "viscosity":
-            inter = PairInteraction(_viscosity_pair, dict(div_v=Output(()), forces=vec), symmetric=True,
-                                    dim=dim_points)
-        elif name == "divergence":
-            inter = PairInteraction(_divergence_pair, dict(div_v=Output(())), symmetric=False, dim=dim_points)
-        elif name == "continuity":
-            inter = PairInteraction(_continuity_pair, dict(rate=Output(())), symmetric=False, dim=dim_points)
-        else:  # pragma: no cover
-            raise KeyError(name)
-        _INTERACTIONS[key] = inter
+        _INTERACTIONS[key] = _build_interaction(name, dim_points)
     return _INTERACTIONS[key]
 
 
@@ -312,10 +274,6 @@ def _per_particle(name, value, n, positive=True):
         bad = np.nonzero(~np.isfinite(arr) | ((arr <= 0.0) if positive else False))[0]
         raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}; particles {bad[:10].tolist()} are not")
     return arr
-
-
-def _kernel_params(kernel):
-    return (kernel.kind, kernel.breaks, kernel.coef)
 
 
 # -- density --------------------------------------------------------------------------------------
@@ -350,7 +308,7 @@ class DensitySums:
 
 def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
     out = _interaction("density", r_pc.shape[1]).compute(
-        nlist, r_pc, params=_kernel_params(kernel), inputs=(1.0 / h_p, m_p, active_p), reach=float(h_p.max()))
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=float(h_p.max()), kernel=kernel)
     # self terms: f(0) = f0, q f'(q) = 0 at q = 0
     return out.s + m_p * kernel.f0, out.t, out.n + kernel.f0, out.count
 
@@ -358,16 +316,15 @@ def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     """(s, t, M_2, M_3, M_4, n, count) with the self terms, ``M_k = sum_b m_b q^k f^(k)``, ``s = M_0``,
     ``t = M_1``, ``n = sum_b f``; ``M_3``, ``M_4`` only with equal masses (else None)."""
-    params = _kernel_params(kernel)
     reach = float(h_p.max())
     if equal:  # m_p constant: s = m sum f, n = sum f
-        out = _interaction("solve", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=(1.0 / h_p, active_p),
-                                                           reach=reach)
+        out = _interaction("solve", r_pc.shape[1]).compute(nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p),
+                                                           reach=reach, kernel=kernel)
         n_p = out.s + kernel.f0
         m = m_p[0]
         return m * n_p, m * out.t, m * out.w, m * out.x, m * out.y, n_p, out.count
-    out = _interaction("solve_masses", r_pc.shape[1]).compute(nlist, r_pc, params=params,
-                                                              inputs=(1.0 / h_p, m_p, active_p), reach=reach)
+    out = _interaction("solve_masses", r_pc.shape[1]).compute(
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel)
     return out.s + m_p * kernel.f0, out.t, out.w, None, None, out.n + kernel.f0, out.count
 
 
@@ -415,14 +372,9 @@ def initial_smoothing_length(r_pc, cell, pbc, dim, eta):
 
 
 NEWTON_ITERATIONS = 12  # then bisection only
-# A Halley step |d ln H| <= EXTRAPOLATION_STEP[kernel] tol^(1/4) may be accepted without a further density
-# pass, its sums carried to the new H by their Taylor series (_smoothing_length_step). The truncation error
-# in t is |s^(5)/t| dl^4 / 24; measured (jittered lattices, 1D-3D, dl = 1e-3 to 1e-2) |s^(5)/t| <= 1300 for
-# Wendland C4, so the factor 0.22 keeps it below 0.4 tol with |s^(5)/t| up to 4000. Only for kernels whose
-# profile is C^4 across the support edge and inside: the series of Wendland C2 (4th derivative jumps at
-# q = 1) and of the cubic spline (3rd derivative jumps at q = 1/2 and 1) converge only like dl^3 and dl^2
-# (measured), so they always take the check pass.
-EXTRAPOLATION_STEP = {"wendland_c4": 0.22}
+# A Halley step |d ln H| <= kernel.extrapolation_step tol^(1/4) may be accepted without a further density pass
+# (_smoothing_length_step); the factor is part of each kernel's definition (ase_sphrelax.kernels, Wendland C4:
+# 0.22, with the measurement behind it; 0 for kernels whose profile is not C^4).
 
 
 def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=100,
@@ -500,7 +452,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     n_p = np.empty(n)
     count_p = np.empty(n)
     equal = bool(np.all(m_p == m_p[0]))
-    step_max = EXTRAPOLATION_STEP.get(kernel.name, 0.0) * tol**0.25 if equal else 0.0
+    step_max = kernel.extrapolation_step * tol**0.25 if equal else 0.0
     sigma_over_m_p = sigma / m_p
     h_cap = None  # 1e3 times the larger of the extent and the first H, computed when H has grown that far
     h_first = float(h_p.max())
@@ -551,7 +503,7 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
     series, ``s(l + dl) = sum_j s^(j) dl^j / j!`` to ``j = 4`` and ``t = -s'`` to ``j = 3``
     (``s' = -M_1``, ``s'' = M_1 + M_2``, ``s''' = -(M_1 + 3 M_2 + M_3)``,
     ``s'''' = M_1 + 7 M_2 + 6 M_3 + M_4``), satisfy the constraint to ``tol``; the truncation error,
-    ``|s^(5)| dl^4 / 24`` relative in ``t``, is then below ``tol`` (:data:`EXTRAPOLATION_STEP`: Wendland C4
+    ``|s^(5)| dl^4 / 24`` relative in ``t``, is then below ``tol`` (``Kernel.extrapolation_step``: Wendland C4
     only).
     A step outside the bracket, by more than a factor 2, or not finite is replaced by bisection
     (doubling/halving while one side is open); ``bisect_only`` after :data:`NEWTON_ITERATIONS`.
@@ -641,10 +593,10 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
     c_p = pr_p * kernel.sigma / h_p ** (kernel.dim + 1)
     name = "pressure_virial" if want_virial else "pressure"
     if np.all(m_p == m_p[0]):  # equal masses: m^2 as a parameter, one array fewer per pair
-        params, inputs, name = _kernel_params(kernel) + (float(m_p[0]) ** 2,), (1.0 / h_p, c_p), name + "_equal"
+        params, inputs, name = dict(m2=float(m_p[0]) ** 2), dict(ih_s=1.0 / h_p, c_s=c_p), name + "_equal"
     else:
-        params, inputs = _kernel_params(kernel), (1.0 / h_p, m_p, c_p)
-    out = _interaction(name, r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs,
+        params, inputs = {}, dict(ih_s=1.0 / h_p, m_s=m_p, c_s=c_p)
+    out = _interaction(name, r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs, kernel=kernel,
                                                     reach=float(h_p.max()))
     virial = np.zeros((3, 3))
     if want_virial:
@@ -689,21 +641,27 @@ def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, be
     if v_pc.shape != r_pc.shape:
         raise ValueError(f"velocities must have the shape of the positions {r_pc.shape}, got {v_pc.shape}")
     g_p = kernel.sigma / h_p ** (kernel.dim + 1)
-    params = _kernel_params(kernel) + (float(v_sig), float(beta), bool(approaching_only))
-    out = _interaction("viscosity", r_pc.shape[1]).compute(
-        nlist, r_pc, params=params, inputs=(1.0 / h_p, g_p, m_p, rho_p, alpha_p, v_pc), reach=float(h_p.max()))
+    params = dict(v_sig=float(v_sig), beta=float(beta), approaching_only=bool(approaching_only))
+    inputs = dict(ih_s=1.0 / h_p, g_s=g_p, m_s=m_p, rho_s=rho_p, alpha_s=alpha_p, v_sc=v_pc)
+    out = _interaction("viscosity", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs,
+                                                           reach=float(h_p.max()), kernel=kernel)
     return out.forces, out.div_v
+
+
+def _gradient_inputs(r_pc, v_pc, masses, h, rho, kernel):
+    """``h_p`` and the inputs ``ih_s, g_s, m_s, rho_s, v_sc`` of the gathers of a kernel gradient with H_a."""
+    n = r_pc.shape[0]
+    h_p = _per_particle("h", h, n)
+    return h_p, dict(ih_s=1.0 / h_p, g_s=kernel.sigma / h_p ** (kernel.dim + 1), m_s=_per_particle("masses", masses, n),
+                     rho_s=_per_particle("rho", rho, n), v_sc=np.ascontiguousarray(v_pc, dtype=float))
 
 
 def velocity_divergence(nlist, r_pc, v_pc, masses, h, rho, kernel):
     """``(div v)_a = sum_b m_b / rho_b v_ab . r_ab F_ab(H_a)`` (Eq. 21), shape (N,)."""
     r_pc = np.asarray(r_pc, dtype=float)
-    n = r_pc.shape[0]
-    h_p = _per_particle("h", h, n)
-    inputs = (1.0 / h_p, kernel.sigma / h_p ** (kernel.dim + 1), _per_particle("masses", masses, n),
-              _per_particle("rho", rho, n), np.ascontiguousarray(v_pc, dtype=float))
-    out = _interaction("divergence", r_pc.shape[1]).compute(nlist, r_pc, params=_kernel_params(kernel),
-                                                            inputs=inputs, reach=float(h_p.max()))
+    h_p, inputs = _gradient_inputs(r_pc, v_pc, masses, h, rho, kernel)
+    out = _interaction("divergence", r_pc.shape[1]).compute(nlist, r_pc, inputs=inputs, reach=float(h_p.max()),
+                                                            kernel=kernel)
     return out.div_v
 
 
@@ -715,13 +673,10 @@ def continuity_rate(nlist, r_pc, v_pc, masses, h, rho, kernel, diffusion=0.0, c0
     SPH-ParVI Eq. 29 with ``a_d = diffusion``, written with the sign that smooths density differences).
     """
     r_pc = np.asarray(r_pc, dtype=float)
-    n = r_pc.shape[0]
-    h_p = _per_particle("h", h, n)
-    inputs = (1.0 / h_p, kernel.sigma / h_p ** (kernel.dim + 1), _per_particle("masses", masses, n),
-              _per_particle("rho", rho, n), np.ascontiguousarray(v_pc, dtype=float))
-    params = _kernel_params(kernel) + (float(diffusion), float(c0))
+    h_p, inputs = _gradient_inputs(r_pc, v_pc, masses, h, rho, kernel)
+    params = dict(diffusion=float(diffusion), c0=float(c0))
     out = _interaction("continuity", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs,
-                                                            reach=float(h_p.max()))
+                                                            reach=float(h_p.max()), kernel=kernel)
     return out.rate
 
 

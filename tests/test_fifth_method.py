@@ -15,9 +15,8 @@ from ase_sphrelax.pairs import Output, PairInteraction
 
 
 @numba.njit(cache=True, inline="always")
-def bump_pair(a, b, r2, d, params, inp):
+def bump_pair(a, b, r2, d, k, sigma):
     """Half of phi to each of a and b; the force on a is -dphi/dx_a = -6 k (1 - q)^2 / sigma^2 d, q = r^2 / sigma^2."""
-    k, sigma = params
     s2 = sigma * sigma
     if r2 >= s2:
         return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), ()
@@ -26,7 +25,7 @@ def bump_pair(a, b, r2, d, params, inp):
     return (0.5 * k * w**3, -c * d[0], -c * d[1], -c * d[2]), (0.5 * k * w**3, c * d[0], c * d[1], c * d[2]), ()
 
 
-BUMPS = PairInteraction(bump_pair, dict(energies=Output(()), forces=Output((3,))))
+BUMPS = PairInteraction(bump_pair, dict(energies=Output(()), forces=Output((3,))), params=("k", "sigma"))
 
 
 class BumpCalculator(SPHCalculator):
@@ -45,7 +44,7 @@ class BumpCalculator(SPHCalculator):
 
     def evaluate(self, state, properties):
         p = self.parameters
-        out = BUMPS.compute(state.nlist, state.r_pc, params=(p.k, p.sigma), reach=p.sigma)
+        out = BUMPS.compute(state.nlist, state.r_pc, params=dict(k=p.k, sigma=p.sigma), reach=p.sigma)
         return dict(energy=float(out.energies.sum()), energies=out.energies, forces=out.forces)
 
 

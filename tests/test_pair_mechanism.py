@@ -22,10 +22,8 @@ from ase_sphrelax.pairs import Output, PairInteraction
 
 # -- the toy method: physics (one pure function) + a thin calculator ------------------------------
 @numba.njit(cache=True, inline="always")
-def soft_sphere_pair(a, b, r2, d, params, inp):
+def soft_sphere_pair(a, b, r2, d, k, gamma, radius_s, v_sc):
     """phi = k/2 (1 - r/s)^2 for r < s = R_a + R_b, and damping -gamma (1 - r/s) (v_ab . e) e."""
-    k, gamma = params
-    radius_s, v_sc = inp
     s = radius_s[a] + radius_s[b]
     if r2 >= s * s or r2 == 0.0:
         return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -42,7 +40,8 @@ def soft_sphere_pair(a, b, r2, d, params, inp):
 
 
 SOFT_SPHERES = PairInteraction(soft_sphere_pair, dict(energies=Output(()), forces=Output((3,)),
-                                                      virial=Output((6,), per_point=False)))
+                                                      virial=Output((6,), per_point=False)),
+                               params=("k", "gamma"), inputs=("radius_s", "v_sc"))
 
 
 class SoftSphereCalculator(SPHCalculator):
@@ -62,7 +61,8 @@ class SoftSphereCalculator(SPHCalculator):
         p, atoms = self.parameters, state.atoms
         radius_p = atoms.get_array("radius")
         v_pc = state.v_pc if state.v_pc is not None else np.zeros_like(state.r_pc)
-        out = SOFT_SPHERES.compute(state.nlist, state.r_pc, params=(p.k, p.gamma), inputs=(radius_p, v_pc),
+        out = SOFT_SPHERES.compute(state.nlist, state.r_pc, params=dict(k=p.k, gamma=p.gamma),
+                                   inputs=dict(radius_s=radius_p, v_sc=v_pc),
                                    reach=2.0 * radius_p.max())
         results = dict(energy=out.energies.sum(), energies=out.energies, forces=out.forces)
         if atoms.cell.rank == 3 and atoms.pbc.all():
@@ -138,16 +138,15 @@ def test_velocity_dependent_forces_are_not_served_from_the_cache():
 
 
 @numba.njit(cache=True, inline="always")
-def count_within(a, b, r2, d, params, inp):
+def count_within(a, b, r2, d, radius_s):
     """Gather-style: a counts the partners within its own radius R_a (and weighs them by r^2)."""
-    radius_s, = inp
     if r2 < radius_s[a] ** 2:
         return (1.0, r2), (r2,)
     return (0.0, 0.0), (0.0,)
 
 
 COUNTS = PairInteraction(count_within, dict(count=Output(()), r2_sum=Output(()), total=Output((), per_point=False)),
-                         symmetric=False)
+                         inputs=("radius_s",), symmetric=False)
 
 
 def brute_counts(r_pc, cell, pbc, radius_p):
@@ -168,7 +167,7 @@ def test_gather_interaction_uses_each_points_own_radius():
     cell, pbc = np.diag([4.0] * 3), [True, True, False]
     nlist = NeighborList(radius_p, skin=0.2)
     nlist.update(r_pc, cell, pbc)
-    out = COUNTS.compute(nlist, r_pc, inputs=(radius_p,))
+    out = COUNTS.compute(nlist, r_pc, inputs=dict(radius_s=radius_p))
     np.testing.assert_array_equal(out.count, brute_counts(r_pc, cell, pbc, radius_p))
     assert out.total[0] == pytest.approx(out.r2_sum.sum(), rel=1e-12)
 
@@ -183,20 +182,20 @@ def test_cutoffs_growing_within_the_skin_reuse_the_list_and_beyond_it_rebuild():
     grown = radius_p + 0.1
     moved = r_pc + rng.uniform(-0.02, 0.02, r_pc.shape)  # 2 * 0.035 + 0.1 <= skin
     assert not nlist.update(moved, cell, pbc, cutoff=grown)
-    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=(grown,)).count,
+    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=dict(radius_s=grown)).count,
                                   brute_counts(moved, cell, pbc, grown))
     assert nlist.builds == 1
     too_far = radius_p + 0.25
     assert nlist.update(moved, cell, pbc, cutoff=too_far)
     assert nlist.builds == 2
-    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=(too_far,)).count,
+    np.testing.assert_array_equal(COUNTS.compute(nlist, moved, inputs=dict(radius_s=too_far)).count,
                                   brute_counts(moved, cell, pbc, too_far))
 
 
 def test_points_of_higher_dimension_walk_a_stored_list():
     """dim=D interactions take D-component separations (point sets beyond ASE's 3 axes)."""
     @numba.njit(inline="always")
-    def squared(a, b, r2, d, params, inp):
+    def squared(a, b, r2, d):
         return (r2, d[4]), (r2, -d[4]), ()
 
     interaction = PairInteraction(squared, dict(r2=Output(()), d4=Output(())), dim=5)
@@ -261,3 +260,43 @@ def test_gather_copies_values_to_ghosts_without_image_shifts():
     assert np.abs(x_sc - r_pc[nlist.src_s]).max() > 1.0  # positions do move with their image
     with pytest.raises(ValueError, match="one row per particle"):
         nlist.gather(v_pc[:5])
+
+
+def test_pair_data_are_checked_by_name():
+    """A misspelt, missing or extra name is a one-line error naming it, at construction and at compute."""
+    outputs = dict(energies=Output(()), forces=Output((3,)), virial=Output((6,), per_point=False))
+    with pytest.raises(ValueError, match="has no argument 'gama'"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gama"), inputs=("radius_s", "v_sc"))
+    with pytest.raises(ValueError, match="argument 'v_sc' is declared in none"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gamma"), inputs=("radius_s",))
+    with pytest.raises(ValueError, match="'k' is declared more than once"):
+        PairInteraction(soft_sphere_pair, outputs, params=("k", "gamma"), inputs=("radius_s", "v_sc", "k"))
+    atoms = make_atoms(1, True)
+    nlist = NeighborList(1.2, skin=0.1)
+    nlist.update(atoms.positions, atoms.cell.array, atoms.pbc)
+    inputs = dict(radius_s=atoms.get_array("radius"), v_sc=np.zeros((len(atoms), 3)))
+    with pytest.raises(ValueError, match="needs 'gamma'"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(k=1.0), inputs=inputs)
+    with pytest.raises(ValueError, match="has no param 'gama'"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(k=1.0, gamma=0.0, gama=0.0), inputs=inputs)
+    with pytest.raises(TypeError, match="dict by name"):
+        SOFT_SPHERES.compute(nlist, atoms.positions, params=(1.0, 0.0), inputs=inputs)
+    out = SOFT_SPHERES.compute(nlist, atoms.positions, params=dict(gamma=0.0, k=2.0), inputs=inputs)  # any order
+    assert out.energies.sum() == pytest.approx(brute_force(atoms, 2.0, 0.0)[0], rel=1e-12)
+
+
+def test_kernel_placeholders_need_a_kernel_and_constants_give_variants():
+    from ase_sphrelax.kernel_sums import PAIR_POTENTIAL, PAIR_POTENTIAL_VIRIAL
+    from ase_sphrelax.kernels import get_kernel
+
+    atoms = make_atoms(2, True)
+    nlist = NeighborList(1.0, skin=0.1)
+    nlist.update(atoms.positions, atoms.cell.array, atoms.pbc)
+    with pytest.raises(ValueError, match="kernel"):
+        PAIR_POTENTIAL.compute(nlist, atoms.positions, params=dict(inv_h=1.0, scale=1.0))
+    results = [interaction.compute(nlist, atoms.positions, params=dict(inv_h=1.0, scale=1.0),
+                                   kernel=get_kernel(name, 3))
+               for interaction in (PAIR_POTENTIAL, PAIR_POTENTIAL_VIRIAL) for name in ("wendland_c2", "cubic_spline")]
+    np.testing.assert_array_equal(results[0].forces, results[2].forces)  # the virial flag changes nothing else
+    assert np.abs(results[0].forces - results[1].forces).max() > 1e-3  # each kernel its own loop
+    assert "virial" in results[2] and "virial" not in results[0]

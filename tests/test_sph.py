@@ -399,7 +399,7 @@ def test_warm_started_solve_takes_one_or_two_passes(dim, n, masses, kernel_name)
 def test_taylor_carried_sums_are_exact_to_the_tolerance(dim):
     """The Taylor series of the density sums in ln H (moments M_0..M_4 of one pass) against direct
     passes at H e^dl: the error in t = sum q f' stays below |s^(5)/t| dl^4 / 24 with |s^(5)/t| <= 4000,
-    the bound behind EXTRAPOLATION_STEP."""
+    the bound behind the kernel's extrapolation_step."""
     r_pc, cell, pbc = _system(dim, {1: 300, 2: 40, 3: 14}[dim], True, seed=7, jitter=0.3)
     kernel = get_kernel("wendland_c4", dim)
     nlist = NeighborList(1.0, skin=1.5)
@@ -415,5 +415,5 @@ def test_taylor_carried_sums_are_exact_to_the_tolerance(dim):
         t_taylor = -(d1 + dl * (d2 + dl * (d3 / 2 + dl * d4 / 6)))
         assert np.max(np.abs(t_taylor / t_direct - 1)) < 4000 * dl**4 / 24
         assert np.max(np.abs(s_taylor / s_direct - 1)) < 4000 * dl**5 / 120
-    step_max = sph.EXTRAPOLATION_STEP["wendland_c4"] * 1e-8**0.25
+    step_max = get_kernel("wendland_c4", 1).extrapolation_step * 1e-8**0.25
     assert 4000 * step_max**4 / 24 < 0.5e-8

@@ -75,22 +75,21 @@ def test_kernel_sums_over_the_tree_equal_the_cell_list_in_3d():
     r_pc = rng.normal(size=(800, 3))
     h = 0.6
     kernel = get_kernel("wendland_c2", 3)
-    params = (1.0 / h, kernel.kind, kernel.breaks, kernel.coef)
+    params = dict(inv_h=1.0 / h)
     cells = NeighborList(h)
     cells.update(r_pc, np.zeros((3, 3)), [False] * 3)
     tree = TreeNeighborList(h)
     tree.update(r_pc)
-    ref = KERNEL_SUMS.compute(cells, r_pc, params, reach=h)
-    out = KERNEL_SUMS.compute(tree, r_pc, params, reach=h)
+    ref = KERNEL_SUMS.compute(cells, r_pc, params, reach=h, kernel=kernel)
+    out = KERNEL_SUMS.compute(tree, r_pc, params, reach=h, kernel=kernel)
     np.testing.assert_allclose(out.w, ref.w, rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(out.grad, ref.grad, rtol=1e-10, atol=1e-13)
     assert len(tree.get_pairs(r_pc)[0]) > 5 * len(r_pc)  # many neighbours: a real test
 
 
 @numba.njit(cache=True, inline="always")
-def _weighted_separation(a, b, r2, d, params, inp):
+def _weighted_separation(a, b, r2, d, w_s):
     """Per point: sum_b w_b (x_b - x_a) within reach, in D = 7 components, and the count."""
-    w_s, = inp
     return ((1.0, w_s[b] * d[0], w_s[b] * d[1], w_s[b] * d[2], w_s[b] * d[3], w_s[b] * d[4], w_s[b] * d[5],
              w_s[b] * d[6]),
             (1.0, -w_s[a] * d[0], -w_s[a] * d[1], -w_s[a] * d[2], -w_s[a] * d[3], -w_s[a] * d[4], -w_s[a] * d[5],
@@ -102,10 +101,11 @@ def test_pair_interaction_in_7d_against_brute_force():
     m, dim, reach = 400, 7, 2.2
     r_pc = rng.normal(size=(m, dim))
     w_p = rng.uniform(0.5, 2.0, m)
-    interaction = PairInteraction(_weighted_separation, dict(count=Output(()), s=Output((dim,))), dim=dim)
+    interaction = PairInteraction(_weighted_separation, dict(count=Output(()), s=Output((dim,))), inputs=("w_s",),
+                                  dim=dim)
     nlist = TreeNeighborList(reach)
     nlist.update(r_pc)
-    out = interaction.compute(nlist, r_pc, inputs=(w_p,), reach=reach)
+    out = interaction.compute(nlist, r_pc, inputs=dict(w_s=w_p), reach=reach)
     d_ppc = r_pc[None, :, :] - r_pc[:, None, :]  # x_b - x_a at [a, b]
     near_pp = np.linalg.norm(d_ppc, axis=2) < reach
     np.fill_diagonal(near_pp, False)

@@ -25,7 +25,7 @@ import numpy as np
 from ase.optimize.optimize import Optimizer
 
 from ..checks import check_positive, resolve_dim
-from ..kernels import get_kernel, profile_by_kind
+from ..kernels import get_kernel, kernel_profile
 from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 from ..sph import default_eta, scaled
@@ -38,9 +38,7 @@ DEFAULT_MU0 = {"r2": 0.002, "kernel": 0.05}
 
 
 @numba.njit(cache=True, inline="always")
-def _wvt_pair(a, b, r2, d, params, inp):
-    use_kernel, sigma, kind, breaks, coef = params
-    (h_s,) = inp
+def _wvt_pair(a, b, r2, d, use_kernel, sigma, h_s):
     hab = 0.5 * (h_s[a] + h_s[b])
     if r2 == 0.0 or r2 >= hab * hab:
         z = scaled(0.0, d)
@@ -48,14 +46,14 @@ def _wvt_pair(a, b, r2, d, params, inp):
     r = math.sqrt(r2)
     q = r / hab
     if use_kernel:
-        w = sigma * profile_by_kind(q, kind, breaks, coef)[0]
+        w = sigma * kernel_profile(q)[0]
     else:
         w = 1.0 / ((q + 0.01) * (q + 0.01)) - 1.0 / (1.01 * 1.01)
     g = w / r  # rhat_ab = -d / r pushes a away from b
     return scaled(-g, d), scaled(g, d), ()
 
 
-_WVT = PairInteraction(_wvt_pair, dict(dx=Output((3,))))
+_WVT = PairInteraction(_wvt_pair, dict(dx=Output((3,))), params=("use_kernel", "sigma"), inputs=("h_s",))
 
 
 class WVTRelaxation(Optimizer):
@@ -138,8 +136,8 @@ class WVTRelaxation(Optimizer):
             self.nlist = NeighborList(h_p, skin=0.2 * float(h_p.mean()))
         self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=h_p)
         k = self.kernel
-        params = (self.weight == "kernel", k.sigma, k.kind, k.breaks, k.coef)
-        dx = _WVT.compute(self.nlist, r_pc, params=params, inputs=(h_p,), reach=float(h_p.max())).dx
+        params = dict(use_kernel=self.weight == "kernel", sigma=k.sigma)
+        dx = _WVT.compute(self.nlist, r_pc, params=params, inputs=dict(h_s=h_p), reach=float(h_p.max()), kernel=k).dx
         mu = self.mu0 * max(0.0, 1.0 - self.iteration / self.schedule)
         move = mu * h_p[:, None] * dx
         # cap a single move at a quarter of H (close pairs under the r^-2 weight)

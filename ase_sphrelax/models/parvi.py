@@ -51,7 +51,7 @@ from numba.extending import overload
 
 from .. import sph
 from ..checks import check_positive
-from ..kernels import KERNEL_NAMES, get_kernel, profile_by_kind
+from ..kernels import KERNEL_NAMES, get_kernel, kernel_profile
 from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 from ..tree_neighbors import TreeNeighborList
@@ -108,21 +108,17 @@ def _scaled_row_difference_overload(k, v_sc, a, b, d):
 
 
 @numba.njit(cache=True, inline="always")
-def _pair_slope(r, a, b, params, h_s):
-    """dW/dr <= 0 at r with the pair's mean support ``H_ab``, and ``H_ab``."""
-    kind, breaks, coef, sigma, kdim = params[0], params[1], params[2], params[3], params[4]
-    hab = 0.5 * (h_s[a] + h_s[b])
-    if r >= hab:
-        return 0.0, hab
-    return profile_by_kind(r / hab, kind, breaks, coef)[1] * sigma / hab ** (kdim + 1), hab
+def _mean_support(a, b, h_s):
+    """The pair's mean support ``H_ab``."""
+    return 0.5 * (h_s[a] + h_s[b])
 
 
+# The pair functions evaluate dW/dr <= 0 with H_ab as ``kernel_profile(r / hab)[1] sigma / hab^(kdim + 1)``
+# (zero for r >= H_ab), the kernel bound per kernel by PairInteraction.
 @numba.njit(cache=True, inline="always")
-def _linear_viscosity_pair(a, b, r2, d, params, inp):
+def _linear_viscosity_pair(a, b, r2, d, sigma, kdim, coeff, eps, h_s, m_s, rho_s, v_sc):
     """Eq. 6 for approaching pairs: F_a = m_a m_b eta_ab (v_ab . r_ab)/(r^2 + eps H^2) grad_a W,
     eta_ab = 2 alpha_v H_ab c0 / (rho_a + rho_b) (``coeff = alpha_v c0``)."""
-    coeff, eps = params[5], params[6]
-    h_s, m_s, rho_s, v_sc = inp
     vr = 0.0  # v_ab . r_ab with r_ab = x_a - x_b = -d
     for c in range(len(d)):
         vr -= (v_sc[a, c] - v_sc[b, c]) * d[c]
@@ -130,56 +126,55 @@ def _linear_viscosity_pair(a, b, r2, d, params, inp):
         z = sph.scaled(0.0, d)
         return z, z, ()
     r = math.sqrt(r2)
-    slope, hab = _pair_slope(r, a, b, params, h_s)
+    hab = _mean_support(a, b, h_s)
+    slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
     # grad_a W = slope (x_a - x_b)/r = -slope d / r
     k = -m_s[a] * m_s[b] * 2.0 * coeff * hab / (rho_s[a] + rho_s[b]) * vr / (r2 + eps * hab * hab) * slope / r
     return sph.scaled(k, d), sph.scaled(-k, d), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _laplacian_viscosity_pair(a, b, r2, d, params, inp):
+def _laplacian_viscosity_pair(a, b, r2, d, sigma, kdim, nu, eps, h_s, m_s, rho_s, v_sc):
     """Eq. 5b with the Brookshaw/Morris Laplacian 2 W'(r) r / (r^2 + eps H^2):
     F_a = m_a m_b nu 2/(rho_a + rho_b) (v_b - v_a) (-lap W), antisymmetric (mean density)."""
-    nu, eps = params[5], params[6]
-    h_s, m_s, rho_s, v_sc = inp
     if r2 == 0.0:
         z = sph.scaled(0.0, d)
         return z, z, ()
     r = math.sqrt(r2)
-    slope, hab = _pair_slope(r, a, b, params, h_s)
+    hab = _mean_support(a, b, h_s)
+    slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
     k = -nu * m_s[a] * m_s[b] * 2.0 / (rho_s[a] + rho_s[b]) * 2.0 * slope * r / (r2 + eps * hab * hab)  # >= 0
     fa = scaled_row_difference(k, v_sc, a, b, d)
     return fa, sph.scaled(-1.0, fa), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _regularisation_pair(a, b, r2, d, params, inp):
+def _regularisation_pair(a, b, r2, d, sigma, kdim, c_reg, eps, h_s, m_s, rho_s):
     """a gathers Eq. 8 with the repulsive sign: F_a = -c m_a sum_b m_b grad_a W_ab / (rho_a + eps)."""
-    c_reg, eps = params[5], params[6]
-    h_s, m_s, rho_s = inp
     if r2 == 0.0:
         return sph.scaled(0.0, d), ()
     r = math.sqrt(r2)
-    slope, hab = _pair_slope(r, a, b, params, h_s)
+    hab = _mean_support(a, b, h_s)
+    slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
     # grad_a W = -slope d / r, so F_a = c m_a m_b slope d / (r (rho_a + eps)) (points away from b)
     k = c_reg * m_s[a] * m_s[b] * slope / (r * (rho_s[a] + eps))
     return sph.scaled(k, d), ()
 
 
+# name: (pair function, its coefficient's name, symmetric)
+_PAIRS = {"linear": (_linear_viscosity_pair, "coeff", True), "laplacian": (_laplacian_viscosity_pair, "nu", True),
+          "regularisation": (_regularisation_pair, "c_reg", False)}
 _INTERACTIONS: dict = {}
 
 
 def _interaction(name, dim_points):
     key = (name, dim_points)
     if key not in _INTERACTIONS:
-        forces = dict(forces=Output((dim_points,)))
-        if name == "linear":
-            inter = PairInteraction(_linear_viscosity_pair, forces, symmetric=True, dim=dim_points)
-        elif name == "laplacian":
-            inter = PairInteraction(_laplacian_viscosity_pair, forces, symmetric=True, dim=dim_points)
-        else:
-            inter = PairInteraction(_regularisation_pair, forces, symmetric=False, dim=dim_points)
-        _INTERACTIONS[key] = inter
+        pair, coefficient, symmetric = _PAIRS[name]
+        inputs = ("h_s", "m_s", "rho_s") + (("v_sc",) if symmetric else ())
+        _INTERACTIONS[key] = PairInteraction(pair, dict(forces=Output((dim_points,))),
+                                             params=("sigma", "kdim", coefficient, "eps"), inputs=inputs,
+                                             symmetric=symmetric, dim=dim_points)
     return _INTERACTIONS[key]
 
 
@@ -555,9 +550,9 @@ class ParVIModel:
         if v_pc is not None and self.viscosity != "none":
             f_pc += self._viscosity(x, self._points(np.asarray(v_pc, dtype=float)), mass, h_p, rho)
         if self.regularisation > 0.0:
-            params = self._pair_params(self.regularisation)
             out = _interaction("regularisation", x.shape[1]).compute(
-                self.nlist, x, params=params, inputs=(h_p, np.full(m, mass), rho), reach=float(h_p.max()))
+                self.nlist, x, params=self._pair_params("regularisation", self.regularisation),
+                inputs=dict(h_s=h_p, m_s=np.full(m, mass), rho_s=rho), reach=float(h_p.max()), kernel=self.kernel)
             f_pc += out.forces[:, : self.dim]
         energy = None
         if want_energy and self.conservative and log_p is not None:
@@ -567,16 +562,17 @@ class ParVIModel:
                                energy=energy, accel_max=float(accel), sound_speed=float(np.sqrt(cs2.max())),
                                fallback=fallback, mass=mass)
 
-    def _pair_params(self, coefficient):
-        k = self.kernel
-        return (k.kind, k.breaks, k.coef, float(k.sigma), float(k.dim), float(coefficient), 0.01)
+    def _pair_params(self, name, coefficient):
+        """The parameters of the pair function ``name`` (:data:`_PAIRS`) by name."""
+        return {"sigma": float(self.kernel.sigma), "kdim": float(self.kernel.dim), _PAIRS[name][1]: float(coefficient),
+                "eps": 0.01}
 
     def _viscosity(self, x, v, mass, h_p, rho):
         m = x.shape[0]
         coefficient = self.viscosity_alpha * self.c0 if self.viscosity == "linear" else self.nu
         out = _interaction(self.viscosity, x.shape[1]).compute(
-            self.nlist, x, params=self._pair_params(coefficient), inputs=(h_p, np.full(m, mass), rho, v),
-            reach=float(h_p.max()))
+            self.nlist, x, params=self._pair_params(self.viscosity, coefficient),
+            inputs=dict(h_s=h_p, m_s=np.full(m, mass), rho_s=rho, v_sc=v), reach=float(h_p.max()), kernel=self.kernel)
         return out.forces[:, : self.dim]
 
     def density_rate(self, r_pc, v_pc, rho_p):
