@@ -427,7 +427,7 @@ class Kernel:
 
     # -- Fan's one-dimensional boundary profile (Eq. 3.5) ------------------------
     def w1(self, r, h):
-        """W1(r, h) = A W(|r|, h) with A chosen so that W1 integrates to 1 on [-h, h]."""
+        """``W1(r, h) = A W(|r|, h)`` with A chosen so that W1 integrates to 1 on [-h, h]."""
         h = np.asarray(h, dtype=float)
         return self.sigma_1d / h * self.profile(np.abs(np.asarray(r)) / h)
 

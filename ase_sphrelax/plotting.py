@@ -55,7 +55,7 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
 
 
 def plot_concentration_gradient(atoms, calc, path, title=""):
-    """Particles coloured by log10 |grad C_a| of a BIPICalculator (the paper's Figs. 10-12); 3D: a slice.
+    """Particles coloured by ``log10 |grad C_a|`` of a BIPICalculator (the paper's Figs. 10-12); 3D: a slice.
 
     Writes ``path`` as a 256-colour PNG (a quarter of the file size); returns ``path``.
     """
@@ -71,7 +71,7 @@ def plot_concentration_gradient(atoms, calc, path, title=""):
 
 
 def plot_packing_history(history, path=None, title=None):
-    """BIPI's TPD_avg and |grad C|_avg against the iteration (Fig. 7-9), stages in colours.
+    """BIPI's ``TPD_avg`` and ``|grad C|_avg`` against the iteration (Fig. 7-9), stages in colours.
 
     ``history``: :attr:`ase_sphrelax.drivers.BIPIPacker.history`. Returns the figure (closed when
     written to ``path``).

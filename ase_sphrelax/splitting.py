@@ -2,7 +2,7 @@
 
 Each particle ``a`` is replaced by ``p`` particles at ``x_a + q_{a,i}``: in 1D left/centre/right
 (``p = 3``), in 2D a triangle with its centre (``p = 4``), in 3D a tetrahedron with its centre
-(``p = 5``), with
+(``p = 5``), with::
 
     |q_{a,i}| = 2 H_a / (p^(1/d) N_H)                                   (Eq. 42)
 

@@ -54,6 +54,20 @@ sphinx_gallery_conf = {
     "show_memory": False,
 }
 
+
+
+def _skip_foreign(app, what, name, obj, skip, options):
+    """Document only objects defined in this project (not scipy's cKDTree imported by a module)."""
+    module = getattr(obj, "__module__", None)
+    if isinstance(module, str) and not module.startswith(("ase_sphrelax", "lammps_io")) and what == "module":
+        return True
+    return None
+
+
+def setup(app):
+    app.connect("autodoc-skip-member", _skip_foreign)
+
+
 html_theme = "pydata_sphinx_theme"
 html_title = "ase_sphrelax"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}

@@ -1,4 +1,4 @@
-"""Read LAMMPS custom text dumps (``dump custom ... id type x y z [vx vy vz] [fx fy fz]``)."""
+"""Read LAMMPS custom text dumps (``dump custom`` with the columns ``id type x y z [vx vy vz] [fx fy fz]``)."""
 from __future__ import annotations
 
 import numpy as np

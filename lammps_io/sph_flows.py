@@ -1,5 +1,5 @@
 """Weakly compressible SPH runs in LAMMPS from our particle sets: a hydrostatic tank and the
-elliptic drop (BIPI Sec. 4.2, Figs. 13-22: the downstream evidence for a particle packing).
+elliptic drop (BIPI section 4.2, Figs. 13-22: the downstream evidence for a packing).
 
 Model (LAMMPS SPH package): Tait water ``p = B ((rho/rho0)^7 - 1)``, ``B = c0^2 rho0 / 7``,
 with Monaghan's artificial viscosity ``alpha`` (``pair_style sph/taitwater``); densities by
@@ -218,7 +218,7 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.1, t_en
     dict
         ``ke_history`` (list of (time, KE)), ``ke_final``, ``ke_max``, ``pressure_profile`` (list of
         (depth, mean p of the fluid particles in the bin, hydrostatic rho0 g depth)),
-        ``pressure_error`` (mean |p - rho0 g depth| / (rho0 g H) over the bins), ``max_drop``
+        ``pressure_error`` (mean ``|p - rho0 g depth| / (rho0 g H)`` over the bins), ``max_drop``
         (largest downward displacement of a fluid particle / dx), ``n_fluid``, ``n_wall``,
         ``steps``, ``dt``, ``c0``, ``depth``, ``h``, ``dx``.
     """
@@ -326,7 +326,7 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
     dict
         ``history`` (list of dicts: time, a and b from the particles' second moments ``a = 2
         sqrt(<x^2>)``, a and b from their extents, KE, the analytic a and b), ``axis_error`` (max
-        over samples of |a - a_exact| / R from the moments), ``n``, ``steps``, ``dt``, ``c0``,
+        over samples of ``|a - a_exact| / R`` from the moments), ``n``, ``steps``, ``dt``, ``c0``,
         ``radius``.
     """
     kinds = _kinds(atoms)

@@ -1,7 +1,7 @@
 """Headline numbers of a BIPI packing (Boregowda & Liu 2025), from the packer's result.
 
 The packer (:class:`~ase_sphrelax.drivers.BIPIPacker`) returns data (its ``history`` and
-``summary()``); this adds the boundary layer, escapes, the |grad C| drop and the shared quality
+``summary()``); this adds the boundary layer, escapes, the ``|grad C|`` drop and the shared quality
 metrics of :mod:`ase_sphrelax.analysis.quality`. Figures: :mod:`ase_sphrelax.plotting`.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ __all__ = ["pack_summary"]
 
 
 def pack_summary(atoms, packer):
-    """The packer's summary plus boundary layer, escapes, |grad C| drop and the quality metrics.
+    """The packer's summary plus boundary layer, escapes, ``|grad C|`` drop and the quality metrics.
 
     Parameters
     ----------

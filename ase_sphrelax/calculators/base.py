@@ -315,7 +315,7 @@ class SPHCalculator(Calculator):
         return r_pc, pbc
 
     def hint_force_scale(self, f_pc):
-        """Warn once per calculator (:class:`SPHScaleWarning`) when 0 < max |F| < ASE's default fmax.
+        """Warn once per calculator (:class:`SPHScaleWarning`) when ``0 < max |F|`` < ASE's default fmax.
 
         A user who follows ASE's habits (``FIRE(atoms).run(fmax=0.05)``) would otherwise get an
         unrelaxed result without a word (issue 10 item 8). The message is constant, so Python

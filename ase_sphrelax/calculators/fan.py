@@ -1,6 +1,6 @@
 """Fan et al.'s total error as an ASE calculator.
 
-Energy (Fan Eq. 3.8), with ``v0 = vt`` (Appendix A):
+Energy (Fan Eq. 3.8), with ``v0 = vt`` (Appendix A)::
 
     E = sum_{i,j} W(|x_i - x_j|, h) v0 vt  -  V  +  sum_i 2 vt I(-phi(x_i)),
     I(s) = int_s^h W1(max(r, 0), h) dr,

@@ -2,13 +2,15 @@
 
 Layout
 ------
-``main.py``      the entry point (``sphrelax = "ase_sphrelax.cli:main"``): one sub-parser per command
-``registry.py``  :data:`~.registry.COMMANDS`, :data:`~.registry.METHODS`, :data:`~.registry.ENGINES`
-                 and their entry-point groups
-``usage.py``     :class:`UsageError`, :func:`usage_errors` and argparse types (``positive``, ...)
-``scene.py``     :func:`~.scene.make_scene`: built-in domains, edge files and STL meshes
-``relax.py``, ``lattice.py``, ``table.py``
-                 the built-in commands; ``sphrelax export`` comes from ``lammps_io`` by entry point
+==================  ==========================================================================================
+``main.py``         the entry point (``sphrelax = "ase_sphrelax.cli:main"``): one sub-parser per command
+``registry.py``     :data:`~.registry.COMMANDS`, :data:`~.registry.METHODS`, :data:`~.registry.ENGINES` and
+                    their entry-point groups
+``usage.py``        :class:`UsageError`, :func:`usage_errors` and argparse types (``positive``, ...)
+``scene.py``        :func:`~.scene.make_scene`: built-in domains, edge files and STL meshes
+``relax.py``, ...   the built-in commands (``relax``, ``pack``, ``density``, ``sample``, ``lattice``,
+                    ``table``); ``sphrelax export`` comes from ``lammps_io`` by entry point
+==================  ==========================================================================================
 
 Add a command
 -------------

@@ -14,7 +14,7 @@ axis), so a calculator whose energy contains ``phi`` gets exact forces.
 What :class:`Domain` builds lives here too, so that the base class imports no module that imports
 it back: the set operations ``a | b``, ``a & b``, ``a - b`` (:class:`Union`, :class:`Intersection`,
 :class:`Difference`; the ideas in :mod:`.csg`) and ``domain.tabulated(dx)`` (:class:`Tabulated`, on
-the :class:`~.table.CubicTable` of :mod:`.table`).
+the :class:`~ase_sphrelax.domains.table.CubicTable` of :mod:`ase_sphrelax.domains.table`).
 """
 from __future__ import annotations
 

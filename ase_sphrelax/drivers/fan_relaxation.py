@@ -1,4 +1,4 @@
-"""Fan et al.'s relaxation update (Eq. 2.4) as an ASE optimiser.
+"""Fan et al.'s relaxation update (Eq. 2.4) as an ASE optimiser::
 
     r_i^{n+1} = r_i^n + U_i^n dT,   U_i^n = -dE/dx_i (Eq. A.1),   dT = c h / max_i |U_i^n|,
 
@@ -86,7 +86,7 @@ class FanRelaxation(Optimizer):
     # a step the gradient of the evaluation before it (unless an observer could have moved the
     # atoms), and a silent log costs nothing.
     def run(self, fmax=ASE_DEFAULT_FMAX, steps=DEFAULT_MAX_STEPS):
-        """Run until max |F| < fmax or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
+        """Run until ``max |F| < fmax`` or ``steps`` steps (as :meth:`ase.optimize.optimize.Optimizer.run`).
 
         Warns (:class:`~ase_sphrelax.drivers.step_scale.NothingRelaxedWarning`) when ``fmax > 0``
         stopped it at step 0: SPH forces are small, pass ``fmax=0`` to run all ``steps`` or an

@@ -1,6 +1,6 @@
 """Fan et al.'s total error (Eq. 3.8) without the pair loop: :class:`FanModel`.
 
-With one particle volume ``v0 = vt`` (Fan's ``v0`` and ``ṽ``, Appendix A),
+With one particle volume ``v0 = vt`` (Fan's ``v0`` and ``ṽ``, Appendix A)::
 
     E = sum_{i,j} W(|x_i - x_j|, h) v0 vt  -  V  +  sum_i 2 vt I(-phi(x_i)),      (3.8)
     I(s) = int_s^h W1(max(r, 0), h) dr,                                            (3.5)

@@ -95,7 +95,7 @@ def wasserstein_1d(u, v, p=2):
 
 
 def sliced_wasserstein(x, y, n_projections=200, p=2, seed=0, directions=None):
-    """Sliced Wasserstein distance ``(mean_k W_p^p(theta_k . x, theta_k . y))^(1/p)``."""
+    """Sliced Wasserstein distance ``(mean_k W_p^p(theta_k·x, theta_k·y))^(1/p)``."""
     x, y = _points(x, "x"), _points(y, "y")
     if x.shape[1] != y.shape[1]:
         raise ValueError(f"x and y must have the same dimension, got {x.shape[1]} and {y.shape[1]}")

@@ -1,7 +1,7 @@
 """The stationary density of SPH-ParVI: hydrostatic balance of a damped fluid in the target's field.
 
 Derivation (continuum limit, the fluid at rest, total mass ``M_tot``)
---------------------------------------------------------------------
+----------------------------------------------------------------------
 At rest viscosity and friction vanish and the momentum equation (Eq. 2/3) reduces to
 hydrostatic balance.
 
