@@ -63,7 +63,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .neighbors import SCAN_HELPERS
+from .neighbors import SCAN_HELPERS, SCAN_SOURCE
 from .parallel import chunk_bounds, run_chunks, thread_count
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
@@ -249,14 +249,11 @@ def _core_stamp():
     """
     import hashlib
 
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + "".join(
-        inspect.getsource(f.py_func) for f in _SCAN_HELPERS.values())
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + SCAN_SOURCE
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
 _CORE_STAMP = None
-# the bin-stencil helpers the generated scans call (inlined: their source is in the core stamp)
-_SCAN_HELPERS = {f.py_func.__name__: f for f in SCAN_HELPERS}
 
 
 def _compile(pair, template, kind, outputs, dim, symmetric):
@@ -267,7 +264,7 @@ def _compile(pair, template, kind, outputs, dim, symmetric):
     name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
     source = _loop_source(template, name, outputs, dim, symmetric, indent)
-    namespace = {"pair": pair, **_SCAN_HELPERS}
+    namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
     exec(compile(source, inspect.getfile(pair.py_func), "exec"), namespace)  # noqa: S102

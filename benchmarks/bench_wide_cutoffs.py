@@ -84,10 +84,47 @@ def _worker(inputs, threads, repeats):
     return out
 
 
-def _run(checkout, inputs, threads, repeats):
+def _alaric_worker(n, threads, repeats, warp=0.6):
+    """ALARIC forces on a periodic 2D lattice warped along x (density contrast (1 + warp) / (1 - warp),
+    H varying by about 2x): the first evaluation (one-shot bins), a step with the list kept, and a
+    step that rebuilds it (every particle moved by 0.3 median H)."""
+    import numba
+    import numpy as np
+
+    from ase_sphrelax import ALARICCalculator
+    from ase_sphrelax.build import periodic_box
+
+    numba.set_num_threads(threads)
+    clock = time.process_time if threads == 1 else time.perf_counter
+    side = int(round(n ** 0.5))
+    atoms = periodic_box((side, side), dx=1.0, dim=2, lattice="square", jitter=0.25, seed=0)
+    x = atoms.positions[:, 0]
+    atoms.positions[:, 0] = x + warp * side / (2 * np.pi) * np.sin(2 * np.pi * x / side)
+    rng = np.random.default_rng(1)
+    times = {"cold": [], "warm": [], "rebuild": []}
+    for _ in range(repeats):
+        a = atoms.copy()
+        a.calc = ALARICCalculator(target_density=lambda p: np.ones(len(p)),
+                                  target_gradient=lambda p: np.zeros_like(p), dim=2, mass=1.0)
+        t0 = clock()
+        a.get_forces()
+        times["cold"].append(clock() - t0)
+        h_med = float(np.median(a.calc.h_p))
+        for kind, size in (("warm", 1e-3), ("rebuild", 0.3 * h_med), ("warm", 1e-3)):
+            a.positions[:, :2] += rng.uniform(-size, size, (len(a), 2))
+            t0 = clock()
+            a.get_forces()
+            times[kind].append(clock() - t0)
+    out = {k: float(np.median(v)) for k, v in times.items()}
+    out["h max / min"] = float(a.calc.h_p.max() / a.calc.h_p.min())
+    return out
+
+
+def _run(checkout, inputs, threads, repeats, worker="_worker"):
     env = dict(os.environ, PYTHONPATH=str(checkout), OPENBLAS_NUM_THREADS="1")
+    first = repr(str(inputs)) if worker == "_worker" else str(inputs)
     code = (f"import sys, json; sys.path.insert(0, {str(HERE)!r}); import bench_wide_cutoffs as b; "
-            f"print(json.dumps(b._worker({str(inputs)!r}, {threads}, {repeats})))")
+            f"print(json.dumps(b.{worker}({first}, {threads}, {repeats})))")
     result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     return json.loads(result.stdout.strip().splitlines()[-1])
 
@@ -99,8 +136,12 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--alaric", type=int, metavar="N", help="instead: ALARIC forces on N particles (2D, H "
+                        "varying about 2x) in both checkouts, cold / warm / rebuild, 1 thread")
     parser.add_argument("--out", type=Path, default=HERE / "results" / "bench_wide_cutoffs.json")
     args = parser.parse_args(argv)
+    if args.alaric:
+        return alaric_main(args)
     import numpy as np
 
     sys.path.insert(0, str(HERE))
@@ -153,6 +194,37 @@ def main(argv=None):
         "h_max": float(h_p.max()), "checkouts": {k: str(v) for k, v in checkouts.items()},
         "times_s_median_min_max": table,
     })
+
+
+def alaric_main(args):
+    """ALARIC timings of this checkout and the baseline, alternating (the speed that must not move)."""
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    from _provenance import git_version, write_json
+
+    checkouts = {"this": HERE.parent, "baseline": args.baseline.resolve()}
+    load_before = os.getloadavg()
+    print(f"load average {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}", flush=True)
+    runs = {name: [] for name in checkouts}
+    for k in range(args.rounds):
+        for name, checkout in checkouts.items():
+            runs[name].append(_run(checkout, args.alaric, 1, args.repeats, worker="_alaric_worker"))
+        print(f"round {k + 1}/{args.rounds} done, load {os.getloadavg()[0]:.2f}", flush=True)
+    table = {name: {key: float(np.median([r[key] for r in results])) for key in results[0]}
+             for name, results in runs.items()}
+    print(f"\nALARIC N = {args.alaric}, 1 thread CPU ms (median of {args.rounds} rounds), H max/min "
+          f"{table['this']['h max / min']:.2f}")
+    for key in ("cold", "warm", "rebuild"):
+        print(f"{key}: this {1e3 * table['this'][key]:.1f}, baseline {1e3 * table['baseline'][key]:.1f}, "
+              f"ratio {table['this'][key] / table['baseline'][key]:.3f}")
+    load_after = os.getloadavg()
+    print(f"load average before {load_before[0]:.2f}, after {load_after[0]:.2f}")
+    write_json(args.out.with_name("bench_wide_cutoffs_alaric.json"), {
+        "benchmark": "bench_wide_cutoffs --alaric", "version": git_version(), "n": args.alaric,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "rounds": args.rounds, "repeats": args.repeats, "load_before": load_before, "load_after": load_after,
+        "runs": runs, "median_s": table})
 
 
 if __name__ == "__main__":
