@@ -28,6 +28,10 @@ points first completes it alone, from the positions of the build. The scan is on
 buffer kept between builds, the regions are then closed up. Bins have an edge of
 ``reach / 2`` in 2D and 3D and are scanned as rows of consecutive bins (one contiguous
 range of sorted points each), bins beyond reach left out.
+
+With cut-offs spanning orders of magnitude the bins are sized by a typical reach, and the
+few points of larger reach scan their own full stencils (:class:`BinnedPoints`,
+:func:`bin_reach`): a rebuild stays O(N).
 """
 from __future__ import annotations
 

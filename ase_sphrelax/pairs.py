@@ -27,7 +27,8 @@ the same way. :class:`PairInteraction` turns the function into the loops:
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
   each thread on a static chunk of points with its own output buffers (kept between calls:
   fresh pages cost more than the pair loop on these machines; zeroed by the thread itself;
-  starting at the chunk's first point when the neighbours are ``forward_pairs``, and ending
+  starting at the lowest point the chunk's pairs reach when the neighbours are ``forward_pairs``
+  (``partner_starts``: the chunk's first point, lower for points of wide reach), and ending
   at the last point its pairs reach when they say so, ``partner_ends``), folded afterwards
   onto the particles, ghosts included.
 

@@ -125,7 +125,9 @@ def _run(checkout, inputs, threads, repeats, worker="_worker"):
     first = repr(str(inputs)) if worker == "_worker" else str(inputs)
     code = (f"import sys, json; sys.path.insert(0, {str(HERE)!r}); import bench_wide_cutoffs as b; "
             f"print(json.dumps(b.{worker}({first}, {threads}, {repeats})))")
-    result = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    # run in the checkout: python -c puts the working directory first on sys.path
+    result = subprocess.run([sys.executable, "-c", code], env=env, cwd=str(checkout), capture_output=True, text=True,
+                            check=True)
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
