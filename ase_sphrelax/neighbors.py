@@ -28,19 +28,26 @@ points first completes it alone, from the positions of the build. The scan is on
 buffer kept between builds, the regions are then closed up. Bins have an edge of
 ``reach / 2`` in 2D and 3D and are scanned as rows of consecutive bins (one contiguous
 range of sorted points each), bins beyond reach left out.
+
+With cut-offs spanning orders of magnitude the bins are sized by a typical reach, and the
+few points of larger reach scan their own full stencils (:class:`BinnedPoints`,
+:func:`bin_reach`): a rebuild stays O(N).
 """
 from __future__ import annotations
 
+import inspect
 import itertools
 
 import numba
 import numpy as np
+from numba.core import types
+from numba.extending import overload
 
 from .checks import check_skin
 from .parallel import PARALLEL_MIN, chunk_bounds, run_chunks, thread_count, thread_pool
 
 __all__ = ["NeighborList", "BinnedPoints", "PARALLEL_MIN", "complete_cell", "is_canonical_pair", "bin_coords",
-           "stencil_range"]
+           "stencil_range", "stencil_rows", "finds_pair", "point_room", "bin_reach", "SCAN_HELPERS"]
 
 
 def complete_cell(cell, pbc):
@@ -155,13 +162,17 @@ def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
 
 
 @numba.njit(cache=True)
-def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c):
-    """Counting sort of the extended points into bins; returns (order_s, bin_start, bin_s)."""
+def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c, wide_p, groups):
+    """Counting sort of the extended points into bins; returns (order_s, bin_start, bin_s).
+
+    With ``groups == 2`` the points of wide particles (``wide_p``) come after all the others,
+    sorted by the same bins: ``bin_start[nbins + b]`` starts wide bin b. ``bin_s`` is the bin.
+    """
     n = src_e.shape[0]
     nbins = nbin_c[0] * nbin_c[1] * nbin_c[2]
     inv_bs = 1.0 / binsize
     bin_e = np.empty(n, dtype=np.int32)
-    count = np.zeros(nbins + 1, dtype=np.int64)
+    count = np.zeros(groups * nbins + 1, dtype=np.int64)
     for e in range(n):
         p = src_e[e]
         b = 0
@@ -170,8 +181,8 @@ def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c):
             k = min(max(int((x - origin_c[c]) * inv_bs), 0), nbin_c[c] - 1)
             b = b * nbin_c[c] + k
         bin_e[e] = b
-        count[b + 1] += 1
-    for b in range(nbins):
+        count[b + (nbins if groups == 2 and wide_p[p] else 0) + 1] += 1
+    for b in range(groups * nbins):
         count[b + 1] += count[b]
     bin_start = count.copy()
     fill = count[:-1]
@@ -179,9 +190,10 @@ def _bin_sort(r_pc, cell_cc, src_e, img_ec, origin_c, binsize, nbin_c):
     bin_s = np.empty(n, dtype=np.int32)
     for e in range(n):
         b = bin_e[e]
-        order[fill[b]] = e
-        bin_s[fill[b]] = b
-        fill[b] += 1
+        key = b + (nbins if groups == 2 and wide_p[src_e[e]] else 0)
+        order[fill[key]] = e
+        bin_s[fill[key]] = b
+        fill[key] += 1
     return order, bin_start, bin_s
 
 
@@ -290,8 +302,53 @@ def bin_coords(a, bin_s, nbin_c):
 
 
 @numba.njit(cache=True, inline="always")
-def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
-    """Sorted points [lo, hi) of half-stencil row k of point a in bin (kx, ky, kz).
+def _wide_frame(a, kx, ky, kz, nbin_c, stencil):
+    """The rows of wide point a's full stencil: (reach, m, x0, x1, y0, y1, z0, z1, rows per grid).
+
+    Its bins lie within ``m = int(reach / binsize) + 1`` bins of the own bin (clipped to the grid);
+    one row per bin offset across the row axis (the last axis with several bins, which has
+    the single offset 0 here), for each of the two groups of points (normal, wide).
+    """
+    row, binsize, reach_w = stencil[2], stencil[3], stencil[4]
+    reach = reach_w[a - stencil[1]]
+    m = int(reach / binsize) + 1
+    x0, x1 = (0, 0) if row == 0 else (max(kx - m, 0) - kx, min(kx + m, nbin_c[0] - 1) - kx)
+    y0, y1 = (0, 0) if row == 1 else (max(ky - m, 0) - ky, min(ky + m, nbin_c[1] - 1) - ky)
+    z0, z1 = (0, 0) if row == 2 else (max(kz - m, 0) - kz, min(kz + m, nbin_c[2] - 1) - kz)
+    return reach, m, x0, x1, y0, y1, z0, z1, (x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1)
+
+
+@numba.njit(cache=True, inline="always")
+def _wide_range(a, k, kx, ky, kz, nbin_c, bin_start, stencil):
+    """Sorted points [lo, hi) of full-stencil row k >= 0 of wide point a (see :func:`_wide_frame`)."""
+    reach, m, x0, x1, y0, y1, z0, z1, per_group = _wide_frame(a, kx, ky, kz, nbin_c, stencil)
+    row, binsize = stencil[2], stencil[3]
+    group = k // per_group
+    r = k - group * per_group
+    ny, nz = y1 - y0 + 1, z1 - z0 + 1
+    ox = x0 + r // (ny * nz)
+    oy = y0 + (r // nz) % ny
+    oz = z0 + r % nz
+    gx, gy, gz = max(abs(ox) - 1, 0), max(abs(oy) - 1, 0), max(abs(oz) - 1, 0)  # whole bins between
+    across = float(gx * gx + gy * gy + gz * gz) * binsize * binsize
+    if across >= reach * reach:
+        return 0, 0
+    span = min(m, int(np.sqrt(reach * reach - across) / binsize) + 1)  # bins along the row within reach
+    lx, hx, ly, hy, lz, hz = kx + ox, kx + ox, ky + oy, ky + oy, kz + oz, kz + oz
+    if row == 0:
+        lx, hx = max(kx - span, 0), min(kx + span, nbin_c[0] - 1)
+    elif row == 1:
+        ly, hy = max(ky - span, 0), min(ky + span, nbin_c[1] - 1)
+    else:
+        lz, hz = max(kz - span, 0), min(kz + span, nbin_c[2] - 1)
+    offset = group * nbin_c[0] * nbin_c[1] * nbin_c[2]
+    return (bin_start[offset + (lx * nbin_c[1] + ly) * nbin_c[2] + lz],
+            bin_start[offset + (hx * nbin_c[1] + hy) * nbin_c[2] + hz + 1])
+
+
+@numba.njit(cache=True, inline="always")
+def _half_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
+    """Sorted points [lo, hi) of half-stencil row k of normal point a in bin (kx, ky, kz).
 
     k = -1 is the own bin with b > a; a row is clipped to the bin grid (an empty range
     when it lies outside).
@@ -307,6 +364,98 @@ def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc):
     if x0 > x1 or y0 > y1 or z0 > z1:
         return 0, 0
     return bin_start[(x0 * nbin_c[1] + y0) * nbin_c[2] + z0], bin_start[(x1 * nbin_c[1] + y1) * nbin_c[2] + z1 + 1]
+
+
+# The scans' stencil helpers below take ``stencil`` = :attr:`BinnedPoints.stencil`: the half
+# stencil array alone when the bins are sized by the largest cut-off (no wide points), else the
+# tuple of the wide path. numba compiles a scan for each of the two types: with the array, the
+# helpers are those of a uniform cut-off (the wide path costs nothing there).
+
+
+def stencil_rows(a, kx, ky, kz, nbin_c, stencil):
+    """Number of stencil rows k = 0, 1, ... of point a in bin (kx, ky, kz) (row -1 is the own bin):
+    the half stencil's for a normal point, the full stencil's of its own reach for a wide one.
+    (numba only.)"""
+    raise NotImplementedError("stencil_rows is called from numba code only")
+
+
+@overload(stencil_rows, inline="always")
+def _stencil_rows(a, kx, ky, kz, nbin_c, stencil):
+    if isinstance(stencil, types.Array):
+        return lambda a, kx, ky, kz, nbin_c, stencil: stencil.shape[0]
+
+    def wide(a, kx, ky, kz, nbin_c, stencil):
+        if a < stencil[1]:
+            return stencil[0].shape[0]
+        return 2 * _wide_frame(a, kx, ky, kz, nbin_c, stencil)[8]
+    return wide
+
+
+def stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil):
+    """Sorted points [lo, hi) of stencil row k of point a in bin (kx, ky, kz).
+
+    For a normal point, row k of the forward half stencil (:func:`_half_range`; k = -1 is
+    the own bin with b > a). For a wide point (``a >= stencil[1]``), row k of its full stencil
+    (:func:`_wide_range`), row -1 empty. (numba only.)
+    """
+    raise NotImplementedError("stencil_range is called from numba code only")
+
+
+@overload(stencil_range, inline="always")
+def _stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil):
+    if isinstance(stencil, types.Array):
+        return lambda a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil: _half_range(
+            a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
+
+    def wide(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil):
+        if a >= stencil[1]:
+            if k < 0:
+                return 0, 0
+            return _wide_range(a, k, kx, ky, kz, nbin_c, bin_start, stencil)
+        return _half_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil[0])
+    return wide
+
+
+def finds_pair(a, b, stencil):
+    """True if the scan of a keeps the pair (a, b) that its stencil reached: each pair is found once,
+    by the point of the larger reach (of two wide points of equal reach, the later one).
+    A normal point's stencil reaches only normal points b > a. (numba only.)"""
+    raise NotImplementedError("finds_pair is called from numba code only")
+
+
+@overload(finds_pair, inline="always")
+def _finds_pair(a, b, stencil):
+    if isinstance(stencil, types.Array):
+        return lambda a, b, stencil: True
+
+    def wide(a, b, stencil):
+        n_norm = stencil[1]
+        if b < n_norm:
+            return True
+        reach_w = stencil[4]
+        ra, rb = reach_w[a - n_norm], reach_w[b - n_norm]
+        return rb < ra or (rb == ra and b < a)
+    return wide
+
+
+def point_room(a, room, stencil):
+    """Most candidates of point a: ``room`` for a normal point, every point for a wide one. (numba only.)"""
+    raise NotImplementedError("point_room is called from numba code only")
+
+
+@overload(point_room, inline="always")
+def _point_room(a, room, stencil):
+    if isinstance(stencil, types.Array):
+        return lambda a, room, stencil: room
+    return lambda a, room, stencil: room if a < stencil[1] else stencil[5]
+
+
+# what the scans generated by :mod:`ase_sphrelax.pairs` call and inline, and the source they inline
+SCAN_HELPERS = {f.__name__: f for f in (bin_coords, stencil_rows, stencil_range, finds_pair, point_room,
+                                        is_canonical_pair)}
+SCAN_SOURCE = "".join(inspect.getsource(getattr(f, "py_func", f)) for f in (
+    bin_coords, is_canonical_pair, _wide_frame, _wide_range, _half_range, _stencil_rows, _stencil_range,
+    _finds_pair, _point_room))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -327,14 +476,15 @@ def _partner_end_chunk(pair_start, pair_j, out, t, first, last):
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil_kc,
+def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_c, bin_start, stencil,
                       count_s, pair_j, pos, first, last):
     """Half-stencil bin scan in one pass: the partners of the points [first, last) are appended
     to ``pair_j`` from ``pos`` on, and ``count_s[a + 1]`` is set to the number of partners of a.
 
     A pair is listed if r < max(cut_a, cut_b) + skin, at most one of the two is a ghost, and
-    (for original-ghost pairs) it is the canonical orientation. ``stencil_kc`` holds the bin
-    offsets (x, y, z) of the forward half stencil; the own bin is scanned for b > a.
+    (for original-ghost pairs) it is the canonical orientation. ``stencil`` is
+    :attr:`BinnedPoints.stencil`: a normal point scans the forward half stencil (the own bin
+    for b > a), a wide point its full stencil, keeping the pairs it finds (:func:`finds_pair`).
 
     Returns ``(a_next, pos)``: ``a_next == last`` when done; otherwise ``pair_j`` was full and
     the scan stopped before point ``a_next`` (``pos`` is where its partners go): the caller
@@ -346,8 +496,8 @@ def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_
         ca = cut_s[a]
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
         start = pos
-        for k in range(-1, stencil_kc.shape[0]):
-            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+        for k in range(-1, stencil_rows(a, kx, ky, kz, nbin_c, stencil)):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
             for b in range(lo, hi):
                 d0 = x_sc[b, 0] - xa0
                 d1 = x_sc[b, 1] - xa1
@@ -355,7 +505,7 @@ def _scan_pairs_chunk(x_sc, cut_s, src_s, img_sc, is_ghost_s, skin, bin_s, nbin_
                 rc = max(ca, cut_s[b]) + skin
                 if d0 * d0 + d1 * d1 + d2 * d2 >= rc * rc:
                     continue
-                if not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                if not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) or not finds_pair(a, b, stencil):
                     continue
                 if pos >= cap:
                     return a, start
@@ -545,6 +695,24 @@ def _max_displacement2(r_pc, r0_pc):
 # benchmarks/profile_fan.py: m = 2 in 3D checks 0.58x the candidates of m = 1)
 BIN_DIVISIONS = {1: 1, 2: 2, 3: 2}
 
+# Wide cut-offs (benchmarks/README.md, "Neighbour bins by a typical cut-off"): when the largest
+# reach (cut-off + skin) exceeds WIDE_FACTOR times the TYPICAL_QUANTILE of the reaches, the bins
+# are sized by that typical reach and the points of larger reach ("wide" points) scan their own
+# full stencils; otherwise the bins are sized by the largest reach, as for a uniform cut-off.
+TYPICAL_QUANTILE = 0.85
+WIDE_FACTOR = 2.0
+
+
+def bin_reach(cut_p, skin):
+    """(reach, typical): the largest reach ``max(cut_p) + skin``, and the reach the bins are sized
+    by: ``reach`` itself unless it exceeds ``WIDE_FACTOR`` times the ``TYPICAL_QUANTILE`` of the
+    particles' reaches (then that quantile)."""
+    reach = float(cut_p.max()) + skin
+    if reach <= WIDE_FACTOR * (float(cut_p.min()) + skin):  # the common case, without a quantile
+        return reach, reach
+    typical = float(np.quantile(cut_p, TYPICAL_QUANTILE)) + skin
+    return reach, (reach if reach <= WIDE_FACTOR * typical else typical)
+
 
 class BinnedPoints:
     """Particles and their periodic ghosts, sorted into bins of edge ``reach / m``.
@@ -552,6 +720,14 @@ class BinnedPoints:
     The building block of :class:`NeighborList` and of the fused one-shot scans
     in :mod:`ase_sphrelax.kernel_sums`. Arrays with suffix ``_s`` are over sorted
     extended points.
+
+    The bins are sized by a typical reach (:func:`bin_reach`): by the largest when the
+    cut-offs are within ``WIDE_FACTOR`` of each other. Otherwise the points of larger reach
+    than the bins' ("wide" points, ``n_normal`` on in sorted order, after all others and
+    sorted by the same bins) scan the bins within their own reach, both directions, and keep
+    the pairs with the normal points and with the wide points of smaller reach
+    (:func:`finds_pair`): each pair is found once, and a rebuild stays O(N) when the cut-offs
+    span orders of magnitude.
 
     Attributes
     ----------
@@ -562,14 +738,22 @@ class BinnedPoints:
     cell_cc : ndarray (3, 3)
         The cell completed to rank 3 (:func:`complete_cell`).
     bin_s, nbin_c, bin_start, stencil_kc : ndarray
-        Bin of each point, bins per axis, CSR start of each bin, forward half stencil.
+        Bin of each point, bins per axis, CSR start of each bin (normal points, then the
+        wide points' bins from ``bin_start[prod(nbin_c)]`` on), forward half stencil.
+    stencil : ndarray or tuple
+        What the scans take (:func:`stencil_rows`, :func:`stencil_range`): ``stencil_kc`` without
+        wide points, else ``(stencil_kc, n_normal, row axis, bin edge, reach of each wide point,
+        n_extended)``.
+    reach, bin_reach : float
+        The largest reach (cut-off + skin) and the one the bins are sized by.
     origin_c, bin_size : ndarray, float
         Corner of bin (0, 0, 0) and the bin edge: point x is in bin ``floor((x - origin_c) / bin_size)``
         (clamped to the grid), at the positions of the build. Other searches on the same bins
         (particle-boundary queries, :mod:`ase_sphrelax.boundary`) use them.
     forward_pairs : bool
-        True: every pair (a, b) of a scan or list has b > a (forward half stencil), which
-        lets the pair loops give each thread buffers that start at its first point.
+        True: the pairs of a scan or list that a chunk of points finds lie at or after
+        :meth:`partner_starts` (the chunk's first point, lower only for wide points): the pair
+        loops give each thread buffers that start there.
     """
 
     forward_pairs = True
@@ -577,7 +761,7 @@ class BinnedPoints:
     def __init__(self, r_pc, cell, pbc, cut_p, skin=0.0):
         n = r_pc.shape[0]
         full_cell, inv_cell = complete_cell(cell, pbc)
-        reach = float(cut_p.max()) + skin
+        reach, typical = bin_reach(cut_p, skin)
         # perpendicular widths of the cell; image layers needed per periodic axis
         width_c = 1.0 / np.linalg.norm(inv_cell, axis=0)
         pad_c = np.where(pbc, reach / width_c, 0.0)
@@ -586,19 +770,21 @@ class BinnedPoints:
         self.cell_cc = full_cell
         n_ext = src_e.shape[0]
         extent_c = hi_c - lo_c
-        # bins of edge reach / m scanned with a (2m+1)^d stencil (m by the number of axes the
+        # bins of edge typical / m scanned with a (2m+1)^d stencil (m by the number of axes the
         # points spread along); for sparse sets (bins > 4 per point) fall back to m = 1 and
         # larger bins
-        spread = int(np.count_nonzero(extent_c >= reach))
+        spread = int(np.count_nonzero(extent_c >= typical))
         m = BIN_DIVISIONS.get(spread, 1)
-        binsize = reach / m
+        binsize = typical / m
         nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
         while np.prod(nbin_c.astype(float)) > 4.0 * n_ext + 64:
             m = 1
             binsize *= 1.5
             nbin_c = np.maximum(1, np.floor(extent_c / binsize).astype(np.int64) + 1)
-        binsize = max(binsize, reach / m)
-        order_s, bin_start, bin_s = _bin_sort(r_pc, full_cell, src_e, img_ec, lo_c, binsize, nbin_c)
+        binsize = max(binsize, typical / m)
+        wide_p = cut_p + skin > typical
+        groups = 2 if typical < reach else 1
+        order_s, bin_start, bin_s = _bin_sort(r_pc, full_cell, src_e, img_ec, lo_c, binsize, nbin_c, wide_p, groups)
         self.origin_c = lo_c  # bin (0, 0, 0) starts here; bins are cubes of edge bin_size
         self.bin_size = float(binsize)
         self.n_particles = n
@@ -611,13 +797,37 @@ class BinnedPoints:
         self.bin_s = bin_s
         self.nbin_c = nbin_c
         self.bin_start = bin_start
-        self.stencil_kc = _half_stencil(m, nbin_c, binsize, reach)
+        self.stencil_kc = _half_stencil(m, nbin_c, binsize, typical)
         self.binsize = binsize
         self.reach = reach
-        # most candidates of one point: the fullest bin times the bins of the own bin and the stencil
+        self.bin_reach = typical
+        nbins = int(np.prod(nbin_c))
+        self.n_normal = int(bin_start[nbins])
+        spread_c = [c for c in range(3) if nbin_c[c] > 1]
+        reach_w = self.cut_s[self.n_normal:] + skin
+        # most candidates of one point: for a normal one, the fullest bin times the bins of the own bin and the
+        # stencil; a wide one can have them all
         span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
-        self.max_candidates = int(np.diff(bin_start).max()) * int(1 + np.prod(span_k, axis=1).sum())
+        self.max_candidates = int(np.diff(bin_start[:nbins + 1]).max()) * int(1 + np.prod(span_k, axis=1).sum())
+        self.stencil = self.stencil_kc if self.n_normal == n_ext else (
+            self.stencil_kc, self.n_normal, spread_c[-1] if spread_c else 2, float(binsize), reach_w, n_ext)
+        # the lowest point a wide point's stencil can reach: the start of its lowest bin (the corner of its frame)
+        k_wc = np.stack([bin_s[self.n_normal:] // (nbin_c[2] * nbin_c[1]), (bin_s[self.n_normal:] // nbin_c[2])
+                         % nbin_c[1], bin_s[self.n_normal:] % nbin_c[2]], axis=1)
+        corner_wc = np.maximum(k_wc - (reach_w / binsize).astype(np.int64)[:, None] - 1, 0)
+        self._low_w = bin_start[(corner_wc[:, 0] * nbin_c[1] + corner_wc[:, 1]) * nbin_c[2] + corner_wc[:, 2]]
         self._gather_buffers = {}
+
+    def partner_starts(self, nthreads):
+        """For the ``nthreads`` chunks of points of the pair loops (:func:`chunk_bounds`), the
+        lowest point a pair found by the chunk's points can have: the chunk's first point, or
+        lower when the chunk holds wide points (whose full stencils reach back)."""
+        starts = []
+        for first, last in chunk_bounds(self.n_extended, nthreads):
+            lo = max(first, self.n_normal)
+            starts.append(min(first, int(self._low_w[lo - self.n_normal:last - self.n_normal].min()))
+                          if last > lo else first)
+        return starts
 
     def expected_pairs(self):
         """Estimated size of the half list (uniform density within the bins' extent)."""
@@ -626,7 +836,7 @@ class BinnedPoints:
         if dim == 0:
             return self.n_extended * (self.n_extended - 1) // 2
         volume = float(np.prod((self.nbin_c * self.binsize)[spread]))
-        ball = {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[dim] * self.reach**dim
+        ball = {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[dim] * self.bin_reach**dim
         return int(0.5 * self.n_extended * min(self.n_extended, self.n_extended / volume * ball))
 
     def extend(self, positions):
@@ -678,7 +888,7 @@ class BinnedPoints:
     def loop_arrays(self):
         """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
         return "scan", (self.src_s, self.img_sc, self.is_ghost_s, self.bin_s, self.nbin_c, self.bin_start,
-                        self.stencil_kc)
+                        self.stencil)
 
 
 class NeighborList:
@@ -717,7 +927,8 @@ class NeighborList:
     builds : int
         How many times the stored list was (re)built.
     forward_pairs : bool
-        True: every listed or scanned pair (a, b) has b > a (see :class:`BinnedPoints`).
+        True: the pairs of a chunk of points lie at or after :meth:`partner_starts` (the chunk's
+        first point unless wide points reach back; see :class:`BinnedPoints`).
     """
 
     forward_pairs = True
@@ -850,6 +1061,11 @@ class NeighborList:
             self._ends = [int(x) for x in out]
         return self._ends
 
+    def partner_starts(self, nthreads):
+        """The lowest point each of the ``nthreads`` chunks of the pair loops can reach
+        (:meth:`BinnedPoints.partner_starts`; a stored list holds a subset of the scans' pairs)."""
+        return self.points.partner_starts(nthreads)
+
     def loop_arrays(self):
         """("list", arrays) when a list is stored, else the one-shot bin scan's ("scan", arrays)."""
         if self.stored:
@@ -871,11 +1087,12 @@ class NeighborList:
 
     def build_arrays(self):
         """Arrays of the list scan, after the positions: (src_s, img_sc, is_ghost_s, cut_s,
-        skin, bin_s, nbin_c, bin_start, stencil_kc, room), ``room`` the most candidates a
-        point can have (:attr:`BinnedPoints.max_candidates`)."""
+        skin, bin_s, nbin_c, bin_start, stencil, room), ``room`` the most candidates a
+        normal point can have (:attr:`BinnedPoints.max_candidates`; a wide point's own is in
+        ``stencil``, see :func:`point_room`)."""
         pts = self.points
         return (pts.src_s, pts.img_sc, pts.is_ghost_s, pts.cut_s, self.skin, pts.bin_s, pts.nbin_c,
-                pts.bin_start, pts.stencil_kc, pts.max_candidates)
+                pts.bin_start, pts.stencil, pts.max_candidates)
 
     @property
     def n_particles(self):
@@ -930,6 +1147,8 @@ class NeighborList:
         # and kept between builds (fresh pages are expensive to touch)
         expected = self._pair_count if self._pair_count else self.points.expected_pairs()
         want = int(1.05 * expected) + 1024
+        if self.points.n_normal < self.points.n_extended:  # room for a wide point's candidates in every region
+            want += nthreads * self.points.n_extended
         if self._pair_buffer.shape[0] < want:
             self._pair_buffer = np.empty(want, dtype=np.int32)
         self._pair_start, self._pair_j, self._pair_buffer, self._ends = _one_pass_list(

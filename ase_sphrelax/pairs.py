@@ -42,7 +42,8 @@ the same way. :class:`PairInteraction` turns the function into the loops:
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
   each thread on a static chunk of points with its own output buffers (kept between calls:
   fresh pages cost more than the pair loop on these machines; zeroed by the thread itself;
-  starting at the chunk's first point when the neighbours are ``forward_pairs``, and ending
+  starting at the lowest point the chunk's pairs reach when the neighbours are ``forward_pairs``
+  (``partner_starts``: the chunk's first point, lower for points of wide reach), and ending
   at the last point its pairs reach when they say so, ``partner_ends``), folded afterwards
   onto the particles, ghosts included.
 
@@ -85,7 +86,7 @@ import numba
 import numpy as np
 
 from .kernels import KERNEL_FUNCTIONS
-from .neighbors import bin_coords, is_canonical_pair, stencil_range
+from .neighbors import SCAN_HELPERS, SCAN_SOURCE
 from .parallel import chunk_bounds, run_chunks, thread_count
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
@@ -145,7 +146,7 @@ def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, base, first, last
 """
 
 _SCAN_TEMPLATE = """
-def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc, reach2, params, inp, out,
+def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil, reach2, params, inp, out,
            base, first, last):
     {views}
     {zero_buffers}
@@ -154,12 +155,13 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc
         {load_a}
         {zero_own}
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
-        for k in range(-1, stencil_kc.shape[0]):
-            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+        for k in range(-1, stencil_rows(a, kx, ky, kz, nbin_c, stencil)):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
             for b in range(lo, hi):
                 {diff}
                 r2 = {norm2}
-                if r2 >= reach2 or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                if r2 >= reach2 or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \
+                        or not finds_pair(a, b, stencil):
                     continue
                 {body}
         {store_own}
@@ -168,7 +170,7 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil_kc
 
 
 _BUILD_TEMPLATE = """
-def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil_kc, room, count_s, pair_j,
+def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil, room, count_s, pair_j,
            pos, reach2, params, inp, out, base, first, last):
     {views}
     if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
@@ -177,7 +179,7 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
     cap = pair_j.shape[0]
     for a in range(first, last):
         # room for every candidate of a (at most ``room``), or stop before a (nothing of a is added yet)
-        if pos + room > cap:
+        if pos + point_room(a, room, stencil) > cap:
             {store_global_early}
             return a, pos
         kx, ky, kz = bin_coords(a, bin_s, nbin_c)
@@ -185,13 +187,14 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
         {zero_own}
         ca = cut_s[a]
         start = pos
-        for k in range(-1, stencil_kc.shape[0]):
-            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil_kc)
+        for k in range(-1, stencil_rows(a, kx, ky, kz, nbin_c, stencil)):
+            lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
             for b in range(lo, hi):
                 {diff}
                 r2 = {norm2}
                 rc = max(ca, cut_s[b]) + skin
-                if r2 >= rc * rc or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s):
+                if r2 >= rc * rc or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \
+                        or not finds_pair(a, b, stencil):
                     continue
                 pair_j[pos] = b
                 pos += 1
@@ -279,8 +282,7 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + "".join(
-        inspect.getsource(f.py_func) for f in (bin_coords, stencil_range, is_canonical_pair))
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + SCAN_SOURCE
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
@@ -338,8 +340,7 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
     source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments)
-    namespace = {"pair": pair, "bin_coords": bin_coords, "stencil_range": stencil_range,
-                 "is_canonical_pair": is_canonical_pair}
+    namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
     exec(compile(source, inspect.getfile(pair.py_func), "exec"), namespace)  # noqa: S102
@@ -476,29 +477,28 @@ class PairInteraction:
         return self._loops[(kind, None if kernel is None else kernel.key)][1]
 
     def _thread_buffers(self, nthreads, n_ext, forward):
-        """Per-thread accumulators ``(buffers[t][k], bases[t])``, reused between calls of the
-        same size (each loop chunk zeroes its own thread's buffers).
+        """Per-thread accumulators ``buffers[t][k]``, reused between calls of the same size (each
+        loop chunk zeroes its own thread's buffers).
 
-        Row 0 of thread t's per-point buffers is point ``bases[t]``. With ``forward``
-        neighbours (every partner b of a point a has b > a, as in :class:`NeighborList`'s
-        half lists and scans) thread t writes only rows from its chunk's first point on, so
-        its buffers start there: on 2 threads 1.5 instead of 2 rows per point to hold, zero
-        and fold. Otherwise every thread has all rows (views of one stacked array).
+        With ``forward`` neighbours thread t writes only the rows from ``partner_starts()[t]``
+        on (its chunk's first point, as in :class:`NeighborList`'s half lists and scans, or
+        lower for points of wide reach); :meth:`compute` passes it views that start there:
+        on 2 threads about 1.5 instead of 2 rows per point to zero and fold. Otherwise every
+        thread has all rows (views of one stacked array).
         """
         key = (nthreads, n_ext, forward)
         if key not in self._buffers:
             self._buffers.clear()
             outputs = list(self.outputs.values())
-            bases = [first for first, _ in chunk_bounds(n_ext, nthreads)] if forward else [0] * nthreads
-            if forward:
+            if forward:  # pages are touched only as far as a view reaches
                 self._stacked = None
-                buffers = [tuple(np.empty((n_ext - bases[t],) + o.shape if o.per_point else (max(o.size, 1),))
-                                 for o in outputs) for t in range(nthreads)]
+                buffers = [tuple(np.empty((n_ext,) + o.shape if o.per_point else (max(o.size, 1),)) for o in outputs)
+                           for t in range(nthreads)]
             else:
                 self._stacked = [np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
                                  for o in outputs]
                 buffers = [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
-            self._buffers[key] = (buffers, bases)
+            self._buffers[key] = buffers
         return self._buffers[key]
 
     def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None):
@@ -535,13 +535,18 @@ class PairInteraction:
         n_ext = x_sc.shape[0]
         nthreads = thread_count(n_ext)
         forward = bool(getattr(neighbors, "forward_pairs", False))
-        buffers, bases = self._thread_buffers(nthreads, n_ext, forward)
+        buffers = self._thread_buffers(nthreads, n_ext, forward)
+        bases = [0] * nthreads
+        if forward:
+            bases = neighbors.partner_starts(nthreads) if hasattr(neighbors, "partner_starts") else \
+                [first for first, _ in chunk_bounds(n_ext, nthreads)]
         ends = None
         if forward and nthreads > 1 and not getattr(neighbors, "build_pending", False) \
                 and hasattr(neighbors, "partner_ends"):
             ends = neighbors.partner_ends(nthreads)  # None unless a stored list is walked
-        if ends is not None:
+        if forward:
             # thread t's pairs reach rows [bases[t], ends[t]) only: zero and fold no more
+            ends = ends or [n_ext] * nthreads
             buffers = [tuple(buf[: ends[t] - bases[t]] if o.per_point else buf
                              for buf, o in zip(buffers[t], self.outputs.values())) for t in range(nthreads)]
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
@@ -564,8 +569,8 @@ class PairInteraction:
         point_k = [k for k, (_, o) in enumerate(outputs) if o.per_point]
         if point_k:
             if forward:  # per-thread buffers of their own lengths
-                parts = [tuple(buffers[t][k].reshape(buffers[t][k].shape[0], -1) for t in range(len(buffers)))
-                         for k in point_k]
+                parts = [tuple(buffers[t][k].reshape(buffers[t][k].shape[0], max(outputs[k][1].size, 1))
+                               for t in range(len(buffers))) for k in point_k]
                 folded = neighbors.fold_thread_parts(parts, np.asarray(bases, dtype=np.int64))
             else:
                 stacked = self._stacked

@@ -97,3 +97,148 @@ def test_bad_positions_are_rejected(bad):
 def test_bad_cutoff_is_rejected(cutoff):
     with pytest.raises(ValueError, match="cutoff"):
         NeighborList(cutoff)
+
+
+# -- cut-offs spanning orders of magnitude: bins by a typical cut-off, wide points (issue 16) ---------------
+import numba  # noqa: E402
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+import ase_sphrelax.neighbors as neighbors  # noqa: E402
+import ase_sphrelax.pairs as pairs  # noqa: E402
+from ase_sphrelax.pairs import Output, PairInteraction  # noqa: E402
+
+
+@numba.njit(inline="always")
+def _bump_pair(a, b, r2, d, params, inp):
+    """A pair term within the larger of the two cut-offs: e = (1 - r / c)^2, and e * d."""
+    cut_s, = inp
+    c = max(cut_s[a], cut_s[b])
+    if r2 >= c * c:
+        return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), ()
+    e = (1.0 - np.sqrt(r2) / c) ** 2
+    return (e, e * d[0], e * d[1], e * d[2]), (e, -e * d[0], -e * d[1], -e * d[2]), ()
+
+
+@numba.njit(inline="always")
+def _gather_pair(a, b, r2, d, params, inp):
+    """a gathers (1 - r / c_a)^2 from b within its own cut-off c_a (a density with its own H)."""
+    cut_s, = inp
+    c = cut_s[a]
+    if r2 >= c * c:
+        return (0.0,), ()
+    return ((1.0 - np.sqrt(r2) / c) ** 2,), ()
+
+
+BUMP = PairInteraction(_bump_pair, dict(e=Output(()), v=Output((3,))))
+GATHER = PairInteraction(_gather_pair, dict(rho=Output(())), symmetric=False)
+
+
+def _brute_sums(r_pc, cell, pbc, cut_p):
+    """(pairs, e_p, v_pc, rho_p) by the O(N^2 * images) reference search."""
+    full_cell = complete_cell(cell, pbc)[0]
+    found = {k: r for k, r in brute_force_pairs(r_pc, cell, pbc, cut_p.max()).items()
+             if r < max(cut_p[k[0]], cut_p[k[1]])}
+    e_p, v_pc, rho_p = np.zeros(len(r_pc)), np.zeros((len(r_pc), 3)), np.zeros(len(r_pc))
+    for (i, j, shift), r in found.items():
+        d = r_pc[j] + np.array(shift) @ full_cell - r_pc[i]
+        e = (1.0 - r / max(cut_p[i], cut_p[j])) ** 2
+        e_p[i] += e
+        e_p[j] += e
+        v_pc[i] += e * d
+        v_pc[j] -= e * d
+        rho_p[i] += (1.0 - r / cut_p[i]) ** 2 if r < cut_p[i] else 0.0
+        rho_p[j] += (1.0 - r / cut_p[j]) ** 2 if r < cut_p[j] else 0.0
+    return set(found), e_p, v_pc, rho_p
+
+
+def _check_wide(r_pc, cell, pbc, cut_p, skin=0.05):
+    """Stored list (fused rebuild, then walked), one-shot scan: the pairs of the brute-force
+    search, each once, and the same sums."""
+    pairs_ref, e_ref, v_ref, rho_ref = _brute_sums(r_pc, cell, pbc, cut_p)
+    scale = max(np.abs(v_ref).max(), 1.0)
+    for store in (True, False):
+        nlist = NeighborList(cut_p, skin=skin)
+        nlist.update(r_pc, cell, pbc, store=store)
+        for _ in range(2 if store else 1):  # fused rebuild, then the stored list walked
+            out = BUMP.compute(nlist, r_pc, inputs=(cut_p,))
+            rho = GATHER.compute(nlist, r_pc, inputs=(cut_p,)).rho
+            np.testing.assert_allclose(out.e, e_ref, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(out.v, v_ref, rtol=1e-12, atol=1e-12 * scale)
+            np.testing.assert_allclose(rho, rho_ref, rtol=1e-12, atol=1e-12)
+        if store:
+            i_p, j_p, d_pc = nlist.get_pairs(r_pc)
+            r_p = np.linalg.norm(d_pc, axis=1)
+            assert np.all(r_p < np.maximum(cut_p[i_p], cut_p[j_p]) + skin)
+            assert listed_pairs(nlist, r_pc, cell, pbc, np.inf) >= pairs_ref  # each once (asserted inside)
+            keep = r_p < np.maximum(cut_p[i_p], cut_p[j_p])
+            assert np.count_nonzero(keep) == len(pairs_ref)
+    return nlist
+
+
+def _wide_scene(seed, n, dim, periodic, spread=100.0):
+    rng = np.random.default_rng(seed)
+    box = 4.0
+    r_pc = np.zeros((n, 3))
+    r_pc[:, :dim] = rng.normal(box / 2, box / 6, (n, dim))  # dense centre, sparse edges
+    cell = np.diag([box if c < dim else 0.0 for c in range(3)])
+    pbc = np.array([periodic and c < dim for c in range(3)])
+    cut_p = 0.02 * box * spread ** rng.uniform(0, 1, n) ** 3  # most small, a few up to 100x
+    return r_pc, cell, pbc, cut_p
+
+
+@pytest.fixture(params=[1, 2], ids=["1 thread", "2 threads"])
+def threads(request, monkeypatch):
+    """Run every loop on 1 or 2 chunks (threads), whatever the system size."""
+    monkeypatch.setattr(neighbors, "thread_count", lambda n: request.param)
+    monkeypatch.setattr(pairs, "thread_count", lambda n: request.param)
+    return request.param
+
+
+@pytest.mark.parametrize("periodic", [False, True], ids=["bounded", "periodic"])
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_cutoffs_spanning_100x_match_brute_force(threads, dim, periodic):
+    r_pc, cell, pbc, cut_p = _wide_scene(dim, {1: 60, 2: 200, 3: 250}[dim], dim, periodic)
+    nlist = _check_wide(r_pc, cell, pbc, cut_p)
+    assert nlist.points.n_normal < nlist.n_extended  # the wide path was taken
+    assert nlist.points.bin_reach < 0.5 * nlist.points.reach
+
+
+def test_bins_are_sized_by_a_typical_cutoff():
+    """Cut-offs spanning 100x: bins by the typical (quantile) cut-off, the larger ones wide points;
+    within WIDE_FACTOR of each other: bins by the largest, no wide points."""
+    r_pc, cell, pbc, cut_p = _wide_scene(3, 4000, 2, False)
+    wide = neighbors.BinnedPoints(r_pc, cell, pbc, cut_p)
+    typical = np.quantile(cut_p, neighbors.TYPICAL_QUANTILE)
+    uniform = neighbors.BinnedPoints(r_pc, cell, pbc, np.full(len(r_pc), typical))
+    assert wide.bin_reach == pytest.approx(typical)
+    assert wide.binsize == pytest.approx(uniform.binsize)
+    assert wide.n_extended - wide.n_normal == np.count_nonzero(cut_p > typical)
+    close = neighbors.BinnedPoints(r_pc, cell, pbc, np.linspace(1.0, neighbors.WIDE_FACTOR, len(r_pc)))
+    assert close.n_normal == len(r_pc) and close.bin_reach == close.reach == neighbors.WIDE_FACTOR
+
+
+@settings(max_examples=40, deadline=None, database=None)
+@given(seed=st.integers(0, 2**31), n=st.integers(1, 50), dim=st.sampled_from([1, 2, 3]), periodic=st.booleans(),
+       decades=st.floats(0.0, 2.0), skin=st.sampled_from([0.0, 0.1]), degenerate=st.sampled_from(["", "same", "line"]))
+def test_property_any_cutoff_spread_gives_every_pair_once(seed, n, dim, periodic, decades, skin, degenerate):
+    """Random points and per-particle cut-offs spanning up to 2 decades, periodic or not, coincident or
+    collinear points: the pairs and sums of the brute-force search."""
+    rng = np.random.default_rng(seed)
+    box = 2.0
+    r_pc = np.zeros((n, 3))
+    r_pc[:, :dim] = rng.uniform(0, box, (n, dim))
+    if degenerate == "same":
+        r_pc[n // 2:] = r_pc[0]
+    elif degenerate == "line" and dim > 1:
+        r_pc[:, 1:] = 0.0
+    cell = np.diag([box if c < dim else 0.0 for c in range(3)])
+    pbc = [periodic and c < dim for c in range(3)]
+    cut_p = 0.01 * 10.0 ** (decades * rng.uniform(0, 1, n) ** 3)  # most small: wide points above WIDE_FACTOR
+    for chunks in (1, 3):
+        neighbors_thread_count, pairs_thread_count = neighbors.thread_count, pairs.thread_count
+        neighbors.thread_count = pairs.thread_count = lambda m, k=chunks: k
+        try:
+            _check_wide(r_pc, cell, pbc, cut_p, skin)
+        finally:
+            neighbors.thread_count, pairs.thread_count = neighbors_thread_count, pairs_thread_count
