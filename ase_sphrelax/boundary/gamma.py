@@ -72,8 +72,21 @@ def _chi_segment(px, py, seg, e, next_s, prev_s):
         tox, toy = seg[s_out, 5], -seg[s_out, 4]
         turn = math.atan2(tix * toy - tiy * tox, tix * tox + tiy * toy)
         return (math.pi - turn) / (2.0 * math.pi)
-    side = dx * (seg[s_in, 4] + seg[s_out, 4]) + dy * (seg[s_in, 5] + seg[s_out, 5])
-    return 1.0 if side > 0.0 else (0.0 if side < 0.0 else -1.0)
+    # the nearest point is the vertex: inside iff p - v points into the interior wedge (from the outgoing edge
+    # counter-clockwise to the reversed incoming one), i.e. on the left of both edge directions at a convex
+    # vertex, of either at a reflex one. Sign-exact where the bisector (pseudo-normal) test is not: a point
+    # within rounding of an edge's line, e.g. below 1e-308 where the squared distances underflow and tie.
+    tix, tiy = seg[s_in, 5], -seg[s_in, 4]
+    tox, toy = seg[s_out, 5], -seg[s_out, 4]
+    cross_out = tox * dy - toy * dx
+    cross_in = tix * dy - tiy * dx
+    if (cross_out == 0.0 and tox * dx + toy * dy > 0.0) or (cross_in == 0.0 and tix * dx + tiy * dy < 0.0):
+        return 0.5  # on one of the two edges (their distances tied, e.g. both underflowed)
+    left_out = cross_out > 0.0
+    left_in = cross_in > 0.0
+    if tix * toy - tiy * tox >= 0.0:
+        return 1.0 if (left_out and left_in) else 0.0
+    return 1.0 if (left_out or left_in) else 0.0
 
 
 @numba.njit(cache=True, inline="always")
