@@ -27,7 +27,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import polynomial as P
 
-from ase_sphrelax.boundary import BoundarySegments, gamma_and_gradient
+from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles, gamma_and_gradient
 
 SETTINGS = dict(deadline=None, database=None, derandomize=True)
 TOL_GAMMA = 1e-12  # absolute
@@ -259,3 +259,108 @@ def test_issue_points(p, offset):
         for x, g, d in zip(r, gamma, grad):
             g_ref, d_ref = reference_2d(x, loops, h, RADIAL["wendland_c2"])
             assert abs(g - g_ref) < TOL_GAMMA and np.abs(d[:2] - d_ref).max() < TOL_GRAD
+
+
+# ----------------------------------------------------------------- 3D: exact values of a cube
+# A cube [-1, 1]^3 with h = 0.3: near a face (farther than h from its edges) gamma is the half-space value
+# 1/2 + sign(delta) int_0^|delta| W1 (W1 the kernel's marginal along the normal, a polynomial); the faces are
+# split into two triangles along a diagonal, so points near the diagonals test two coplanar triangles near
+# their shared edge line. Near an edge (farther than h from the vertices) the four quarter spaces around it
+# sum to 1: sum_k gamma(R^k x) = 1 with R the rotation by 90 degrees about the edge; near a vertex the eight
+# octants: sum over the reflections of x through the vertex's three planes = 1.
+F3 = P.polymul(P.polypow([1.0, -1.0], 4), [1.0, 4.0])  # Wendland C2 profile, support 1
+SIGMA3 = 1.0 / (4.0 * math.pi * (P.polyval(1.0, P.polyint(P.polymul(F3, [0.0, 0.0, 1.0])))))
+# W1(s h) h = 2 pi sigma3 int_s^1 f(q) q dq  (s = |z| / h); its antiderivative from 0
+_TAIL = P.polyint(P.polymul(F3, [0.0, 1.0]))
+_W1 = 2 * math.pi * SIGMA3 * P.polysub([P.polyval(1.0, _TAIL)], _TAIL)  # a polynomial in s
+_W1_INT = P.polyint(_W1)
+
+
+def half_space_gamma(delta, h):
+    """gamma at signed distance delta (positive inside) from a plane, |delta| < h."""
+    return 0.5 + math.copysign(P.polyval(abs(delta) / h, _W1_INT), delta)
+
+
+CUBE_H = 0.3
+OFFSETS_3D = st.sampled_from([0.0, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3, 0.1, 0.5])
+
+
+@pytest.fixture(scope="module")
+def cube():
+    trimesh = pytest.importorskip("trimesh")
+    return BoundaryTriangles.from_trimesh(trimesh.creation.box(extents=(2.0, 2.0, 2.0)))
+
+
+def test_half_space_formula():
+    """The marginal integrates to 1/2 over a half line, and the formula is odd about the plane."""
+    assert abs(half_space_gamma(CUBE_H * (1 - 1e-15), CUBE_H) - 1.0) < 1e-13
+    assert abs(half_space_gamma(-0.1, CUBE_H) + half_space_gamma(0.1, CUBE_H) - 1.0) < 1e-15
+
+
+@settings(max_examples=40, **SETTINGS)
+@given(st.floats(-0.6, 0.6), st.floats(-0.6, 0.6), st.sampled_from(["free", "diagonal", "antidiagonal"]),
+       OFFSETS_3D, st.sampled_from([-1, 1]), st.integers(0, 5))
+def test_gamma_3d_exact_near_faces_and_their_diagonals(cube, x, y, line, offset, sign, face):
+    u, v = {"free": (x, y), "diagonal": (x, x + offset * y * CUBE_H),
+            "antidiagonal": (x, -x + offset * y * CUBE_H)}[line]
+    delta = sign * offset * CUBE_H
+    axis, side = face % 3, (1.0 if face < 3 else -1.0)
+    p = np.zeros(3)
+    p[axis] = side * (1.0 - delta)
+    p[(axis + 1) % 3], p[(axis + 2) % 3] = u, v
+    gamma, grad = gamma_and_gradient(p[None], cube, CUBE_H)
+    assert abs(gamma[0] - half_space_gamma(delta, CUBE_H)) < TOL_GAMMA, (p, gamma[0] - half_space_gamma(delta, CUBE_H))
+    assert np.abs(np.delete(grad[0], axis)).max() * CUBE_H < TOL_GRAD
+
+
+@settings(max_examples=40, **SETTINGS)
+@given(st.floats(-0.6, 0.6), st.floats(0, 2 * np.pi), OFFSETS_3D, st.integers(0, 2))
+def test_gamma_3d_quarter_spaces_sum_to_one(cube, z, angle, offset, axis):
+    a, b = offset * CUBE_H * math.cos(angle), offset * CUBE_H * math.sin(angle)
+    offsets = [(a, b), (-b, a), (-a, -b), (b, -a)]  # rotations by 90 degrees: exact in floating point
+    r = np.zeros((4, 3))
+    for k, (da, db) in enumerate(offsets):
+        r[k, axis] = z
+        r[k, (axis + 1) % 3], r[k, (axis + 2) % 3] = 1.0 + da, 1.0 + db
+    gamma, _ = gamma_and_gradient(r, cube, CUBE_H)
+    assert abs(gamma.sum() - 1.0) < TOL_GAMMA, (r, gamma)
+    if offset == 0.0:
+        np.testing.assert_allclose(gamma, 0.25, rtol=0, atol=TOL_GAMMA)
+
+
+@settings(max_examples=30, **SETTINGS)
+@given(st.floats(0, 2 * np.pi), st.floats(0, np.pi), OFFSETS_3D)
+def test_gamma_3d_octants_sum_to_one(cube, azimuth, polar, offset):
+    d = offset * CUBE_H * np.array([math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth),
+                                    math.cos(polar)])
+    signs = np.array([[sx, sy, sz] for sx in (1, -1) for sy in (1, -1) for sz in (1, -1)])
+    r = 1.0 + signs * d
+    gamma, _ = gamma_and_gradient(r, cube, CUBE_H)
+    assert abs(gamma.sum() - 1.0) < TOL_GAMMA, (r, gamma)
+    if offset == 0.0:
+        np.testing.assert_allclose(gamma, 0.125, rtol=0, atol=TOL_GAMMA)
+
+
+@pytest.mark.parametrize("shape", ["cube", "icosphere", "tetrahedron"])
+def test_gamma_3d_gradient_is_central_difference(shape):
+    """Near faces, edges (and the lines through them) and vertices, inside and outside."""
+    trimesh = pytest.importorskip("trimesh")
+    mesh = {"cube": lambda: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
+            "icosphere": lambda: trimesh.creation.icosphere(subdivisions=1, radius=1.0),
+            "tetrahedron": lambda: trimesh.convex.convex_hull([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]])
+            }[shape]()
+    tri = BoundaryTriangles.from_trimesh(mesh)
+    h = 0.4
+    v = tri.vertices_tkc
+    rng = np.random.default_rng(5)
+    base = np.concatenate([v[:6, 0], 0.5 * (v[:6, 0] + v[:6, 1]), tri.centroid_tc[:6],
+                           v[:6, 1] + 0.3 * (v[:6, 1] - v[:6, 0])])  # vertices, edge mid points, faces, edge lines
+    r = np.concatenate([base + 10.0 ** -rng.integers(3, 12, size=(len(base), 1)) * h * rng.normal(size=base.shape),
+                        base + 0.01 * h * rng.normal(size=base.shape)])
+    _, grad = gamma_and_gradient(r, tri, h)
+    eta = 1e-5 * h
+    for axis in range(3):
+        step = np.zeros(3)
+        step[axis] = eta
+        fd = (gamma_and_gradient(r + step, tri, h)[0] - gamma_and_gradient(r - step, tri, h)[0]) / (2 * eta)
+        np.testing.assert_allclose(grad[:, axis] * h, fd * h, rtol=0, atol=1e-7)
