@@ -130,14 +130,15 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
     """
     nx, ny, nz = nrm[t, 0], nrm[t, 1], nrm[t, 2]
     # delta from the edge line nearest to the particle (see _edge_offset): consistent with that edge's e
-    best = np.inf
-    delta = 0.0
-    for i in range(3):
-        wx, wy, wz = _edge_offset(px, py, pz, tri, t, i)
-        w2 = wx * wx + wy * wy + wz * wz
-        if w2 < best:
-            best = w2
-            delta = (wx * nx + wy * ny + wz * nz) * inv_h
+    w0x, w0y, w0z = _edge_offset(px, py, pz, tri, t, 0)
+    w1x, w1y, w1z = _edge_offset(px, py, pz, tri, t, 1)
+    w2x, w2y, w2z = _edge_offset(px, py, pz, tri, t, 2)
+    wx, wy, wz = w0x, w0y, w0z
+    if w1x * w1x + w1y * w1y + w1z * w1z < wx * wx + wy * wy + wz * wz:
+        wx, wy, wz = w1x, w1y, w1z
+    if w2x * w2x + w2y * w2y + w2z * w2z < wx * wx + wy * wy + wz * wz:
+        wx, wy, wz = w2x, w2y, w2z
+    delta = (wx * nx + wy * ny + wz * nz) * inv_h
     ad = abs(delta)
     if ad >= q_max:
         return 0.0, 0.0, delta
@@ -171,7 +172,12 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
         along = wx * ux + wy * uy + wz * uz
         mx, my, mz = wx - along * ux, wy - along * uy, wz - along * uz
         mlen = math.sqrt(mx * mx + my * my + mz * mz)
-        wx, wy, wz = _edge_offset(px, py, pz, tri, t, i)
+        if i == 0:
+            wx, wy, wz = w0x, w0y, w0z
+        elif i == 1:
+            wx, wy, wz = w1x, w1y, w1z
+        else:
+            wx, wy, wz = w2x, w2y, w2z
         e = (wx * mx + wy * my + wz * mz) / mlen * inv_h  # distance of the foot to the edge line
         if e == 0.0:
             continue
