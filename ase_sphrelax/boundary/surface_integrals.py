@@ -16,6 +16,12 @@ coordinate ``x`` from the foot of ``p`` on the edge's line (edge distance ``e``)
   (``rho^2 - delta^2 = e^2 + x^2`` exactly, no cancellation), integrated by Gauss-Legendre on
   intervals split at the foot ``x = 0`` and where ``rho`` crosses the kernel's break radii.
 
+Near an edge's line the edge's share of the solid angle, ``atan2`` of the foot's distance ``e`` to
+the line against ``delta``, is ill-conditioned (``1e-16 L / sqrt(e^2 + delta^2)``) while the sum over
+the triangles around the edge is not: ``e`` and ``delta`` come from the particle's offset to the line
+computed identically by every triangle sharing it (:func:`_edge_offset`), so the rounding is that of
+one slightly moved particle and cancels in the sum (exact near edges, their lines and vertices).
+
 This is exact up to the Gauss rule on smooth integrands (``n = 16`` nodes by default; the
 tests compare with direct 3D integration to 1e-6 and with adaptive 2D quadrature per triangle).
 """
