@@ -368,3 +368,15 @@ def test_gamma_3d_gradient_is_central_difference(shape):
         step[axis] = eta
         fd = (gamma_and_gradient(r + step, tri, h)[0] - gamma_and_gradient(r - step, tri, h)[0]) / (2 * eta)
         np.testing.assert_allclose(grad[:, axis] * h, fd * h, rtol=0, atol=1e-7)
+
+
+def test_gamma_at_vertices_of_rotated_wedges():
+    """On a vertex gamma is its interior angle over 2 pi, however |b - a|^2 / |b - a|^2 rounds (200 rotations)."""
+    t = math.radians(10.0)
+    base = np.array([[0.0, 0.0], [1.0, 0.0], [math.cos(t), math.sin(t)]])
+    expected = np.array([10.0, 85.0, 85.0]) / 360.0
+    for rot in np.linspace(0.0, 2 * np.pi, 200, endpoint=False):
+        c, s = math.cos(rot), math.sin(rot)
+        v = base @ np.array([[c, s], [-s, c]])
+        gamma, _ = gamma_and_gradient(v, BoundarySegments.from_vertices(v), 0.05)
+        np.testing.assert_allclose(gamma, expected, rtol=0, atol=TOL_GAMMA)

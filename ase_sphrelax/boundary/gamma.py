@@ -58,6 +58,10 @@ def _chi_segment(px, py, seg, e, next_s, prev_s):
     """Point term of a particle whose nearest segment is e (see the module docstring)."""
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     t = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) * seg[e, 7]
+    if px == bx and py == by:
+        t = 1.0  # on the end vertex: |b - a|^2 / |b - a|^2 may round below 1
+    elif px == ax and py == ay:
+        t = 0.0
     if 0.0 < t < 1.0:
         side = line_offset(px, py, seg, e)  # as in segment_terms: the same sign as its delta
         return 1.0 if side > 0.0 else (0.0 if side < 0.0 else 0.5)
