@@ -14,11 +14,13 @@ than ``h`` from every element gets ``gamma = chi`` (1 inside, 0 outside) and zer
 without touching any element. ``chi`` of a particle near the boundary follows from its nearest
 element (the side of the nearest feature: the element's normal, or the pseudo-normal of a
 vertex/edge); on the boundary it is the fraction of the angle inside (1/2 on a segment's
-interior or a face, the interior angle over ``2 pi`` at a vertex in 2D). In 3D, points closer
-than ``1e-7 h`` to the surface (edges and vertices included) are evaluated ``1e-7 h`` inside it:
-a triangle's share of the solid angle seen from a height ``delta`` above one of its edge lines
-carries a rounding error of order ``1e-16 L / delta``, while the move changes ``gamma`` by at
-most ``|grad gamma| 1e-7 h`` (about 2e-7). For the others it
+interior or a face, the interior angle over ``2 pi`` at a vertex in 2D). In 3D the side of a
+point closer than ``1e-7 h`` to the surface (edges and vertices included) is not resolved by the
+closest-point test, so ``gamma`` there is evaluated at a point ``q`` moved ``1e-7 h`` inside and
+carried back to first order, ``gamma(q) + grad gamma(q) . (x_a - q)`` (both exact at ``q``; the
+remainder is ``|x_a - q|^2 |grad^2 gamma| / 2``, about 1e-14). The triangles' shares of the solid
+angle themselves are exact near edge lines and vertices
+(:func:`~ase_sphrelax.boundary.surface_integrals.triangle_terms`). For the others it
 is the inside test of the enclosed region, made when the neighbour list builds its bins (a
 particle that moved less than half the skin since cannot have crossed the boundary band).
 """
@@ -45,9 +47,8 @@ __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary
 
 GAUSS_NODES = 8  # 3D Gauss-Legendre nodes per smooth interval (see tests/test_boundary_gamma.py for the errors)
 UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point within NUDGE h of the surface
-# 3D: a triangle's share of the solid angle seen from height delta above one of its edge lines carries a
-# rounding error ~1e-16 L / delta; points closer than NUDGE h to the surface are evaluated NUDGE h inside
-# (gamma changes by at most |grad gamma| NUDGE h ~ 2e-7)
+# 3D: points closer than NUDGE h to the surface (whose side the closest-point test cannot resolve) are evaluated
+# NUDGE h inside and carried back by the exact gradient there (remainder ~ NUDGE^2, about 1e-14)
 NUDGE = 1e-7
 BAND_RULES = ("normal", "centroid", "ball")
 
@@ -57,6 +58,10 @@ def _chi_segment(px, py, seg, e, next_s, prev_s):
     """Point term of a particle whose nearest segment is e (see the module docstring)."""
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     t = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) * seg[e, 7]
+    if px == bx and py == by:
+        t = 1.0  # on the end vertex: |b - a|^2 / |b - a|^2 may round below 1
+    elif px == ax and py == ay:
+        t = 0.0
     if 0.0 < t < 1.0:
         side = line_offset(px, py, seg, e)  # as in segment_terms: the same sign as its delta
         return 1.0 if side > 0.0 else (0.0 if side < 0.0 else 0.5)
@@ -72,8 +77,21 @@ def _chi_segment(px, py, seg, e, next_s, prev_s):
         tox, toy = seg[s_out, 5], -seg[s_out, 4]
         turn = math.atan2(tix * toy - tiy * tox, tix * tox + tiy * toy)
         return (math.pi - turn) / (2.0 * math.pi)
-    side = dx * (seg[s_in, 4] + seg[s_out, 4]) + dy * (seg[s_in, 5] + seg[s_out, 5])
-    return 1.0 if side > 0.0 else (0.0 if side < 0.0 else -1.0)
+    # the nearest point is the vertex: inside iff p - v points into the interior wedge (from the outgoing edge
+    # counter-clockwise to the reversed incoming one), i.e. on the left of both edge directions at a convex
+    # vertex, of either at a reflex one. Sign-exact where the bisector (pseudo-normal) test is not: a point
+    # within rounding of an edge's line, e.g. below 1e-308 where the squared distances underflow and tie.
+    tix, tiy = seg[s_in, 5], -seg[s_in, 4]
+    tox, toy = seg[s_out, 5], -seg[s_out, 4]
+    cross_out = tox * dy - toy * dx
+    cross_in = tix * dy - tiy * dx
+    if (cross_out == 0.0 and tox * dx + toy * dy > 0.0) or (cross_in == 0.0 and tix * dx + tiy * dy < 0.0):
+        return 0.5  # on one of the two edges (their distances tied, e.g. both underflowed)
+    left_out = cross_out > 0.0
+    left_in = cross_in > 0.0
+    if tix * toy - tiy * tox >= 0.0:
+        return 1.0 if (left_out and left_in) else 0.0
+    return 1.0 if (left_out or left_in) else 0.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -83,7 +101,7 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
     if feature == 6 and side == 0.0:
         return 0.5
     if d2 < close2:
-        return -2.0  # closer than NUDGE h: evaluated NUDGE h inside (see BoundaryIntegrals._nudged)
+        return -2.0  # closer than NUDGE h: from NUDGE h inside (see BoundaryIntegrals._nudged)
     if feature == 6:
         return 1.0 if side > 0.0 else 0.0
     side = (px - qx) * pseudo[t, feature, 0] + (py - qy) * pseudo[t, feature, 1] + (pz - qz) * pseudo[t, feature, 2]
@@ -324,10 +342,12 @@ class BoundaryIntegrals:
                              gamma_k if terms else None, grad_k if terms else None, delta_k if terms else None)
 
     def _nudged(self, r_pc, pairs, rows):
-        """3D gamma of points within NUDGE h of the surface, evaluated NUDGE h inside it.
+        """3D gamma of points within NUDGE h of the surface, from a point NUDGE h inside it.
 
-        The point moves to ``q + NUDGE h m``, with ``q`` its closest surface point and ``m`` the
-        inward pseudo-normal of the closest feature (face, edge or vertex).
+        The point moves to ``y = q + NUDGE h m``, with ``q`` its closest surface point and ``m`` the
+        inward pseudo-normal of the closest feature (face, edge or vertex), and
+        ``gamma(x) = gamma(y) + grad gamma(y) . (x - y) + O(|x - y|^2)`` (gamma is C^1 with a
+        Lipschitz gradient across the surface).
         """
         from ..neighbors import NeighborList
 
@@ -339,15 +359,22 @@ class BoundaryIntegrals:
                 t = pairs.element_k[k]
                 d2, qx, qy, qz, f = closest_on_triangle(*r_pc[i], b.packed_tk[t])
                 if d2 < best[0]:
-                    best = (d2, (np.array([qx, qy, qz]), b.pseudo_normal_tfc[t, f]))
-            q, m = best[1]
+                    best = (d2, (np.array([qx, qy, qz]), t, f))
+            q, t, f = best[1]
+            # within a few moves of a vertex, move from the vertex (along an edge's or the face's normal the
+            # move could leave through a neighbouring face of a sharp vertex, e.g. a tetrahedron's)
+            gap_c = b.vertices_tkc[t] - q
+            corner = int(np.argmin(np.einsum("kc,kc->k", gap_c, gap_c)))
+            if f > 2 and np.linalg.norm(gap_c[corner]) < 10.0 * NUDGE * self.h:
+                q, f = b.vertices_tkc[t, corner], corner
+            m = b.pseudo_normal_tfc[t, f]
             moved[i] = q + NUDGE * self.h * m / np.linalg.norm(m)
         nlist = NeighborList(self.h)
         nlist.update(moved, np.zeros((3, 3)), False, store=False)
         out = self.compute(nlist, moved, _nudge=False)
         if np.any(out.chi_p != 1.0):
             raise FloatingPointError("a point moved inside the surface is not inside (degenerate mesh?)")
-        return out.gamma_p
+        return out.gamma_p + np.einsum("pc,pc->p", out.grad_gamma_pc, r_pc - moved)
 
 
 def _positions(r_pc, dim):

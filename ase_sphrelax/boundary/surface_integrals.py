@@ -16,6 +16,12 @@ coordinate ``x`` from the foot of ``p`` on the edge's line (edge distance ``e``)
   (``rho^2 - delta^2 = e^2 + x^2`` exactly, no cancellation), integrated by Gauss-Legendre on
   intervals split at the foot ``x = 0`` and where ``rho`` crosses the kernel's break radii.
 
+Near an edge's line the edge's share of the solid angle, ``atan2`` of the foot's distance ``e`` to
+the line against ``delta``, is ill-conditioned (``1e-16 L / sqrt(e^2 + delta^2)``) while the sum over
+the triangles around the edge is not: ``e`` and ``delta`` come from the particle's offset to the line
+computed identically by every triangle sharing it (:func:`_edge_offset`), so the rounding is that of
+one slightly moved particle and cancels in the sum (exact near edges, their lines and vertices).
+
 This is exact up to the Gauss rule on smooth integrands (``n = 16`` nodes by default; the
 tests compare with direct 3D integration to 1e-6 and with adaptive 2D quadrature per triangle).
 """
@@ -70,6 +76,34 @@ def _piece(breaks, r):
 
 
 @numba.njit(cache=True, inline="always")
+def _edge_offset(px, py, pz, tri, t, i):
+    """``w``: the part of ``x_a - x_0`` normal to the line through edge i (v_i, v_i+1) of triangle t.
+
+    Computed the same way, bit for bit, by both triangles that share the edge: the direction runs from
+    the lexicographically smaller end point to the larger one and ``x_0`` is the end point nearer to
+    the particle. A point near the edge's line (or a vertex) is then seen at the same rounded offset
+    from both sides, so their shares of the solid angle, each ill-conditioned there (``1e-16 L / |w|``),
+    add up as for one point: the sum is exact (backward stable).
+    """
+    k = (i + 1) % 3
+    ax, ay, az = tri[t, 3 * i], tri[t, 3 * i + 1], tri[t, 3 * i + 2]
+    bx, by, bz = tri[t, 3 * k], tri[t, 3 * k + 1], tri[t, 3 * k + 2]
+    if (bx, by, bz) < (ax, ay, az):
+        ax, ay, az, bx, by, bz = bx, by, bz, ax, ay, az
+    cx, cy, cz = bx - ax, by - ay, bz - az
+    inv_len = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
+    cx *= inv_len
+    cy *= inv_len
+    cz *= inv_len
+    dax, day, daz = px - ax, py - ay, pz - az
+    dbx, dby, dbz = px - bx, py - by, pz - bz
+    if dbx * dbx + dby * dby + dbz * dbz < dax * dax + day * day + daz * daz:
+        dax, day, daz = dbx, dby, dbz
+    along = dax * cx + day * cy + daz * cz
+    return dax - along * cx, day - along * cy, daz - along * cz
+
+
+@numba.njit(cache=True, inline="always")
 def plane_offset(px, py, pz, tri, nrm, t):
     """``(x_a - x_t) . n_t`` from the vertex nearest to the particle (rounding ~ its distance)."""
     best = np.inf
@@ -101,17 +135,21 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
         Signed distance to the triangle's plane in units of ``h``.
     """
     nx, ny, nz = nrm[t, 0], nrm[t, 1], nrm[t, 2]
-    delta = plane_offset(px, py, pz, tri, nrm, t) * inv_h
+    # delta from the edge line nearest to the particle (see _edge_offset): consistent with that edge's e
+    w0x, w0y, w0z = _edge_offset(px, py, pz, tri, t, 0)
+    w1x, w1y, w1z = _edge_offset(px, py, pz, tri, t, 1)
+    w2x, w2y, w2z = _edge_offset(px, py, pz, tri, t, 2)
+    wx, wy, wz = w0x, w0y, w0z
+    if w1x * w1x + w1y * w1y + w1z * w1z < wx * wx + wy * wy + wz * wz:
+        wx, wy, wz = w1x, w1y, w1z
+    if w2x * w2x + w2y * w2y + w2z * w2z < wx * wx + wy * wy + wz * wz:
+        wx, wy, wz = w2x, w2y, w2z
+    delta = (wx * nx + wy * ny + wz * nz) * inv_h
     ad = abs(delta)
     if ad >= q_max:
         return 0.0, 0.0, delta
     with_gamma = q_max >= 1.0
     sgn = 1.0 if delta > 0.0 else (-1.0 if delta < 0.0 else 0.0)
-    h = 1.0 / inv_h
-    # foot of p on the plane
-    fx = px - delta * h * nx
-    fy = py - delta * h * ny
-    fz = pz - delta * h * nz
     jd = _piece(breaks, ad)
     p1_d = _laurent(lp[jd], ad)  # piece 0 has no 1 / rho term: fine at ad = 0
     qt_d = _laurent(lq[jd], ad)
@@ -140,11 +178,17 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
         along = wx * ux + wy * uy + wz * uz
         mx, my, mz = wx - along * ux, wy - along * uy, wz - along * uz
         mlen = math.sqrt(mx * mx + my * my + mz * mz)
-        e = ((fx - ax) * mx + (fy - ay) * my + (fz - az) * mz) / mlen * inv_h
+        if i == 0:
+            wx, wy, wz = w0x, w0y, w0z
+        elif i == 1:
+            wx, wy, wz = w1x, w1y, w1z
+        else:
+            wx, wy, wz = w2x, w2y, w2z
+        e = (wx * mx + wy * my + wz * mz) / mlen * inv_h  # distance of the foot to the edge line
         if e == 0.0:
             continue
-        xa = ((ax - fx) * ux + (ay - fy) * uy + (az - fz) * uz) * inv_h
-        xb = ((bx - fx) * ux + (by - fy) * uy + (bz - fz) * uz) * inv_h
+        xa = ((ax - px) * ux + (ay - py) * uy + (az - pz) * uz) * inv_h  # u is normal to n: as from the foot
+        xb = ((bx - px) * ux + (by - py) * uy + (bz - pz) * uz) * inv_h
         d2 = delta * delta + e * e
         e2 = e * e
         # interval end points: xa, the foot 0, the break crossings, xb
