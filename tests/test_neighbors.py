@@ -110,9 +110,8 @@ from ase_sphrelax.pairs import Output, PairInteraction  # noqa: E402
 
 
 @numba.njit(inline="always")
-def _bump_pair(a, b, r2, d, params, inp):
+def _bump_pair(a, b, r2, d, cut_s):
     """A pair term within the larger of the two cut-offs: e = (1 - r / c)^2, and e * d."""
-    cut_s, = inp
     c = max(cut_s[a], cut_s[b])
     if r2 >= c * c:
         return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), ()
@@ -121,17 +120,16 @@ def _bump_pair(a, b, r2, d, params, inp):
 
 
 @numba.njit(inline="always")
-def _gather_pair(a, b, r2, d, params, inp):
+def _gather_pair(a, b, r2, d, cut_s):
     """a gathers (1 - r / c_a)^2 from b within its own cut-off c_a (a density with its own H)."""
-    cut_s, = inp
     c = cut_s[a]
     if r2 >= c * c:
         return (0.0,), ()
     return ((1.0 - np.sqrt(r2) / c) ** 2,), ()
 
 
-BUMP = PairInteraction(_bump_pair, dict(e=Output(()), v=Output((3,))))
-GATHER = PairInteraction(_gather_pair, dict(rho=Output(())), symmetric=False)
+BUMP = PairInteraction(_bump_pair, dict(e=Output(()), v=Output((3,))), inputs=("cut_s",))
+GATHER = PairInteraction(_gather_pair, dict(rho=Output(())), symmetric=False, inputs=("cut_s",))
 
 
 def _brute_sums(r_pc, cell, pbc, cut_p):
@@ -161,8 +159,8 @@ def _check_wide(r_pc, cell, pbc, cut_p, skin=0.05):
         nlist = NeighborList(cut_p, skin=skin)
         nlist.update(r_pc, cell, pbc, store=store)
         for _ in range(2 if store else 1):  # fused rebuild, then the stored list walked
-            out = BUMP.compute(nlist, r_pc, inputs=(cut_p,))
-            rho = GATHER.compute(nlist, r_pc, inputs=(cut_p,)).rho
+            out = BUMP.compute(nlist, r_pc, inputs=dict(cut_s=cut_p))
+            rho = GATHER.compute(nlist, r_pc, inputs=dict(cut_s=cut_p)).rho
             np.testing.assert_allclose(out.e, e_ref, rtol=1e-12, atol=1e-12)
             np.testing.assert_allclose(out.v, v_ref, rtol=1e-12, atol=1e-12 * scale)
             np.testing.assert_allclose(rho, rho_ref, rtol=1e-12, atol=1e-12)
