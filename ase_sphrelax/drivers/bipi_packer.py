@@ -156,6 +156,7 @@ class BIPIPacker(Optimizer):
             raise ValueError(f"outside must be 'raise' or 'move', got {outside!r}")
         self.progress = bool(progress)
         calc.validate_atoms(atoms)
+        calc.check_spacing(len(atoms), final=True)  # Step 2a evaluates subsets: check the whole set once
         self.moved_in = self._bring_inside(atoms, outside)
         Optimizer.__init__(self, atoms, logfile=logfile, trajectory=trajectory, **kwargs)
 
@@ -230,6 +231,7 @@ class BIPIPacker(Optimizer):
         self._sel = np.nonzero(selected)[0]
         sub = Atoms(positions=r[self._sel], cell=atoms.cell, pbc=atoms.pbc)
         sub.calc = self.calc.clone()
+        sub.calc.skip_spacing_check()  # a subset: the whole set was checked
         self._sub = sub
         self._movable = packable[self._sel] & ~self._user_fixed(len(atoms))[self._sel]
         self._x0_sub = self.x0[self._sel]
