@@ -311,3 +311,16 @@ def test_worker_reads_no_pickle():
 
     for module in (worker, relaxation):
         assert "pickle" not in inspect.getsource(module)
+
+
+def test_export_refuses_to_replace_a_file_unless_overwrite(tmp_path, capsys):
+    from ase_sphrelax.build import periodic_box
+
+    atoms = periodic_box((4, 3), dx=0.5, dim=2, jitter=0.1, seed=0)
+    atoms.write(tmp_path / "in.extxyz")
+    out = tmp_path / "out.data"
+    out.write_text("mine")
+    assert main(["export", str(tmp_path / "in.extxyz"), str(out)]) == 2
+    assert "--overwrite" in _one_line_error(capsys) and out.read_text() == "mine"
+    assert main(["export", str(tmp_path / "in.extxyz"), str(out), "--overwrite", "--no-progress"]) == 0
+    assert out.read_text() != "mine"
