@@ -35,7 +35,46 @@ def _jitter(rng, shape, jitter, dx):
     return rng.uniform(-jitter * dx, jitter * dx, size=shape)
 
 
-def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
+#: particles a fill makes without ``max_particles=`` raised (about 10 GB at BYTES_PER_PARTICLE)
+MAX_PARTICLES = 20_000_000
+#: rough memory of one particle in a relaxation: positions, forces, per-particle arrays and its
+#: neighbour pairs at h ~ 3 dx (about 30 in 2D, 110 in 3D, 8 bytes each way)
+BYTES_PER_PARTICLE = {1: 200, 2: 500, 3: 1500}
+
+
+def estimate_fill(domain, dx):
+    """The particle count and memory of :func:`fill` before filling: ``(n, bytes)``.
+
+    ``n = V / dx^d`` (the domain's measure ``V``; its bounding box when it has none), the count of
+    cell centres inside up to the cells the boundary cuts; ``bytes`` is ``n`` times
+    :data:`BYTES_PER_PARTICLE` (an order of magnitude: the run needs about that).
+    """
+    dx = check_positive("dx", dx)
+    try:
+        volume = float(domain.volume)
+    except Exception:  # a domain without a measure: its bounding box bounds the count
+        volume = float("nan")
+    if not (np.isfinite(volume) and volume > 0):
+        lo, hi = domain.bounds
+        volume = float(np.prod(np.asarray(hi, float) - np.asarray(lo, float)))
+    n = volume / dx**domain.dim
+    return n, n * BYTES_PER_PARTICLE[domain.dim]
+
+
+def describe_estimate(n, n_bytes):
+    """``"about 1.2e+06 particles, about 0.6 GB"``: the words of :func:`estimate_fill`'s numbers."""
+    return f"about {n:.3g} particles, about {n_bytes / 1e9:.2g} GB"
+
+
+def check_particle_count(n, n_bytes, max_particles, name="max_particles"):
+    """ValueError (one line, the estimate in it) when ``n > max_particles``."""
+    limit = check_positive(name, max_particles)
+    if n > limit:
+        raise ValueError(f"the fill would make {describe_estimate(n, n_bytes)}, more than {name}={limit:.3g}: "
+                         f"choose a larger dx, or raise {name}")
+
+
+def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4, max_particles=MAX_PARTICLES):
     """One particle per background cell whose centre lies inside ``domain``.
 
     Parameters
@@ -57,6 +96,9 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
         The (informational, non-periodic) cell is the bounding box of the
         domain enlarged by ``padding * dx`` on every side; its corner is
         stored as ``atoms.get_celldisp()`` (not kept by extxyz/traj files).
+    max_particles : float
+        Refuse (ValueError, with the estimate of :func:`estimate_fill`) a fill of more particles
+        than this, before any work (default :data:`MAX_PARTICLES`).
 
     Returns
     -------
@@ -86,6 +128,7 @@ def fill(domain, dx, jitter=0.1, seed=None, origin=None, padding=4):
         raise TypeError(f"domain must be an ase_sphrelax Domain, got {type(domain).__name__}")
     dx = check_positive("dx", dx)
     jitter = _check_jitter(jitter)
+    check_particle_count(*estimate_fill(domain, dx), max_particles)
     dim = domain.dim
     if origin is None:
         origin = np.zeros(dim)

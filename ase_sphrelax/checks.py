@@ -7,7 +7,7 @@ import numbers
 import numpy as np
 
 __all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
-           "NotConvergedWarning", "ASE_DEFAULT_FMAX"]
+           "NotConvergedWarning", "SpacingWarning", "spacing_mismatch", "ASE_DEFAULT_FMAX"]
 
 #: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
 ASE_DEFAULT_FMAX = 0.05
@@ -20,6 +20,40 @@ class SPHScaleWarning(UserWarning):
 class NotConvergedWarning(UserWarning):
     """A run ended without reaching its own convergence criterion; the message names the criterion
     that failed (the result's ``info["converged"]`` is False and ``info["convergence_reason"]`` says why)."""
+
+
+class SpacingWarning(UserWarning):
+    """The particles are not at the spacing ``dx`` the model assumes (``N dx^d`` is not the region's measure)."""
+
+
+def spacing_mismatch(n, dx, dim, measure, surface, name="dx"):
+    """A one-line message when ``n`` particles of spacing ``dx`` cannot fill a region of ``measure``, else None.
+
+    One particle per cell centre inside a region (:func:`ase_sphrelax.build.fill`) gives ``N dx^d`` that
+    differs from the measure ``V`` only by the cells the boundary cuts: those with centres within
+    ``sqrt(d) dx / 2`` of it, a band of measure at most ``surface sqrt(d) dx``. Beyond that bound the
+    particles were placed at another spacing (or the region is another one).
+
+    Parameters
+    ----------
+    n : int
+    dx : float
+    dim : int
+    measure : float
+        Area (2D), volume (3D) or length (1D) of the region.
+    surface : float
+        Its boundary's measure (perimeter, area; 2 in 1D).
+    """
+    if not (np.isfinite(measure) and measure > 0 and np.isfinite(surface)) or n == 0:
+        return None
+    filled = n * dx**dim
+    band = surface * math.sqrt(dim) * dx
+    if abs(filled - measure) <= band:
+        return None
+    implied = (measure / n) ** (1.0 / dim)
+    return (f"{n} particles of {name}={dx:.6g} fill N {name}^{dim} = {filled:.6g}, but the region's measure is "
+            f"{measure:.6g} (cell-centre fills differ by at most {band:.3g}): the particles are spaced about "
+            f"{implied:.6g}; pass {name}={implied:.3g} or fill at {name}={dx:.6g}")
 
 
 def check_positive(name, value, allow_none=False):

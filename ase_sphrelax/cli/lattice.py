@@ -7,11 +7,11 @@ A progress bar follows the relaxation starts.
 """
 from __future__ import annotations
 
+from .common import H_MIN, add_progress_argument, show_progress
 from .usage import UsageError, positive
 
 __all__ = ["add_arguments", "run"]
 
-H_MIN = 1.0  # at unit particle volume no pattern has a neighbour within h <= 1 of a particle
 
 
 def add_arguments(parser):
@@ -23,6 +23,7 @@ def add_arguments(parser):
                              "one-atom lattice)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of the random starts of the variable-cell relaxation (default 0)")
+    add_progress_argument(parser)
 
 
 def run(args):
@@ -31,5 +32,5 @@ def run(args):
                          "lattice has a neighbour within h, so every pattern has v_c = 1/W(0) and none is selected")
     from ..analysis.patterns import lattice_report
 
-    print(lattice_report(args.h_over_dx, dim=args.dim, seed=args.seed, progress=None))
+    print(lattice_report(args.h_over_dx, dim=args.dim, seed=args.seed, progress=show_progress(args)))
     return 0

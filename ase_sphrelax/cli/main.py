@@ -12,6 +12,15 @@ __all__ = ["build_parser", "main"]
 PROG = "sphrelax"
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse's parser whose errors are one line (``sphrelax CMD: error: ... (see sphrelax CMD --help)``),
+    exit status 2, like every other usage error of ``sphrelax``; its sub-parsers are of this class too."""
+
+    def error(self, message):
+        text = " ".join(str(message).split())
+        self.exit(2, f"{self.prog}: error: {text} (see {self.prog} --help)\n")
+
+
 def build_parser(commands=None):
     """The ``sphrelax`` parser; each sub-parser carries its command object as ``args._command``.
 
@@ -24,7 +33,7 @@ def build_parser(commands=None):
     from .. import __version__
 
     commands = registry.commands() if commands is None else commands
-    parser = argparse.ArgumentParser(prog=PROG, description="SPH particle relaxation (ase_sphrelax)")
+    parser = OneLineParser(prog=PROG, description="SPH particle relaxation (ase_sphrelax)")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, command in commands.items():

@@ -7,15 +7,29 @@ the final metrics and the wall time; writes packed.extxyz, packed.png (particles
 |grad C_a|), history.png and summary.json (parameters, summary, the per-iteration history) to --out.
 
 --h is the kernel support in units of dx, as for ``sphrelax relax`` (default 4: BIPI2D's
-h_B / dx_r = 2); --h-paper gives the paper's h_B / dx_r instead (h = 2 h_B).
+h_B / dx_r = 2); --h-paper gives the paper's h_B / dx_r instead (h = 2 h_B). Both values are printed.
+The support must be more than 1 dx (refused otherwise) and below 1.5 dx gives a warning (--strict: an
+error), as for ``sphrelax relax``.
+
+Before the fill the particle count and memory are estimated and printed; past --max-particles
+(default 2e7) the fill is refused.
+
+Exit status: 0 when Steps 2a and 2c stopped by their 1 % rules, or when an iteration cap was given
+(--max-steps-2a/2c: a fixed length; an unconverged run then warns); 3 when a default cap was reached
+first, |grad C|_avg ended worse than it started, or the run was degenerate (every particle frozen:
+nothing to pack); summary.json says ``converged`` and why. 2 for a usage error (one line).
 """
 from __future__ import annotations
 
 import json
+import sys
 import time
+import warnings
 from pathlib import Path
 
 from . import registry
+from .common import (EXIT_NOT_CONVERGED, add_output_arguments, add_progress_argument, add_size_argument,
+                     check_fill_size, check_h_ratio, output_folder, provenance, show_progress)
 from .usage import UsageError, non_negative_int, positive, usage_errors
 
 __all__ = ["add_arguments", "run", "BIPIMethod"]
@@ -54,12 +68,14 @@ class BIPIMethod:
         from ..drivers.bipi_packer import CAP_2A, CAP_2C, BIPIPacker, initial_fill
 
         calc = BIPICalculator(h=h, dx=dx, boundary=boundary, band_rule=args.band_rule)
-        atoms = initial_fill(boundary, dx)
+        check_fill_size(boundary.domain, dx, args.max_particles, what="Step 1 fill")
+        atoms = initial_fill(boundary, dx, max_particles=args.max_particles)
         start = atoms.copy()
         caps = (CAP_2A if args.max_steps_2a is None else args.max_steps_2a,
                 CAP_2C if args.max_steps_2c is None else args.max_steps_2c)
         packer = BIPIPacker(atoms, calc, max_steps_2a=caps[0], max_steps_2c=caps[1],
-                            tol=args.tol, window=args.window, outside=args.outside, progress=True)
+                            tol=args.tol, window=args.window, outside=args.outside,
+                            progress=show_progress(args))
         return atoms, packer, start
 
     @staticmethod
@@ -82,8 +98,10 @@ def add_arguments(parser):
                       help="kernel support radius in units of dx (default 4, i.e. the paper's h_B/dx_r = 2)")
     size.add_argument("--h-paper", type=positive(float), default=None,
                       help="the paper's smoothing length ratio h_B/dx_r instead (support h = 2 h_B)")
-    parser.add_argument("--out", default="sphrelax_pack", help="output folder (packed.extxyz, packed.png, "
-                                                               "history.png, summary.json)")
+    add_output_arguments(parser, "sphrelax_pack", "packed.extxyz, packed.png, history.png, summary.json")
+    add_progress_argument(parser)
+    add_size_argument(parser)
+    parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
             obj.add_arguments(parser.add_argument_group(f"--method {name}"))
@@ -95,14 +113,21 @@ def run(args):
         from ..boundary import as_boundary
 
         method = registry.methods(COMMAND)[args.method]
-        out = Path(args.out)
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"--out {args.out!r} exists and is not a folder")
+        out = output_folder(args)
         path = Path(args.boundary)
         if not path.is_file():
             raise UsageError(f"--boundary {args.boundary!r}: no such file")
         boundary = as_boundary(path)
         ratio = args.h if args.h is not None else (2.0 * args.h_paper if args.h_paper is not None else 4.0)
+        if args.h_paper is not None:
+            label = f"--h-paper {args.h_paper:g} (= --h {ratio:g}, the support in units of dx)"
+        else:
+            label = f"--h {ratio:g} (= --h-paper {ratio / 2:g}, the paper's h_B/dx_r)"
+        notes = check_h_ratio(ratio, label)
+        for note in notes:
+            if args.strict:
+                raise UsageError(f"{note} (--strict makes this an error)")
+            print(f"sphrelax pack: warning: {note}", file=sys.stderr)
         h = ratio * args.dx
         atoms, packer, start = method.prepare(boundary, args.dx, h, args)
 
@@ -117,8 +142,14 @@ def run(args):
     print(f"boundary: {path.name} ({boundary.dim}D, {len(boundary)} elements), {len(atoms)} particles, "
           f"dx = {args.dx:g}, h = {ratio:g} dx (support; the paper's h_B/dx_r = {ratio / 2:g}), method = {args.method}")
     before = quality_summary(start, h, dx=args.dx, domain=boundary.domain, dim=boundary.dim)
-    atoms, packer = method.pack(atoms, packer)
+    from ..checks import NotConvergedWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotConvergedWarning)  # said below, in one line, with the exit status
+        atoms, packer = method.pack(atoms, packer)
     summary = pack_summary(atoms, packer)
+    converged, reason = packer.verdict()
+    fixed = args.max_steps_2a is not None or args.max_steps_2c is not None
     wall = time.perf_counter() - t_start
 
     out.mkdir(parents=True, exist_ok=True)
@@ -133,14 +164,27 @@ def run(args):
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
                    wall_time_s=wall)
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),
-                                                      history=packer.history), indent=1))
+                                                      history=packer.history, converged=converged,
+                                                      convergence_reason=reason, **provenance(args, COMMAND)),
+                                                 indent=1))
     print(f"Step 2a: {summary['iterations_2a']} iterations, TPD_avg = {summary.get('tpd_avg_2a', float('nan')):.4g}; "
           f"Step 2b: {summary['n_frozen']} frozen; Step 2c: {summary['iterations_2c']} iterations")
-    print(f"|grad C|_avg (unfrozen): {summary.get('gradc_avg_2c_first', float('nan')):.4g} -> "
-          f"{summary['gradc_avg_final']:.4g} ({summary['gradc_drop_orders']:.2f} orders)")
+    if packer.degenerate:
+        print("|grad C|_avg (unfrozen): no unfrozen particle, nothing was packed")
+    else:
+        print(f"|grad C|_avg (unfrozen): {summary.get('gradc_avg_2c_first', float('nan')):.4g} -> "
+              f"{summary['gradc_avg_final']:.4g} ({summary['gradc_drop_orders']:.2f} orders)")
     print(f"boundary layer mean distance {summary['boundary_layer_mean']:.3f} dx (min {summary['boundary_layer_min']:.3f}), "
           f"{summary['n_outside']} particles outside")
     _print_quality(before, summary["quality"])
     print(f"wall time: {wall:.1f} s")
     print(f"wrote {out / 'packed.extxyz'}, {out / 'packed.png'}, {out / 'history.png'}, {out / 'summary.json'}")
-    return 0
+    if converged:
+        print(f"converged: {reason}")
+        return 0
+    if fixed and not packer.degenerate:
+        print(f"sphrelax pack: warning: not converged (the iteration caps were given: exit 0): {reason}",
+              file=sys.stderr)
+        return 0
+    print(f"sphrelax pack: not converged: {reason} (exit {EXIT_NOT_CONVERGED})", file=sys.stderr)
+    return EXIT_NOT_CONVERGED

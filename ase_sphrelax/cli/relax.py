@@ -34,6 +34,8 @@ from pathlib import Path
 
 from ..drivers.optimizers import DEFAULT_C, OPTIMIZERS
 from . import STARTED, registry
+from .common import (EXIT_NOT_CONVERGED, H_MIN, H_TABLE, add_output_arguments, add_progress_argument,
+                     add_size_argument, output_folder, provenance, show_progress)
 from .scene import DOMAIN_HELP, make_scene
 from .usage import UsageError, non_negative_float, non_negative_int, positive, usage_errors
 
@@ -41,8 +43,7 @@ __all__ = ["add_arguments", "run", "FanMethod", "AseEngine", "particle_dx", "abs
            "C_WARN", "VOLUME_TOL"]
 
 COMMAND = "relax"
-H_MIN = 1.0  # h/dx <= 1: the support of a particle reaches no neighbour of the initial mesh
-H_TABLE = 1.5  # Fan's Table 2 starts here
+DEFAULT_STEPS = 2000
 C_WARN = 0.1  # steps of more than 0.1 h: Eq. 2.4's error floor grows with c (Fan uses 0.01)
 VOLUME_TOL = 0.01  # |N dx^d / V - 1| beyond this: the density is biased, say so
 PARTICLE_VOLUMES = ("dx", "V/N")
@@ -134,7 +135,7 @@ class AseEngine:
         f0 = float(np.linalg.norm(atoms.get_forces(), axis=1).max())
         opt = make_optimizer(args.optimizer, atoms, c=args.c)  # keeps particles inside a domain (KeepInDomain)
         fmax = absolute_fmax(args, f0)
-        bar = _progress(opt, atoms, args.steps, f"relax ({args.optimizer})")
+        bar = _progress(opt, atoms, args.steps, f"relax ({args.optimizer})", disable=not show_progress(args))
         try:
             converged = opt.run(fmax=fmax, steps=args.steps)
         finally:
@@ -165,7 +166,9 @@ def add_arguments(parser):
     parser.add_argument("--particle-volume", choices=PARTICLE_VOLUMES, default="dx",
                         help="particle volume v0 of the model and the metrics: dx = dx^dim (Fan Eq. 3.3, default), "
                              "V/N = domain volume / N (Eq. 3.2; total volume exact: use it for an SPH run)")
-    parser.add_argument("--steps", type=non_negative_int, default=2000, help="maximum number of iterations (2000)")
+    parser.add_argument("--steps", type=non_negative_int, default=None,
+                        help=f"maximum number of iterations (default {DEFAULT_STEPS}); given, it is a fixed length: "
+                             "a run that does not reach --fmax then exits 0 (and records converged: false)")
     parser.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
                         help="fan: Eq. 2.4 with step c*h; fire/bfgs/lbfgs: ASE optimisers scaled to SPH units "
                              "(drivers.make_optimizer). Default: fan for --engine ase, fire for --engine lammps "
@@ -180,7 +183,9 @@ def add_arguments(parser):
     parser.add_argument("--dim", type=int, choices=(2, 3), default=None, help="dimension (default from the domain)")
     parser.add_argument("--jitter", type=float, default=0.1, help="initial random shift, fraction of dx (0.1)")
     parser.add_argument("--seed", type=int, default=0, help="random seed for the initial shift (0)")
-    parser.add_argument("--out", default="sphrelax_out", help="output folder (relaxed.extxyz, relaxed.png, summary.json)")
+    add_output_arguments(parser, "sphrelax_out", "relaxed.extxyz, relaxed.png, summary.json")
+    add_progress_argument(parser)
+    add_size_argument(parser)
     parser.add_argument("--strict", action="store_true",
                         help="set-up warnings become errors (exit 2), and a run that ends with particles outside "
                              "the domain exits with status 1")
@@ -243,10 +248,11 @@ def run(args):
         notes = list(engine.check(args) or []) if hasattr(engine, "check") else []
         if args.optimizer is None:
             args.optimizer = getattr(engine, "default_optimizer", "fan")
-        out = Path(args.out)
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"--out {args.out!r} exists and is not a folder")
-        scene = make_scene(args.domain, args.dim, args.dx, args.jitter, args.seed)
+        out = output_folder(args)
+        steps_given = args.steps is not None
+        if not steps_given:
+            args.steps = DEFAULT_STEPS
+        scene = make_scene(args.domain, args.dim, args.dx, args.jitter, args.seed, max_particles=args.max_particles)
         h = args.h_over_dx * scene.dx
         calc = method.calculator(scene, h, args)
         quality = Quality(h, dx=particle_dx(scene, args), domain=scene.domain, dim=scene.dim)
@@ -303,6 +309,15 @@ def run(args):
                    quality_before=before, quality_after=after, lattice_optimum=optimum,
                    moves_kept_inside=n_returned, wall_time_s=t_relax, command_time_s=t_total,
                    setup_time_s=t_start - STARTED)
+    has_rule = args.fmax is not None or args.fmax_rel is not None
+    converged = has_rule and steps_done < args.steps  # the engine stopped before its cap: max |F| < fmax
+    if converged:
+        reason = stop_reason
+    elif has_rule:
+        reason = f"max |F| did not fall below the --fmax criterion within {args.steps} steps"
+    else:
+        reason = f"no stopping rule (no --fmax or --fmax-rel): ran {steps_done} steps"
+    summary.update(converged=converged, convergence_reason=reason, **provenance(args, COMMAND))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
 
     print(f"stopped after {steps_done} steps: {stop_reason}")
@@ -321,6 +336,12 @@ def run(args):
         print(f"WARNING: {n_out} particle(s) ended outside the domain (max φ = {after['max_phi_over_dp']:.3g} dp)"
               + ("; exit status 1 (--strict)" if args.strict else "; --strict makes this exit status 1"))
         return 1 if args.strict else 0
+    if has_rule and not converged:
+        if steps_given:
+            print(f"sphrelax relax: warning: not converged (--steps was given: exit 0): {reason}", file=sys.stderr)
+            return 0
+        print(f"sphrelax relax: not converged: {reason} (exit {EXIT_NOT_CONVERGED})", file=sys.stderr)
+        return EXIT_NOT_CONVERGED
     return 0
 
 

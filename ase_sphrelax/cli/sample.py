@@ -34,6 +34,7 @@ usage error (one line, before any work).
 from __future__ import annotations
 
 
+from .common import add_output_arguments, add_progress_argument, output_folder, provenance, show_progress
 from .usage import UsageError, positive, usage_errors
 
 __all__ = ["add_arguments", "run", "EXIT_NOT_CONVERGED", "DEFAULT_STEPS"]
@@ -88,8 +89,8 @@ def add_arguments(parser):
                         help="sd of the initial N(0, s^2 I) (default: centre and per-axis scale found from the "
                              "target's score by a short mode search)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the initial particles (default 0)")
-    parser.add_argument("--out", default="sample_out", help="output folder (default sample_out)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_output_arguments(parser, "sample_out", "samples.npy, samples.extxyz, trace.json, summary.json, samples.png")
+    add_progress_argument(parser)
 
 
 def _load_callable(spec, what):
@@ -189,13 +190,12 @@ def run(args):
                                eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support,
                                steps=DEFAULT_STEPS if args.steps is None else args.steps, max_steps=max_steps,
                                friction=args.friction, rule=args.rule, init_scale=args.init_scale, seed=args.seed,
-                               progress=not args.no_progress)
+                               progress=show_progress(args))
         sampler.look_at_target()  # a score of the wrong sign or of another target: exit 2 before any work
-        out = Path(args.out)
+        out = output_folder(args)
         out.mkdir(parents=True, exist_ok=True)
-    summary = dict(command="sample", target=args.target, score=args.score, seed=args.seed, steps_fixed=fixed,
-                   max_steps=max_steps,
-                   version=_version())
+    summary = dict(target=args.target, score=args.score, steps_fixed=fixed, max_steps=max_steps,
+                   **provenance(args, "sample"))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NotConvergedWarning)  # said once below, on the last line
@@ -259,8 +259,3 @@ def _plain(info):
 
     return {k: plain(v) for k, v in info.items()}
 
-
-def _version():
-    from .. import __version__
-
-    return __version__

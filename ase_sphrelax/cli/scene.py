@@ -30,7 +30,7 @@ class Scene(NamedTuple):
         return 3 if self.atoms.pbc[2] else 2
 
 
-def make_scene(domain_name, dim=None, dx=None, jitter=0.1, seed=0):
+def make_scene(domain_name, dim=None, dx=None, jitter=0.1, seed=0, max_particles=None):
     """Domain (None for the periodic interior), dx and initial Atoms of a named scene or a geometry file.
 
     Parameters
@@ -43,6 +43,9 @@ def make_scene(domain_name, dim=None, dx=None, jitter=0.1, seed=0):
         Background cell size; None: 1/256 in 2D, 1/32 in 3D (files: extent/128 or extent/32).
     jitter, seed :
         Initial random shift as a fraction of dx, and its seed (:func:`ase_sphrelax.build.fill`).
+    max_particles : float or None
+        Print the fill's estimate (:func:`ase_sphrelax.cli.common.check_fill_size`) and refuse it past
+        this; None: :func:`~ase_sphrelax.build.fill`'s default limit, nothing printed.
 
     Returns
     -------
@@ -86,5 +89,11 @@ def make_scene(domain_name, dim=None, dx=None, jitter=0.1, seed=0):
             dx = float(np.max(hi - lo)) / (128 if domain.dim == 2 else 32)
     # a box's mesh starts at its corner: N dx^d = V whenever the sides are whole numbers of dx
     origin = domain.bounds[0] if domain_name == "box" else None
-    atoms = fill(domain, dx, jitter=jitter, seed=seed, origin=origin)
+    limit = {}
+    if max_particles is not None:
+        from .common import check_fill_size
+
+        check_fill_size(domain, dx, max_particles)
+        limit = dict(max_particles=max_particles)
+    atoms = fill(domain, dx, jitter=jitter, seed=seed, origin=origin, **limit)
     return Scene(domain, dx, atoms)

@@ -37,13 +37,14 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 
 import numpy as np
 from ase import Atoms
 from ase.constraints import FixAtoms
 from ase.optimize.optimize import Optimizer
 
-from ..checks import check_positive
+from ..checks import NotConvergedWarning, check_positive
 
 __all__ = ["BIPIPacker", "initial_fill", "pack", "STAGES"]
 
@@ -52,7 +53,7 @@ CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
 DROP_FRACTION = 1.0 / 8.0  # BIPI2D's generator drops cell centres within dx/8 of the boundary
 
 
-def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION):
+def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=None):
     """Step 1: one particle per Cartesian cell centre inside, none within ``drop * dx`` of the boundary.
 
     Parameters
@@ -63,6 +64,9 @@ def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION):
         Grid anchor (:func:`ase_sphrelax.build.fill`); default the coordinate origin.
     drop : float
         Fraction of ``dx``.
+    max_particles : float or None
+        Refuse a fill of more particles (:func:`ase_sphrelax.build.fill`; default its
+        :data:`~ase_sphrelax.build.MAX_PARTICLES`).
 
     Returns
     -------
@@ -79,7 +83,7 @@ def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION):
     if np.any(hi - lo < dx):
         raise ValueError(f"dx={dx!r} is larger than the shape (extent {np.round(hi - lo, 6).tolist()}): no particle "
                          "would be placed; choose a smaller dx")
-    atoms = fill(domain, dx, jitter=0.0, origin=origin)
+    atoms = fill(domain, dx, jitter=0.0, origin=origin, **({} if max_particles is None else dict(max_particles=max_particles)))
     keep = domain.phi(atoms.positions) < -drop * dx
     if not keep.any():
         raise ValueError(f"dx={dx!r}: no cell centre lies farther than {drop:g} dx inside the boundary; choose a "
@@ -152,6 +156,7 @@ class BIPIPacker(Optimizer):
             raise ValueError(f"outside must be 'raise' or 'move', got {outside!r}")
         self.progress = bool(progress)
         calc.validate_atoms(atoms)
+        calc.check_spacing(len(atoms), final=True)  # Step 2a evaluates subsets: check the whole set once
         self.moved_in = self._bring_inside(atoms, outside)
         Optimizer.__init__(self, atoms, logfile=logfile, trajectory=trajectory, **kwargs)
 
@@ -188,6 +193,8 @@ class BIPIPacker(Optimizer):
         self._done = False
         self._final = None
         self._movable_all = None
+        self.stopped_by = {}  # stage -> "rule", "cap" or "nothing to move"
+        self.degenerate = False
 
     def read(self):
         raise NotImplementedError("BIPIPacker has no restart file")
@@ -224,6 +231,7 @@ class BIPIPacker(Optimizer):
         self._sel = np.nonzero(selected)[0]
         sub = Atoms(positions=r[self._sel], cell=atoms.cell, pbc=atoms.pbc)
         sub.calc = self.calc.clone()
+        sub.calc.skip_spacing_check()  # a subset: the whole set was checked
         self._sub = sub
         self._movable = packable[self._sel] & ~self._user_fixed(len(atoms))[self._sel]
         self._x0_sub = self.x0[self._sel]
@@ -291,20 +299,27 @@ class BIPIPacker(Optimizer):
             self.atoms.positions[self._sel] = self._sub.positions
             n_pack, n_sel = int(self._movable.sum()), len(self._sel)
             self._metric.append(tpd)
-            self._done = self.stage_iterations["2a"] + 1 >= self.max_steps_2a or self._stop(self._metric)
+            if self._stop(self._metric):
+                self._done, self.stopped_by["2a"] = True, "rule"
+            elif self.stage_iterations["2a"] + 1 >= self.max_steps_2a:
+                self._done, self.stopped_by["2a"] = True, "cap"
         elif self.stage == "2c":
             if self._movable_all is None:
                 self._movable_all = ~self._user_fixed(len(self.atoms))
             movable = self._movable_all
+            if not movable.any():  # every particle frozen or fixed: iterations would move nothing
+                self._done, self.stopped_by["2c"], self.degenerate = True, "nothing to move", True
+                return
             grad_c, gradc = self._evaluate(self.atoms, movable)
             self._metric.append(gradc)
             if self._stop(self._metric):
-                self._done = True
+                self._done, self.stopped_by["2c"] = True, "rule"
                 self._final = dict(gradc_avg=gradc)
                 return
             tpd, rejected = self._move(self.atoms, grad_c, self.x0, movable)
             n_pack, n_sel = int(movable.sum()), len(self.atoms)
-            self._done = self.stage_iterations["2c"] + 1 >= self.max_steps_2c
+            if self.stage_iterations["2c"] + 1 >= self.max_steps_2c:
+                self._done, self.stopped_by["2c"] = True, "cap"
         else:
             raise RuntimeError(f"no iteration in stage {self.stage!r}")
         self.stage_iterations[self.stage] += 1
@@ -370,9 +385,16 @@ class BIPIPacker(Optimizer):
             bar.close()
 
     def run(self, steps=None, fmax=None):
-        """Run every stage to its stopping rule or cap; ``steps`` caps the total. Returns True when done."""
+        """Run every stage to its stopping rule or cap; ``steps`` caps the total. Returns True when done.
+
+        A run that finished its stages without converging (:meth:`verdict`) warns
+        (:class:`~ase_sphrelax.checks.NotConvergedWarning`)."""
         for _ in self.irun(steps):
             pass
+        if self.stage == "done":
+            converged, reason = self.verdict()
+            if not converged:
+                warnings.warn(f"BIPIPacker: not converged: {reason}", NotConvergedWarning, stacklevel=2)
         return self.stage == "done"
 
     # -- results -----------------------------------------------------------------------
@@ -390,6 +412,31 @@ class BIPIPacker(Optimizer):
                 out[f"gradc_avg_{s}_first"] = rows[0]["gradc_avg"]
                 out[f"gradc_avg_{s}_last"] = rows[-1]["gradc_avg"]
         return out
+
+    def verdict(self):
+        """``(converged, reason)``: did every stage that ran stop by its own 1 % rule, and improve?
+
+        Not converged: a stage reached its iteration cap first; Step 2c had no particle to move
+        (every one frozen in Step 2b or fixed: degenerate, ``self.degenerate``); or ``|grad C|_avg``
+        of Step 2c ended above where it started (the packing is worse than the fill). A run stopped
+        before its last stage (``run(steps=...)``) is not converged either.
+        """
+        if self.degenerate:
+            return False, (f"degenerate: all {len(self.atoms)} particles are frozen in Step 2b or fixed, so Step 2c "
+                           "had nothing to move (choose a smaller dx)")
+        if self.stage != "done":
+            return False, f"stopped in Step {self.stage} before the stages finished"
+        caps = {"2a": self.max_steps_2a, "2c": self.max_steps_2c}
+        capped = [s for s, how in self.stopped_by.items() if how == "cap"]
+        if capped:
+            return False, "; ".join(f"Step {s} reached its cap of {caps.get(s)} iterations before its "
+                                    f"{100 * self.tol:g} % rule" for s in capped)
+        rows = [r["gradc_avg"] for r in self.history if r["stage"] == "2c"]
+        if rows and self._final is not None and self._final["gradc_avg"] > rows[0]:
+            return False, (f"|grad C|_avg of Step 2c rose from {rows[0]:.4g} to {self._final['gradc_avg']:.4g}: "
+                           "the packing ended worse than it started")
+        ran = ", ".join(f"{s} by its {100 * self.tol:g} % rule" for s in self.stopped_by) or "no stage ran"
+        return True, f"Step {ran}"
 
     def final_gradc_avg(self):
         """|grad C|_avg over the movable (unfrozen) particles at the current positions."""
