@@ -154,7 +154,8 @@ def run(args):
                    stop_reason=result["stop_reason"], converged=result["converged"],
                    convergence_reason=result["convergence_reason"],
                    max_relative_error=diagnostics["max_relative_error"],
-                   zero_target_particles=diagnostics["zero_target_particles"], regions=diagnostics["regions"],
+                   zero_target_particles=diagnostics["zero_target_particles"],
+                   zero_region_particles=diagnostics["zero_region_particles"], regions=diagnostics["regions"],
                    mass=float(calc.mass), wall_time_s=wall)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"dynamics: {result['steps']} steps, stopped by {result['stop_reason']}, "

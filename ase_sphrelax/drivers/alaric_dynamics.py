@@ -31,7 +31,7 @@ from ase.md.md import MolecularDynamics
 
 from .. import sph
 from ..checks import NotConvergedWarning, check_positive
-from ..models.alaric import convergence_verdict, density_diagnostics
+from ..models.alaric import convergence_verdict, density_diagnostics, zero_region_mask
 from ..splitting import split_particles
 
 __all__ = ["ALARICDynamics", "TimeStepError"]
@@ -430,7 +430,9 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         bar.close()
     atoms.set_masses(np.full(len(atoms), calc.mass))
     res = calc.results
-    diagnostics = density_diagnostics(res["density"], res["target"], res["number_density"])
+    zero_region_p = zero_region_mask(calc.target, calc.points(atoms.positions, atoms), res["smoothing_lengths"],
+                                     res["target"])
+    diagnostics = density_diagnostics(res["density"], res["target"], res["number_density"], zero_region_p)
     periods = [float(np.linalg.norm(atoms.cell[c])) for c in range(dim) if atoms.pbc[c]]
     converged, reason = convergence_verdict(dyn.stop_reason, diagnostics, res["smoothing_lengths"], periods,
                                             epsilon_min)
