@@ -23,17 +23,7 @@ from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
 from ase_sphrelax.drivers.wvt import WVTRelaxation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from alaric_reproduce import circle_start, uniform_density  # noqa: E402 (the same start as Fig. 13 there)
-
-from ase_sphrelax.models import alaric as model  # noqa: E402
-
-
-def eps_of(atoms, calc):
-    """Eq. 45 with the Eq. 44 mass, from a force evaluation (the paper form has no energy)."""
-    atoms.get_forces()
-    r = calc.results
-    m = model.reset_mass(r["target"], r["number_density"])
-    return model.epsilon(m * r["number_density"], r["target"], r["number_density"])
+from alaric_reproduce import circle_start, eps_of, uniform_density  # noqa: E402 (the same start as Fig. 13 there)
 
 
 def nn_ratio(atoms):
@@ -59,7 +49,8 @@ def alaric(n, steps, form, seed):
     except Exception as exc:  # noqa: BLE001 - a failed run is a result
         error = f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - t0
-    return dict(method=f"ALARIC ({form})", steps=dyn.nsteps, epsilon=eps_of(atoms, calc), nn_min_over_mean=nn_ratio(atoms),
+    return dict(method=f"ALARIC ({form})", steps=dyn.nsteps, epsilon=eps_of(atoms, calc),
+                nn_min_over_mean=nn_ratio(atoms),
                 nn_min_over_mean_start=nn0, wall_s=wall, dt_min=float(min(dts)) if dts else None,
                 dt_median=float(np.median(dts)) if dts else None, error=error,
                 trace=[(e["step"], e["epsilon"]) for e in dyn.trace])

@@ -106,7 +106,8 @@ def test_coincident_particles_are_named(dim, k):
     pos = np.zeros((len(grid), 3))
     pos[:, :dim] = (grid + 0.5) / n_side
     pos[1:k] = pos[0]
-    atoms = Atoms(numbers=np.zeros(len(pos), int), positions=pos, cell=np.eye(3), pbc=[True] * dim + [False] * (3 - dim))
+    atoms = Atoms(numbers=np.zeros(len(pos), int), positions=pos, cell=np.eye(3),
+                  pbc=[True] * dim + [False] * (3 - dim))
     calc = ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=dim)
     atoms.calc = calc
     assert k * calc.kernel.sigma * calc.kernel.f0 >= calc.eta**dim * (1 - 1e-12)

@@ -122,7 +122,8 @@ class Target:
         top = np.argsort(-np.abs(fd_pd).sum(axis=1))[:points]
         fd_pd, given_pd, pick = fd_pd[top], given_pd[pick][top], pick[top]
         rho_max = float(np.abs(self.values(x_pd[pick])).max())
-        tol = 1e-3 * max(float(np.abs(fd_pd).max()), float(np.abs(given_pd).max())) + 1e3 * 2.2e-16 * rho_max / self.fd_step
+        scale = max(float(np.abs(fd_pd).max()), float(np.abs(given_pd).max()))
+        tol = 1e-3 * scale + 1e3 * np.finfo(float).eps * rho_max / self.fd_step  # plus the differences' rounding
         err_p = np.abs(given_pd - fd_pd).max(axis=1)
         if np.any(err_p > tol):
             k = int(np.argmax(err_p))
@@ -290,7 +291,8 @@ def density_diagnostics(rho_p, target_p, n_p, zero_region_p=None):
     for k in np.unique(decade_p):
         sel = decade_p == k
         idx = np.nonzero(positive)[0][sel]
-        out["regions"].append(dict(target_range=[float(10.0 ** (-k - 1)), float(10.0 ** (-k)) if k else 1.0], n=int(sel.sum()),
+        out["regions"].append(dict(target_range=[float(10.0 ** (-k - 1)), float(10.0 ** (-k)) if k else 1.0],
+                                   n=int(sel.sum()),
                                    epsilon=epsilon(rho_p[idx], target_p[idx], n_p[idx]),
                                    rms_relative_error=float(np.sqrt(np.mean(rel_p[sel] ** 2))),
                                    max_relative_error=float(rel_p[sel].max())))
