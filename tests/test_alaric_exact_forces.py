@@ -122,3 +122,31 @@ def test_omega_floor_is_for_the_paper_form_only():
     with pytest.raises(ValueError, match="omega_floor must be"):
         ALARICCalculator(target_density=density, dim=1, form="paper", omega_floor=-1.0)
     ALARICCalculator(target_density=density, dim=1, form="paper", omega_floor=0.0)
+
+
+def test_dynamics_resolves_the_stiff_force_of_a_close_pair():
+    """The exact force at a pair 1e-4 apart is stiff (Omega ~ 4e-3); the dynamics' force step C sqrt(H/|a|)
+    shrinks for it, the pair separates and epsilon falls, with no TimeStepError."""
+    from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
+
+    n = 60
+    rng = np.random.default_rng(0)
+    x = np.sort(rng.uniform(0.0, 2.0, n))
+    x[15] = x[14] + 1e-4
+    pos = np.zeros((n, 3))
+    pos[:, 0] = x
+    atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[2.0, 0.0, 0.0], pbc=[True, False, False])
+    atoms.calc = ALARICCalculator(target_density=lambda y: 1 + 0.5 * np.sin(np.pi * y[:, 0]),
+                                  target_gradient=lambda y: (0.5 * np.pi * np.cos(np.pi * y[:, 0]))[:, None],
+                                  dim=1, origin=[-1.0])
+    atoms.get_forces()
+    eps0 = atoms.calc.results["epsilon"]
+    dyn = ALARICDynamics(atoms)
+    steps = []
+    dyn.attach(lambda: steps.append(dyn.dt), interval=1)
+    dyn.run(300)
+    assert np.all(np.isfinite(atoms.positions))
+    assert min(steps[:5]) < 0.2 * np.median(steps)  # the force condition acted on the close pair
+    xs = np.sort(np.mod(atoms.positions[:, 0], 2.0))
+    assert np.diff(np.concatenate([xs, [xs[0] + 2.0]])).min() > 100 * 1e-4
+    assert atoms.calc.results["epsilon"] < 1e-2 * eps0
