@@ -76,11 +76,8 @@ def test_forces_are_the_negative_gradient_at_close_pairs_and_triples(dim, form, 
     assert calc.results["omega"].min() > 0.0
 
 
-def test_issue_reproducer_close_pair_1d():
-    """60 random particles on a periodic interval, two of them 1e-4 apart (Omega ~ 4e-3): force = -dU/dx.
-
-    With Omega floored at 0.05 in the forces this gave -0.755 against the central difference -20.8.
-    """
+def _issue_start(**calc_options):
+    """The issue's case: 60 uniformly random particles on the periodic [-1, 1), particles 14 and 15 1e-4 apart."""
     n = 60
     rng = np.random.default_rng(0)
     x = np.sort(rng.uniform(0.0, 2.0, n))
@@ -90,7 +87,16 @@ def test_issue_reproducer_close_pair_1d():
     atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[2.0, 0.0, 0.0], pbc=[True, False, False])
     atoms.calc = ALARICCalculator(target_density=lambda y: 1 + 0.5 * np.sin(np.pi * y[:, 0]),
                                   target_gradient=lambda y: (0.5 * np.pi * np.cos(np.pi * y[:, 0]))[:, None],
-                                  dim=1, h_tol=1e-13, origin=[-1.0])
+                                  dim=1, origin=[-1.0], **calc_options)
+    return atoms
+
+
+def test_issue_reproducer_close_pair_1d():
+    """60 random particles on a periodic interval, two of them 1e-4 apart (Omega ~ 4e-3): force = -dU/dx.
+
+    With Omega floored at 0.05 in the forces this gave -0.755 against the central difference -20.8.
+    """
+    atoms = _issue_start(h_tol=1e-13)
     f = atoms.get_forces()
     assert atoms.calc.results["omega"][14] < 0.01
     idx = [13, 14, 15, 16]
@@ -129,16 +135,7 @@ def test_dynamics_resolves_the_stiff_force_of_a_close_pair():
     shrinks for it, the pair separates and epsilon falls, with no TimeStepError."""
     from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
 
-    n = 60
-    rng = np.random.default_rng(0)
-    x = np.sort(rng.uniform(0.0, 2.0, n))
-    x[15] = x[14] + 1e-4
-    pos = np.zeros((n, 3))
-    pos[:, 0] = x
-    atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[2.0, 0.0, 0.0], pbc=[True, False, False])
-    atoms.calc = ALARICCalculator(target_density=lambda y: 1 + 0.5 * np.sin(np.pi * y[:, 0]),
-                                  target_gradient=lambda y: (0.5 * np.pi * np.cos(np.pi * y[:, 0]))[:, None],
-                                  dim=1, origin=[-1.0])
+    atoms = _issue_start()
     atoms.get_forces()
     eps0 = atoms.calc.results["epsilon"]
     dyn = ALARICDynamics(atoms)
