@@ -78,6 +78,26 @@ class SmoothingLengthError(ValueError):
     """The smoothing-length iteration failed for (at least) one particle; the message names it."""
 
 
+def _coincidence_note(r_pc, a, h_a):
+    """``"; it coincides with particles [..]"`` (or lies within ``H`` of them) for particle ``a``, else ``""``.
+
+    Only on the error path (an O(N) scan). ``k`` particles at one point hold ``k sigma f(0)`` kernel
+    neighbours for every H: with ``k sigma f(0) >= eta^d`` the constraint ``n H^d = eta^d`` has no
+    solution with ``Omega > 0``, which is the usual reason for a failed solve.
+    """
+    dist_p = np.sqrt(((r_pc - r_pc[a]) ** 2).sum(axis=1))
+    dist_p[a] = np.inf
+    same = np.nonzero(dist_p == 0.0)[0]
+    if len(same):
+        return (f"; it coincides with particle(s) {same[:10].tolist()} (coincident particles hold sigma f(0) kernel "
+                f"neighbours each for every H: move them apart)")
+    close = np.nonzero(dist_p <= max(float(h_a), 0.0))[0] if np.isfinite(h_a) else np.array([], int)
+    if len(close) and h_a < 1e-6 * max(float(np.ptp(r_pc, axis=0).max()), 1e-300):
+        return (f"; it (nearly) coincides with particle(s) {close[:10].tolist()} at distance "
+                f"{float(dist_p[close].min()):.3g} (move them apart)")
+    return ""
+
+
 # -- a D-component tuple scaled by a number, for the vector terms of the pair functions ------------
 def scaled(g, d):
     """``(g * d[0], ..., g * d[D-1])`` inside numba code, for a tuple ``d`` of any length."""
@@ -479,9 +499,15 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
         a = int(np.argmax(active_p))
         raise SmoothingLengthError(
             f"particle {a} at {r_pc[a].tolist()}: smoothing length did not converge in {max_iter} iterations "
-            f"(H = {h_p[a]:.6g}, bracket [{lo_p[a]:.6g}, {hi_p[a]:.6g}], {int(active_p.sum())} particles left)")
+            f"(H = {h_p[a]:.6g}, bracket [{lo_p[a]:.6g}, {hi_p[a]:.6g}], {int(active_p.sum())} particles left)"
+            + _coincidence_note(r_pc, a, h_p[a]))
     norm_p = sigma / h_p**d
     omega_p = -t_p / (d * s_p)
+    if not np.all(omega_p > 0.0):  # NaN included: H is not a differentiable function of the positions there
+        a = int(np.argmax(~(omega_p > 0.0)))
+        raise SmoothingLengthError(
+            f"particle {a} at {r_pc[a].tolist()}: Omega (Eq. 13) = {omega_p[a]:.3g} at H = {h_p[a]:.6g}: n H^d = "
+            f"eta^d does not fix H (no energy gradient)" + _coincidence_note(r_pc, a, h_p[a]))
     return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
 
 

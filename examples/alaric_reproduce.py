@@ -67,8 +67,8 @@ def line_atoms(n, delta, form="log"):
 
 
 def eps_of(atoms, calc):
-    """eps of Eq. 45 with the Eq. 44 mass (for any driver)."""
-    atoms.get_potential_energy()
+    """eps of Eq. 45 with the Eq. 44 mass (for any driver and form: the paper's Eq. 29 form has no energy)."""
+    atoms.get_forces()
     r = calc.results
     m = model.reset_mass(r["target"], r["number_density"])
     return model.epsilon(m * r["number_density"], r["target"], r["number_density"])

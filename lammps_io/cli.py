@@ -184,6 +184,25 @@ def write_vtk(atoms, path, dim=None):
     return Path(path)
 
 
+def _in_cell_frame(atoms, dim):
+    """Positions shifted by ``-atoms.info["origin"]`` (the frame of ``sphrelax density``'s 1D output: positions in
+    ``[-1, 1)``, cell ``[0, 2)``, origin ``[-1]``) and wrapped along periodic axes, as ase_sphrelax.io does."""
+    origin = atoms.info.get("origin")
+    if origin is None:
+        return atoms
+    origin = np.ravel(np.asarray(origin, dtype=float))
+    if len(origin) not in (dim, 3) or not np.all(np.isfinite(origin)):
+        raise ValueError(f"atoms.info['origin'] must be {dim} (or 3) finite numbers, got {atoms.info['origin']!r}")
+    atoms = atoms.copy()
+    atoms.positions[:, : len(origin)] -= origin
+    cell = atoms.cell.array
+    for k in range(dim):
+        if atoms.pbc[k] and cell[k, k] > 0:
+            atoms.positions[:, k] = np.mod(atoms.positions[:, k], cell[k, k])
+    atoms.info["origin"] = [0.0] * len(origin)
+    return atoms
+
+
 def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx=None, rho0=1.0, margin=None,
                dim=None, support=None, kernel="cubic-spline", cs2=None, gamma=5.0 / 3.0, internal_energy=None):
     """``sphrelax export``: write particles as LAMMPS data, extxyz, VTK, SWIFT, GADGET-4 HDF5 or VTU.
@@ -231,6 +250,7 @@ def cli_export(atoms_or_path, output, fmt=None, atom_style="sph", units="lj", dx
         return _export_io(atoms, output, fmt, units=units, dim=dim, dx=dx, rho0=rho0, margin=margin,
                           support=support, kernel=kernel, cs2=cs2, gamma=gamma, internal_energy=internal_energy)
     dim = infer_dim(atoms) if dim is None else dim
+    atoms = _in_cell_frame(atoms, dim)
     if fmt == "vtk":
         return write_vtk(atoms, output, dim)
     if units not in UNIT_STYLES:

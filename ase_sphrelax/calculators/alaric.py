@@ -16,9 +16,9 @@ from ..kernels import get_kernel
 from ..models import alaric as model
 from .base import SPHCalculator
 
-__all__ = ["ALARICCalculator", "FLOOR", "OMEGA_MIN"]
+__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR"]
 
-OMEGA_MIN = 0.05  # Omega (Eq. 13) is floored here in the forces (degenerate H only; ~1 otherwise)
+PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
 
 
@@ -52,6 +52,11 @@ class ALARICCalculator(SPHCalculator):
         ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
         non-conservative: forces only (``energy`` raises PropertyNotImplementedError); the log
         potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`).
+    omega_floor : float or None
+        ``form="paper"`` only (it has no energy, so no gradient to keep): Omega (Eq. 13) is replaced by
+        ``max(Omega, omega_floor)`` in its forces; default :data:`PAPER_OMEGA_FLOOR` (0.05), ``0`` for the
+        exact Omega. The conservative forms always use the exact Omega (a floor there made the force differ
+        from -grad U by 35x at a pair 1e-4 H apart), and refuse ``omega_floor``.
     domain : Domain or None
         Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
     wall_length : float or None
@@ -81,8 +86,8 @@ class ALARICCalculator(SPHCalculator):
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
-                              kernel="wendland_c4", eta=None, form="log", domain=None, wall_length=None,
-                              density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
+                              kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None,
+                              wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):
         self.mass = None
@@ -115,6 +120,12 @@ class ALARICCalculator(SPHCalculator):
         p.density_floor = check_positive("density_floor", p.density_floor, allow_none=True)
         if p.form not in model.FORMS:
             raise ValueError(f"form must be one of {model.FORMS}, got {p.form!r}")
+        if p.omega_floor is not None:
+            if p.form != "paper":
+                raise ValueError(f"omega_floor is for form='paper' only (form={p.form!r} has an energy whose exact "
+                                 f"gradient needs the exact Omega), got omega_floor={p.omega_floor!r}")
+            if not (np.isfinite(p.omega_floor) and 0.0 <= p.omega_floor < 1.0):
+                raise ValueError(f"omega_floor must be a number in [0, 1) or None, got {p.omega_floor!r}")
         if p.skin is not None and (not np.isfinite(p.skin) or p.skin < 0):
             raise ValueError(f"skin must be a finite number >= 0 or None, got {p.skin!r}")
         if p.domain is not None:
@@ -276,9 +287,13 @@ class ALARICCalculator(SPHCalculator):
         p = self.parameters
         m, cs2 = self.mass, p.cs2
         rho_p = m * state.n_p
-        # Omega -> 0 when H is undetermined (in 1D, two coincident particles alone hold eta^d = sigma f(0) 2
-        # neighbours for any H): floored, which leaves the exact gradient everywhere Omega >= OMEGA_MIN
-        omega_p = np.maximum(state.omega_p, OMEGA_MIN)
+        # the exact Omega, never floored: a floor here made the force differ from -grad U by 35x at a pair
+        # 1e-4 H apart (Omega 1e-3); the stiff force is the dynamics' to resolve (its force time step)
+        omega_p = state.omega_p
+        if p.form == "paper":
+            floor = PAPER_OMEGA_FLOOR if p.omega_floor is None else p.omega_floor
+            if floor > 0.0:
+                omega_p = np.maximum(omega_p, floor)
         if p.form == "log":
             pr_p = cs2 / (omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
         elif p.form == "squares":  # de/drho / Omega, e = c_s^2 (rho - rho*)^2 / (2 rho_ref)

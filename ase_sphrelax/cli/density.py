@@ -95,6 +95,9 @@ def run(args):
         if n0 * p**args.split != args.n:
             raise UsageError(f"--n {args.n} is not divisible by p^K = {p}^{args.split} (p = {p} in {dim}D)")
         domain = None
+        if dim == 1 and args.domain != "ball":
+            raise UsageError(f"--domain is for --dim 2 or 3 (1D runs on the periodic interval [-1, 1)), "
+                             f"got --domain {args.domain!r} with --dim 1")
         if dim > 1 and args.domain != "ball":
             from .scene import make_scene
 
@@ -118,19 +121,20 @@ def run(args):
     do_polish = (dim == 1 if args.polish is None else args.polish) and args.polish_steps > 0
     print(f"ALARIC: profile {args.profile} ({dim}D), {len(atoms)} particles x {p}^{args.split} -> {args.n}, "
           f"form {args.form}{' + least-squares polish' if do_polish else ''}")
-    result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
-                           origin=origin, form=args.form, polish=do_polish,
-                           polish_steps=args.polish_steps, max_steps=args.max_steps,
-                           eps_min=args.eps_min, progress=show_progress(args), seed=args.seed)
-    atoms = result["atoms"]
-    calc = result["calculator"]
-    res = calc.results
-    eps = float(result["epsilon"])
     eps_teo = None
     if eq48:
         from ..analysis.alaric import alaric_min_error
 
-        eps_teo = alaric_min_error(len(atoms), args.delta, dim)
+        eps_teo = alaric_min_error(args.n, args.delta, dim)
+    result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
+                           origin=origin, form=args.form, polish=do_polish,
+                           polish_steps=args.polish_steps, max_steps=args.max_steps,
+                           eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
+    atoms = result["atoms"]
+    calc = result["calculator"]
+    res = calc.results
+    eps = float(result["epsilon"])
+    diagnostics = result["diagnostics"]
     wall = time.perf_counter() - t_start
     out.mkdir(parents=True, exist_ok=True)
     atoms.new_array("h", np.asarray(res["smoothing_lengths"], dtype=float))
@@ -147,12 +151,21 @@ def run(args):
                    form=args.form, polish=do_polish, epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),
-                   stop_reason=result["stop_reason"], mass=float(calc.mass), wall_time_s=wall,
+                   stop_reason=result["stop_reason"], converged=result["converged"],
+                   convergence_reason=result["convergence_reason"],
+                   max_relative_error=diagnostics["max_relative_error"],
+                   zero_target_particles=diagnostics["zero_target_particles"],
+                   zero_region_particles=diagnostics["zero_region_particles"], regions=diagnostics["regions"],
+                   mass=float(calc.mass), wall_time_s=wall,
                    **provenance(args, "density"))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     print(f"dynamics: {result['steps']} steps, stopped by {result['stop_reason']}, "
           f"epsilon {result['epsilon_dynamics']:.3e}")
     print(f"final epsilon (Eq. 45): {eps:.3e}" + (f"   (Eq. 48 minimum {eps_teo:.2e})" if eps_teo is not None else ""))
+    print(f"max |rho/rho* - 1|: {diagnostics['max_relative_error']}; per decade of rho*/max: "
+          + ", ".join(f"[{r['target_range'][0]:.0e}, {r['target_range'][1]:.0e}] n={r['n']} eps={r['epsilon']:.2e} "
+                      f"rms|rho/rho*-1|={r['rms_relative_error']:.2e}" for r in diagnostics["regions"]))
+    print(("converged: " if result["converged"] else "NOT CONVERGED: ") + result["convergence_reason"])
     print(f"wall time: {wall:.1f} s")
     print(f"wrote {out / 'relaxed.extxyz'}, {out / 'density.png'}, {out / 'trace.json'}, {out / 'summary.json'}")
     return 0

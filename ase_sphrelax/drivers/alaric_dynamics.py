@@ -24,12 +24,14 @@ on or off: **S** velocity stops, **F** friction, **V** viscosity, and splitting.
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 from ase.md.md import MolecularDynamics
 
 from .. import sph
-from ..checks import check_positive
+from ..checks import NotConvergedWarning, check_positive
+from ..models.alaric import convergence_verdict, density_diagnostics, zero_region_mask
 from ..splitting import split_particles
 
 __all__ = ["ALARICDynamics", "TimeStepError"]
@@ -365,7 +367,7 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
 
 def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
                   form="log", polish=None, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
-                  progress=False, seed=0, **dynamics):
+                  progress=False, seed=0, epsilon_min=None, **dynamics):
     """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
     least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
 
@@ -376,12 +378,18 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     lowers epsilon by pairing particles (measured on the uniform circle: nearest-neighbour distance
     down to 0.017 of the mean, epsilon 1e-5 to 1e-12), so there it is opt-in.
 
+    ``epsilon_min``: the lowest attainable epsilon when known (Eq. 48 for Eq. 46's profile); a result
+    below it is reported as degenerate.
+
     Returns
     -------
     dict
         ``atoms`` (relaxed, masses = the Eq. 44 mass), ``calculator``, ``dynamics``, ``epsilon``
         (final), ``epsilon_dynamics`` (before the polish), ``trace`` (list of dicts: step, epsilon,
-        N, stage, phase), ``steps``, ``force_calls``, ``stop_reason``, ``wall_time``.
+        N, stage, phase), ``steps``, ``force_calls``, ``stop_reason``, ``wall_time``, ``converged`` and
+        ``convergence_reason`` (:func:`~ase_sphrelax.models.alaric.convergence_verdict`; a
+        :class:`~ase_sphrelax.checks.NotConvergedWarning` when False), ``diagnostics``
+        (:func:`~ase_sphrelax.models.alaric.density_diagnostics`: max ``|rho/rho* - 1|`` and epsilon per region).
     """
     from ..calculators.alaric import ALARICCalculator
     from ..models.alaric import reset_mass
@@ -421,9 +429,20 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     if bar is not None:
         bar.close()
     atoms.set_masses(np.full(len(atoms), calc.mass))
+    res = calc.results
+    zero_region_p = zero_region_mask(calc.target, calc.points(atoms.positions, atoms), res["smoothing_lengths"],
+                                     res["target"])
+    diagnostics = density_diagnostics(res["density"], res["target"], res["number_density"], zero_region_p)
+    periods = [float(np.linalg.norm(atoms.cell[c])) for c in range(dim) if atoms.pbc[c]]
+    converged, reason = convergence_verdict(dyn.stop_reason, diagnostics, res["smoothing_lengths"], periods,
+                                            epsilon_min)
+    if not converged:
+        warnings.warn(f"ALARIC did not converge: {reason} (epsilon {eps_final:.3g}, max |rho/rho* - 1| "
+                      f"{diagnostics['max_relative_error']})", NotConvergedWarning, stacklevel=2)
     return dict(atoms=atoms, calculator=calc, dynamics=dyn, epsilon=eps_final, epsilon_dynamics=eps_dyn, trace=trace,
                 steps=dyn.nsteps, force_calls=force_calls, stop_reason=dyn.stop_reason,
-                wall_time=time.perf_counter() - t0)
+                wall_time=time.perf_counter() - t0, converged=converged, convergence_reason=reason,
+                diagnostics=diagnostics)
 
 
 def _target_and_n(calc, atoms):

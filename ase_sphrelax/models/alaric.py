@@ -40,7 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORMS", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass"]
+__all__ = ["FORMS", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics",
+           "convergence_verdict", "zero_region_mask"]
 
 FORMS = ("log", "squares", "paper")
 
@@ -71,6 +72,7 @@ class Target:
         self.dim = dim
         self.fd_step = fd_step
         self.calls = 0
+        self.gradient_checked = gradient is None
 
     def values(self, x_pd):
         """rho*(x) at points (N, d), validated: shape (N,), finite, >= 0."""
@@ -101,7 +103,38 @@ class Target:
             out = out.reshape(n, self.dim)
             if not np.all(np.isfinite(out)):
                 raise ValueError("target_gradient returned NaN or inf")
+            if not self.gradient_checked:
+                self.check_gradient(x_pd, out)
             return out
+        return self._central_differences(x_pd)
+
+    def check_gradient(self, x_pd, given_pd, points=8):
+        """Compare the given gradient with central differences of the density at a few points (once).
+
+        The points are the ``points`` of ``x_pd`` with the largest difference estimate. Raises ValueError
+        naming ``target_gradient`` when they disagree by more than 1e-3 of the larger gradient there
+        (plus the rounding error of the difference): a wrong sign or a gradient of another function.
+        """
+        self.gradient_checked = True
+        n = x_pd.shape[0]
+        pick = np.unique(np.linspace(0, n - 1, min(n, 64)).astype(int))
+        fd_pd = self._central_differences(x_pd[pick])
+        top = np.argsort(-np.abs(fd_pd).sum(axis=1))[:points]
+        fd_pd, given_pd, pick = fd_pd[top], given_pd[pick][top], pick[top]
+        rho_max = float(np.abs(self.values(x_pd[pick])).max())
+        scale = max(float(np.abs(fd_pd).max()), float(np.abs(given_pd).max()))
+        tol = 1e-3 * scale + 1e3 * np.finfo(float).eps * rho_max / self.fd_step  # plus the differences' rounding
+        err_p = np.abs(given_pd - fd_pd).max(axis=1)
+        if np.any(err_p > tol):
+            k = int(np.argmax(err_p))
+            a = int(pick[k])
+            opposite = float((given_pd[k] * fd_pd[k]).sum()) < 0
+            raise ValueError(f"target_gradient is not the gradient of target_density: at point {a} "
+                             f"{x_pd[a].tolist()} it gives {given_pd[k].tolist()}, central differences give "
+                             f"{fd_pd[k].tolist()}{' (wrong sign?)' if opposite else ''}")
+
+    def _central_differences(self, x_pd):
+        n = x_pd.shape[0]
         out = np.empty((n, self.dim))
         step = self.fd_step
         for c in range(self.dim):
@@ -201,3 +234,103 @@ def epsilon(rho_p, target_p, n_p):
 def reset_mass(target_p, n_p):
     """Eq. 44 with the target: ``m = (1/N) sum_a rho*(x_a) / n_a`` (equal masses)."""
     return float(np.mean(np.asarray(target_p, dtype=float) / np.asarray(n_p, dtype=float)))
+
+
+def zero_region_mask(target, x_pd, h_p, target_p):
+    """Particles where ``rho* = 0`` on a stretch of their own size: ``rho*(x_a) = 0`` and ``rho*`` also vanishes at
+    ``x_a +- H_a/2`` along some axis (a particle at an isolated zero, e.g. the bottom of Eq. 46's well with
+    Delta = 0, Fig. 8, is not counted). ``target`` a :class:`Target`."""
+    zero_p = np.asarray(target_p) == 0.0
+    if not np.any(zero_p):
+        return zero_p
+    idx = np.nonzero(zero_p)[0]
+    x_zd = x_pd[idx]
+    region = np.zeros(len(idx), dtype=bool)
+    for c in range(x_pd.shape[1]):
+        for sign in (-0.5, 0.5):
+            shifted = x_zd.copy()
+            shifted[:, c] += sign * np.asarray(h_p)[idx]
+            region |= target.values(shifted) == 0.0
+    out = np.zeros(len(zero_p), dtype=bool)
+    out[idx[region]] = True
+    return out
+
+
+def density_diagnostics(rho_p, target_p, n_p, zero_region_p=None):
+    """Where the density error sits, beside Eq. 45's single number.
+
+    ``epsilon`` (Eq. 45) weighs each particle by ``rho*^2 / n``, so a low-density region (a 1e-6 contrast,
+    or ``rho* = 0``) can be wrong by orders of magnitude while ``epsilon`` stays small. Reported:
+
+    * ``max_relative_error``: ``max |rho_a / rho*_a - 1|`` over the particles with ``rho* > 0``, and
+      ``off_by_more_than_target``: how many of them have ``|rho_a / rho*_a - 1| > 1``;
+    * ``zero_target_particles``: how many particles sit where ``rho* = 0`` (their density is infinitely
+      wrong relative to the target); ``zero_region_particles``: those of them in a region where ``rho* = 0``
+      (``zero_region_p``, from :func:`zero_region_mask`; None: all of them);
+    * ``regions``: per decade of ``rho* / max rho*`` (``[0.1, 1]``, ``[0.01, 0.1)``, ...), the particle count,
+      Eq. 45 restricted to the region, and the RMS and largest ``|rho / rho* - 1|``.
+
+    Returns
+    -------
+    dict
+    """
+    rho_p = np.asarray(rho_p, dtype=float)
+    target_p = np.asarray(target_p, dtype=float)
+    n_p = np.asarray(n_p, dtype=float)
+    positive = target_p > 0.0
+    zero_region = int((~positive).sum()) if zero_region_p is None else int(np.count_nonzero(zero_region_p))
+    out = dict(epsilon=epsilon(rho_p, target_p, n_p), zero_target_particles=int((~positive).sum()),
+               zero_region_particles=zero_region, max_relative_error=None, regions=[])
+    if not np.any(positive):
+        return out
+    rel_p = np.abs(rho_p[positive] / target_p[positive] - 1.0)
+    out["max_relative_error"] = float(rel_p.max())
+    out["off_by_more_than_target"] = int(np.count_nonzero(rel_p > 1.0))
+    level_p = target_p[positive] / target_p.max()
+    decade_p = np.minimum(np.floor(-np.log10(level_p)).astype(int), 300)
+    for k in np.unique(decade_p):
+        sel = decade_p == k
+        idx = np.nonzero(positive)[0][sel]
+        out["regions"].append(dict(target_range=[float(10.0 ** (-k - 1)), float(10.0 ** (-k)) if k else 1.0],
+                                   n=int(sel.sum()),
+                                   epsilon=epsilon(rho_p[idx], target_p[idx], n_p[idx]),
+                                   rms_relative_error=float(np.sqrt(np.mean(rel_p[sel] ** 2))),
+                                   max_relative_error=float(rel_p[sel].max())))
+    return out
+
+
+def convergence_verdict(stop_reason, diagnostics, smoothing_lengths=None, periods=None, epsilon_min=None):
+    """``(converged, reason)`` of an ALARIC run from its stopping rule and where its error sits.
+
+    Not converged when: the step cap ended the run (``stop_reason == "max_steps"``); particles sit where
+    ``rho* = 0`` over a stretch of their own size (``zero_region_particles``); more than one particle has
+    ``|rho / rho* - 1| > 1`` (one may sit alone in a dip of the target: Eq. 48's particle at the bottom of the
+    well) and a region of :func:`density_diagnostics` has an RMS ``|rho / rho* - 1|`` above 1 (the density
+    there is off by more than the target itself, whatever ``epsilon`` says); the run is degenerate: a
+    smoothing length reaches half a periodic cell length (``periods``: the cell lengths along periodic axes),
+    so every particle sees the whole cell and the density is not resolved, or ``epsilon`` is below
+    ``epsilon_min`` (Eq. 48's lowest attainable error, when known).
+    """
+    reasons = []
+    if stop_reason not in ("epsilon", "epsilon_dot"):
+        reasons.append(f"stopped by {stop_reason}, not by its epsilon or epsilon_dot criterion")
+    if diagnostics["zero_region_particles"]:
+        reasons.append(f"{diagnostics['zero_region_particles']} particles sit where rho* = 0 (give a domain that "
+                       f"excludes that region)")
+    # one particle may sit alone in a dip of rho* (Eq. 48's particle at the bottom of the well, Appendix 1): more
+    # than one particle whose density is off by more than the target itself is a region the run did not resolve
+    for region in diagnostics["regions"] if diagnostics.get("off_by_more_than_target", 0) > 1 else ():
+        if region["rms_relative_error"] > 1.0:
+            lo, hi = region["target_range"]
+            reasons.append(f"rho / rho* - 1 has RMS {region['rms_relative_error']:.3g} (max "
+                           f"{region['max_relative_error']:.3g}) over the {region['n']} particles with rho* in "
+                           f"[{lo:.0e}, {hi:.0e}] max rho*")
+    if smoothing_lengths is not None and periods:
+        h_max = float(np.max(smoothing_lengths))
+        if h_max >= 0.5 * min(periods):
+            reasons.append(f"degenerate: a smoothing length ({h_max:.3g}) reaches half the periodic cell "
+                           f"({min(periods):.3g}): every particle sees the whole cell, too few particles")
+    if epsilon_min is not None and diagnostics["epsilon"] < epsilon_min:
+        reasons.append(f"degenerate: epsilon {diagnostics['epsilon']:.3g} is below Eq. 48's lowest attainable "
+                       f"{epsilon_min:.3g} for this profile and N")
+    return (not reasons), "; ".join(reasons) if reasons else f"stopped by {stop_reason}"
