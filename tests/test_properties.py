@@ -48,10 +48,7 @@ def _support(calc, atoms, dim):
 
 # LAMMPS: test_lammps_fan's own checks; the non-conservative forms (ParVI's pressure forms) have no energy
 CONSERVATIVE = [name for name in METHODS if name != "fan lammps" and METHODS[name].make().conservative]
-# ALARIC's smoothing-length solve at near-coincident pairs is a known bug another branch fixes (issue 20 item 1)
-CLOSE_PAIR_CASES = [pytest.param(name, marks=pytest.mark.xfail(strict=False, reason="issue 20 item 1: ALARIC's "
-                                                                   "H solve at near-coincident pairs"))
-                    if name.startswith("alaric") else name for name in CONSERVATIVE]
+CLOSE_PAIR_CASES = CONSERVATIVE  # ALARIC included: its forces are exact at close pairs (issue 20 item 1)
 
 
 @pytest.mark.parametrize("name", CLOSE_PAIR_CASES)
