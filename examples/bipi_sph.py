@@ -7,7 +7,8 @@ Geometry (Boregowda & Liu, Sec. 4.2.1, after Ferrand et al. 2013): a tank 2.05 m
 deep, a wedge of height sqrt(2)/8 m on the floor. The paper gives no more; we take a symmetric
 90-degree wedge (sides at 45 degrees, base sqrt(2)/4 m) centred on the floor. rho0 = 1000 kg/m^3,
 g = 9.81 m/s^2. The water region (floor, wedge, side walls and the free surface as its top edge) is
-the packing domain; h_B / dx = 2 (support h = 4 dx) for the packing and the SPH run alike.
+the packing domain; h_B / dx = 2 (support h = 4 dx) for the packing and, unless ``--sph-h`` gives
+another support (in units of dx), for the SPH run.
 
 Starts (each given the same wall particles: :func:`ase_sphrelax.drivers.bipi_packer.add_walls`,
 ceil(h/dx) layers of the Step-1 grid outside the floor, wedge and side walls, none above the
@@ -107,13 +108,14 @@ def run_case(args):
 
     dx = args.dx
     h = H_OVER_DX * dx
+    h_sph = (args.sph_h or H_OVER_DX) * dx
     boundary = wedge_tank()
     fill = initial_fill(boundary, dx)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    tag = f"wedge_dx{dx:g}"
-    print(f"wedge tank: dx = {dx:g} m, h = {H_OVER_DX:g} dx = {h:g} m (support), {len(fill)} fluid particles",
-          flush=True)
+    tag = f"wedge_dx{dx:g}" + ("" if args.sph_h is None else f"_sphh{args.sph_h:g}")
+    print(f"wedge tank: dx = {dx:g} m, h = {H_OVER_DX:g} dx = {h:g} m (support) for the packing, "
+          f"{h_sph / dx:g} dx in LAMMPS, {len(fill)} fluid particles", flush=True)
     starts = {}
     for name in args.starts:
         atoms, info = make_start(name, boundary, dx, h, fill)
@@ -124,7 +126,7 @@ def run_case(args):
     if args.t_end is None:
         probe_t = 0.05
         t = time.perf_counter()
-        probe = hydrostatic_tank(first, h, dx, t_end=probe_t, **dict(run_kw, samples=5))
+        probe = hydrostatic_tank(first, h_sph, dx, t_end=probe_t, **dict(run_kw, samples=5))
         per_step = (time.perf_counter() - t) / probe["steps"]
         t_end = min(T_PAPER, round(args.budget / per_step * probe["dt"], 2))
         how = (f"chosen from a probe run ({probe['steps']} steps, {per_step * 1e3:.2f} ms/step, dt = "
@@ -132,12 +134,13 @@ def run_case(args):
     else:
         t_end, how = args.t_end, "given by --t-end"
     print(f"physical time per case: {t_end:g} s ({how})", flush=True)
-    results = dict(case="wedge", dx=dx, h=h, h_over_dx=H_OVER_DX, width=WIDTH, depth=DEPTH, wedge_height=WEDGE_HEIGHT,
+    results = dict(case="wedge", dx=dx, h=h, h_over_dx=H_OVER_DX, h_sph=h_sph, width=WIDTH, depth=DEPTH,
+                   wedge_height=WEDGE_HEIGHT,
                    rho0=RHO0, g=G, alpha=args.alpha, t_end=t_end, t_end_how=how, paper_t_end=T_PAPER,
                    command=" ".join([Path(sys.argv[0]).as_posix()] + sys.argv[1:]), starts={})
     for name, (atoms, info) in starts.items():
         t = time.perf_counter()
-        r = hydrostatic_tank(atoms, h, dx, t_end=t_end, **run_kw)
+        r = hydrostatic_tank(atoms, h_sph, dx, t_end=t_end, **run_kw)
         wall = time.perf_counter() - t
         ke = np.array(r["ke_history"])
         row = dict(start=info, n_fluid=r["n_fluid"], n_wall=r["n_wall"], steps=r["steps"], dt=r["dt"], c0=r["c0"],
@@ -241,7 +244,8 @@ def plot(results, path):
     ax_p.plot(results["rho0"] * results["g"] * d / 1e3, d, "k--", label=r"$\rho_0 g d$")
     ax_p.invert_yaxis()
     ax_ke.set(xlabel="t (s)", ylabel="kinetic energy (J per m)",
-              title=f"wedge tank, dx = {results['dx']:g} m, {results['t_end']:g} s")
+              title=f"wedge tank, dx = {results['dx']:g} m, SPH support "
+                    f"{results.get('h_sph', results['h']) / results['dx']:g} dx")
     ax_p.set(xlabel="p (kPa)", ylabel="depth d (m)", title=f"pressure at t = {results['t_end']:g} s")
     ax_ke.legend()
     ax_p.legend(fontsize=8)
@@ -258,6 +262,8 @@ def main(argv=None):
     parser.add_argument("--starts", nargs="*", default=list(STARTS), choices=STARTS)
     parser.add_argument("--t-end", type=float, default=None, help="physical time (default: from --budget)")
     parser.add_argument("--budget", type=float, default=200.0, help="wall seconds per case for the default t_end")
+    parser.add_argument("--sph-h", type=float, default=None,
+                        help="wedge: support of the LAMMPS run in units of dx (default the packing's 4)")
     parser.add_argument("--alpha", type=float, default=0.1, help="Monaghan's artificial viscosity (0.1)")
     parser.add_argument("--samples", type=int, default=200, help="KE samples")
     parser.add_argument("--threads", type=int, default=1, help="OpenMP threads of LAMMPS")
