@@ -19,7 +19,8 @@ water surface):
 * ``fan``: the same Step-1 particles relaxed by Fan's Eq. 2.4 (FanCalculator with the polygon's
   level set, ``make_optimizer("fan")``, c = 0.01, 2000 steps, as in examples/bipi_vs_fan.py).
 
-SPH run: :func:`lammps_io.hydrostatic_tank` (Tait water, c0 = 10 sqrt(g H), Monaghan alpha = 0.1,
+SPH run: :func:`lammps_io.hydrostatic_tank` (Tait water, c0 = 10 sqrt(g H), Monaghan alpha = 0.5
+(``--alpha``; with 0.1 every start, and a flat tank without the wedge, went unstable within 1 s),
 continuity densities, hydrostatic densities at t = 0, Lucy kernel of support h). The physical time
 is ``--t-end``; by default it is chosen from a measured short run so that one case takes about
 ``--budget`` seconds of wall time (capped at the paper's 20 s); the output says which.
@@ -113,7 +114,7 @@ def run_case(args):
     fill = initial_fill(boundary, dx)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    tag = f"wedge_dx{dx:g}" + ("" if args.sph_h is None else f"_sphh{args.sph_h:g}")
+    tag = f"wedge_dx{dx:g}_alpha{args.alpha:g}" + ("" if args.sph_h is None else f"_sphh{args.sph_h:g}")
     print(f"wedge tank: dx = {dx:g} m, h = {H_OVER_DX:g} dx = {h:g} m (support) for the packing, "
           f"{h_sph / dx:g} dx in LAMMPS, {len(fill)} fluid particles", flush=True)
     starts = {}
@@ -187,12 +188,13 @@ def run_drop(args):
     t_end = 2.0 / a0
     print(f"elliptic drop: R = 0.5 m, dx = {dx:g} m, h = {H_OVER_DX:g} dx (support), {len(fill)} particles, "
           f"A0 = {a0:g} 1/s, t_end = {t_end:g} s (A0 t = 2)", flush=True)
-    results = dict(case="drop", dx=dx, h=h, h_over_dx=H_OVER_DX, a0=a0, t_end=t_end, alpha=0.02,
+    results = dict(case="drop", dx=dx, h=h, h_over_dx=H_OVER_DX, a0=a0, t_end=t_end, alpha=args.alpha,
                    command=" ".join([Path(sys.argv[0]).as_posix()] + sys.argv[1:]), starts={})
     for name in args.starts:
         atoms, info = make_start(name, boundary, dx, h, fill)
         t = time.perf_counter()
-        r = elliptic_drop(atoms, h, dx, a0=a0, t_end=t_end, samples=args.samples // 5 or 1, center=(0.0, 0.0),
+        r = elliptic_drop(atoms, h, dx, a0=a0, t_end=t_end, alpha=args.alpha, samples=args.samples // 5 or 1,
+                          center=(0.0, 0.0),
                           nthreads=args.threads, progress=True)
         last = r["history"][-1]
         row = dict(start=info, n=r["n"], steps=r["steps"], dt=r["dt"], c0=r["c0"], radius=r["radius"],
@@ -264,12 +266,15 @@ def main(argv=None):
     parser.add_argument("--budget", type=float, default=200.0, help="wall seconds per case for the default t_end")
     parser.add_argument("--sph-h", type=float, default=None,
                         help="wedge: support of the LAMMPS run in units of dx (default the packing's 4)")
-    parser.add_argument("--alpha", type=float, default=0.1, help="Monaghan's artificial viscosity (0.1)")
+    parser.add_argument("--alpha", type=float, default=None,
+                        help="Monaghan's artificial viscosity (default 0.5 for the wedge, 0.02 for the drop)")
     parser.add_argument("--samples", type=int, default=200, help="KE samples")
     parser.add_argument("--threads", type=int, default=1, help="OpenMP threads of LAMMPS")
     args = parser.parse_args(argv)
     if not (args.dx > 0):
         parser.error(f"--dx must be positive, got {args.dx}")
+    if args.alpha is None:
+        args.alpha = 0.5 if args.case == "wedge" else 0.02
     if args.case == "drop" and not GEOMETRIES.is_dir():
         sys.exit(f"{GEOMETRIES} not found")
     (run_case if args.case == "wedge" else run_drop)(args)
