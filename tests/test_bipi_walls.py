@@ -98,3 +98,23 @@ def test_cli_pack_walls(geometries, tmp_path):
     boundary = BoundarySegments.from_edges(geometries / "TrapezoidalTank.edges")
     phi = boundary.domain.phi(atoms.positions[:, :2])
     assert np.all(phi[t == WALL] > 0) and phi[t == WALL].max() <= 3 * 0.05 and np.all(phi[t == FLUID] < 0)
+
+
+def test_wedge_tank_example_walls_stay_below_the_surface():
+    """examples/bipi_sph.py's tank: walls outside floor, wedge and sides only, none at or above the water."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "bipi_sph.py"
+    spec = importlib.util.spec_from_file_location("bipi_sph", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    boundary, dx = example.wedge_tank(), 0.05
+    h = example.H_OVER_DX * dx
+    both = example.with_walls(initial_fill(boundary, dx), boundary, dx, h, example.DEPTH)
+    t = both.arrays["type"]
+    phi = boundary.domain.phi(both.positions[:, :2])
+    assert np.all(phi[t == FLUID] < 0) and np.all(phi[t == WALL] > 0) and phi[t == WALL].max() <= 4 * dx * (1 + 1e-12)
+    assert both.positions[t == WALL, 1].max() < example.DEPTH
+    tip = np.array([0.5 * example.WIDTH, example.WEDGE_HEIGHT])
+    assert boundary.domain.phi(tip[None, :])[0] == pytest.approx(0.0, abs=1e-12)  # the wedge's tip is on the boundary
