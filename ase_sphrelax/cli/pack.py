@@ -101,6 +101,9 @@ def add_arguments(parser):
     add_output_arguments(parser, "sphrelax_pack", "packed.extxyz, packed.png, history.png, summary.json")
     add_progress_argument(parser)
     add_size_argument(parser)
+    parser.add_argument("--walls", type=positive(int), nargs="?", const=0, default=None, metavar="K",
+                        help="also write wall particles: K layers (default ceil(h/dx)) of the Step-1 grid outside the "
+                             "boundary; packed.extxyz then carries a 'type' column (1 fluid, 2 wall)")
     parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
@@ -156,13 +159,19 @@ def run(args):
     atoms.info.update(dx=args.dx, h=h, h_over_dx_paper=model.h_over_dx_paper, method=args.method)
     export = atoms.copy()
     export.set_constraint()
+    if args.walls is not None:
+        from ..drivers.bipi_packer import add_walls
+
+        export = add_walls(export, boundary, args.dx, layers=args.walls or None, h=h)
+        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers (type 2; fluid type 1)")
     write(out / "packed.extxyz", export, format="extxyz")
     plot_concentration_gradient(atoms, packer.calc, out / "packed.png",
                                 title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
                                       f"2c {summary['iterations_2c']} iterations")
     plot_packing_history(packer.history, out / "history.png", title=path.name)
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
-                   wall_time_s=wall)
+                   wall_time_s=wall, n_wall=int(export.info.get("n_wall", 0)),
+                   wall_layers=export.info.get("wall_layers"))
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),
                                                       history=packer.history, converged=converged,
                                                       convergence_reason=reason, **provenance(args, COMMAND)),

@@ -46,11 +46,12 @@ from ase.optimize.optimize import Optimizer
 
 from ..checks import NotConvergedWarning, check_positive
 
-__all__ = ["BIPIPacker", "initial_fill", "pack", "STAGES"]
+__all__ = ["BIPIPacker", "initial_fill", "wall_layers", "wall_particles", "add_walls", "pack", "STAGES", "FLUID", "WALL"]
 
 STAGES = ("2a", "2b", "2c")
 CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
 DROP_FRACTION = 1.0 / 8.0  # BIPI2D's generator drops cell centres within dx/8 of the boundary
+FLUID, WALL = 1, 2  # atoms.arrays["type"] (as lammps_io.sph_flows)
 
 
 def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=None):
@@ -91,6 +92,92 @@ def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=No
     del atoms[np.nonzero(~keep)[0]]
     atoms.info["volume"] = float(getattr(domain, "volume", np.nan))
     return atoms
+
+
+def wall_layers(h, dx):
+    """Default number of wall layers: enough for the kernel support, ``ceil(h / dx)``."""
+    return int(np.ceil(check_positive("h", h) / check_positive("dx", dx) - 1e-9))
+
+
+def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
+    """Wall particles: the Step-1 grid's cell centres outside the domain, within ``layers * dx`` of it.
+
+    The solid side of every wall, on the same Cartesian grid as :func:`initial_fill` (same
+    ``origin``), so that fluid and wall particles continue one lattice: a cell centre ``r`` is a
+    wall particle when ``0 < phi(r) <= layers dx`` (``phi`` the domain's signed distance,
+    negative inside). Not packed against the wall (Step 1 only).
+
+    Parameters
+    ----------
+    boundary : BoundarySegments, BoundaryTriangles, domain or file
+    dx : float
+    layers : int or None
+        Thickness of the band in units of ``dx``; default :func:`wall_layers` of ``h``.
+    h : float or None
+        Kernel support radius, for the default ``layers``.
+    origin : array_like, optional
+        Grid anchor, as for :func:`initial_fill`.
+    keep : callable or None
+        ``keep(r_pd) -> bool array``: a further filter (e.g. no wall above a free surface).
+
+    Returns
+    -------
+    ase.Atoms
+        The wall particles, ``arrays["type"] = WALL``, 2D ones at z = 0.
+    """
+    from ..boundary import as_boundary
+
+    dx = check_positive("dx", dx)
+    if layers is None:
+        if h is None:
+            raise ValueError("wall_particles: give layers (an integer >= 1) or h (the kernel support) for the default")
+        layers = wall_layers(h, dx)
+    layers = _count("layers", layers, minimum=1)
+    domain = as_boundary(boundary).domain
+    dim = domain.dim
+    origin = np.zeros(dim) if origin is None else np.asarray(origin, dtype=float).reshape(-1)[:dim]
+    lo, hi = domain.bounds
+    pad = (layers + 1) * dx
+    k_lo = np.floor((lo - pad - origin) / dx - 0.5).astype(np.int64)
+    k_hi = np.ceil((hi + pad - origin) / dx + 0.5).astype(np.int64)
+    axes = [origin[d] + (np.arange(k_lo[d], k_hi[d]) + 0.5) * dx for d in range(dim)]
+    found = []
+    for x0 in axes[0]:  # slabs along the first axis keep memory bounded
+        grids = np.meshgrid(np.array([x0]), *axes[1:], indexing="ij")
+        r_pd = np.stack([g.ravel() for g in grids], axis=1)
+        phi_p = domain.phi(r_pd)
+        r_pd = r_pd[(phi_p > 0.0) & (phi_p <= layers * dx)]
+        if keep is not None and len(r_pd):
+            r_pd = r_pd[np.asarray(keep(r_pd), dtype=bool)]
+        found.append(r_pd)
+    r_pd = np.concatenate(found) if found else np.zeros((0, dim))
+    positions = np.zeros((len(r_pd), 3))
+    positions[:, :dim] = r_pd
+    walls = Atoms(positions=positions, pbc=False)
+    walls.arrays["type"] = np.full(len(walls), WALL, dtype=int)
+    walls.info.update(dx=dx, wall_layers=layers)
+    return walls
+
+
+def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None):
+    """``atoms`` (fluid, ``type`` FLUID) followed by :func:`wall_particles` (``type`` WALL).
+
+    Returns a new Atoms with ``atoms``' cell, pbc and info, without constraints or calculator;
+    ``info["n_fluid"]`` and ``info["n_wall"]`` count the kinds.
+    """
+    walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep)
+    out = atoms.copy()
+    out.set_constraint()
+    out.calc = None
+    for name in list(out.arrays):
+        if name not in ("numbers", "positions"):
+            del out.arrays[name]
+    out.arrays["type"] = np.full(len(out), FLUID, dtype=int)
+    walls.cell, walls.pbc = out.cell, out.pbc
+    walls.set_atomic_numbers(np.full(len(walls), out.numbers[0] if len(out) else 1))
+    out += walls
+    out.info.update(n_fluid=len(atoms), n_wall=len(walls), wall_layers=walls.info["wall_layers"])
+    return out
 
 
 class BIPIPacker(Optimizer):
