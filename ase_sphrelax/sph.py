@@ -683,7 +683,7 @@ def _gradient_inputs(r_pc, v_pc, masses, h, rho, kernel):
 
 
 def velocity_divergence(nlist, r_pc, v_pc, masses, h, rho, kernel):
-    """``(div v)_a = sum_b m_b / rho_b v_ab . r_ab F_ab(H_a)`` (Eq. 21), shape (N,)."""
+    """The velocity divergence (Eq. 21), shape (N,): ``(div v)_a = sum_b m_b / rho_b v_ab . r_ab F_ab(H_a)``."""
     r_pc = np.asarray(r_pc, dtype=float)
     h_p, inputs = _gradient_inputs(r_pc, v_pc, masses, h, rho, kernel)
     out = _interaction("divergence", r_pc.shape[1]).compute(nlist, r_pc, inputs=inputs, reach=float(h_p.max()),

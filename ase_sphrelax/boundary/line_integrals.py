@@ -58,7 +58,7 @@ def _interval(delta, t0, t1, fc, gc, a, j, degree, gam, jw):
 
 @numba.njit(cache=True, inline="always")
 def line_offset(px, py, seg, e):
-    """``(x_a - x_s) . n_s`` from the end point nearer to the particle (rounding ~ its distance)."""
+    """The offset ``(x_a - x_s)·n_s`` from the end point nearer to the particle (rounding ~ its distance)."""
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     if (px - ax) ** 2 + (py - ay) ** 2 <= (px - bx) ** 2 + (py - by) ** 2:
         return (px - ax) * seg[e, 4] + (py - ay) * seg[e, 5]

@@ -105,7 +105,7 @@ def _edge_offset(px, py, pz, tri, t, i):
 
 @numba.njit(cache=True, inline="always")
 def plane_offset(px, py, pz, tri, nrm, t):
-    """``(x_a - x_t) . n_t`` from the vertex nearest to the particle (rounding ~ its distance)."""
+    """The offset ``(x_a - x_t)·n_t`` from the vertex nearest to the particle (rounding ~ its distance)."""
     best = np.inf
     k_best = 0
     for k in range(3):

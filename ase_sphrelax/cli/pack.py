@@ -4,7 +4,7 @@ Boregowda & Liu's boundary-integral packing (BIPI): Step 1 fills the boundary wi
 Cartesian cell centre, Step 2 moves them (2a near the boundary, 2b freezes the first layer, 2c all
 unfrozen ones) until the 1 % stopping rules or the iteration caps. A progress bar per stage; prints
 the final metrics and the wall time; writes packed.extxyz, packed.png (particles coloured by
-|grad C_a|), history.png and summary.json (parameters, summary, the per-iteration history) to --out.
+the norm of grad C_a), history.png and summary.json (parameters, summary, the per-iteration history) to --out.
 
 --h is the kernel support in units of dx, as for ``sphrelax relax`` (default 4: BIPI2D's
 h_B / dx_r = 2); --h-paper gives the paper's h_B / dx_r instead (h = 2 h_B). Both values are printed.
@@ -16,7 +16,7 @@ Before the fill the particle count and memory are estimated and printed; past --
 
 Exit status: 0 when Steps 2a and 2c stopped by their 1 % rules, or when an iteration cap was given
 (--max-steps-2a/2c: a fixed length; an unconverged run then warns); 3 when a default cap was reached
-first, |grad C|_avg ended worse than it started, or the run was degenerate (every particle frozen:
+first, the mean norm of grad C ended worse than it started, or the run was degenerate (every particle frozen:
 nothing to pack); summary.json says ``converged`` and why. 2 for a usage error (one line).
 """
 from __future__ import annotations

@@ -12,7 +12,7 @@ giving one with another engine or method is an error.
 
 Lengths: --dx is a length, --h-over-dx (alias --h) is h in units of dx; in Python
 FanCalculator(h=...) is a length. --fmax is an absolute force, as ASE's
-Optimizer.run(fmax=...); --fmax-rel is relative to the initial max |F|.
+Optimizer.run(fmax=...); --fmax-rel is relative to the initial largest force.
 
 Particle volume: --particle-volume dx gives every particle v0 = dx^dim (Fan
 Eq. 3.3, the default); V/N gives v0 = domain volume / N (Eq. 3.2), which makes
@@ -55,7 +55,7 @@ def particle_dx(scene, args):
 
 
 def absolute_fmax(args, f0):
-    """``--fmax`` (absolute), or ``--fmax-rel`` times the initial max |F| ``f0``, or 0 (run all steps)."""
+    """``--fmax`` (absolute), or ``--fmax-rel`` times the initial largest force ``f0``, or 0 (run all steps)."""
     if getattr(args, "fmax", None) is not None:
         return float(args.fmax)
     if getattr(args, "fmax_rel", None) is not None:

@@ -374,7 +374,7 @@ class BIPIPacker(Optimizer):
         """One iteration of the current stage (2b takes none: it runs on leaving 2a).
 
         2a: evaluate the selected particles, move the packable ones, then TPD_avg (X_i).
-        2c: evaluate all, |grad C|_avg (X_i); stop here if the rule holds, else move.
+        2c: evaluate all, ``|grad C|_avg`` (X_i); stop here if the rule holds, else move.
         """
         t = time.perf_counter()
         if self.stage == "2a":
@@ -526,7 +526,7 @@ class BIPIPacker(Optimizer):
         return True, f"Step {ran}"
 
     def final_gradc_avg(self):
-        """|grad C|_avg over the movable (unfrozen) particles at the current positions."""
+        """``|grad C|_avg`` over the movable (unfrozen) particles at the current positions."""
         movable = self._movable_all if self._movable_all is not None else ~self._user_fixed(len(self.atoms))
         return self._evaluate(self.atoms, movable)[1]
 

@@ -5,29 +5,29 @@ Layout (GADGET-4 documentation, "Snapshot file format", HDF5 section and header 
 group name GADGET-4 reads and writes (its text says ``ParticleType0``, its code
 ``snap_io::get_datagroup_name`` writes ``/PartType%d``; SWIFT, pynbody and yt read the same):
 
-=========================  ===================================================================
-``Header`` attribute       value
-=========================  ===================================================================
-``NumPart_ThisFile``       [N, 0, 0, 0, 0, 0] (one file)
-``NumPart_Total``          [N, 0, 0, 0, 0, 0]
-``NumPart_Total_HighWord`` zeros (GADGET-2/3 readers; N < 2^32 here)
-``MassTable``              zeros: every gas particle has its own mass in ``Masses``
-``Time``, ``Redshift``     0 (GADGET-4 takes ``TimeBegin`` from its parameter file)
-``BoxSize``                the largest box side (see below)
-``NumFilesPerSnapshot``    1
-``Flag_*``                 ``Flag_DoublePrecision`` 1, the others 0
-``Omega0``, ...            0, ``HubbleParam`` 1 (a non-cosmological run)
-=========================  ===================================================================
+==========================  ===================================================================
+``Header`` attribute        value
+==========================  ===================================================================
+``NumPart_ThisFile``        [N, 0, 0, 0, 0, 0] (one file)
+``NumPart_Total``           [N, 0, 0, 0, 0, 0]
+``NumPart_Total_HighWord``  zeros (GADGET-2/3 readers; N < 2^32 here)
+``MassTable``               zeros: every gas particle has its own mass in ``Masses``
+``Time``, ``Redshift``      0 (GADGET-4 takes ``TimeBegin`` from its parameter file)
+``BoxSize``                 the largest box side (see below)
+``NumFilesPerSnapshot``     1
+``Flag_*``                  ``Flag_DoublePrecision`` 1, the others 0
+``Omega0``, ...             0, ``HubbleParam`` 1 (a non-cosmological run)
+==========================  ===================================================================
 
-``PartType0`` holds ``Coordinates`` and ``Velocities`` (N, 3), ``ParticleIDs`` (uint64, from
+``PartType0`` holds ``Coo rdinates`` and ``Velocities`` (N, 3), ``ParticleIDs`` (uint64, from
 1), ``Masses``, ``InternalEnergy`` (zeros when unknown: GADGET-4 then sets the temperature from
-``InitGasTemp``, as its documentation allows), ``SmoothingLength`` and, when known, ``Density``;
+``InitGasTemp``, as its d ocumentation allows), ``SmoothingLength`` and, when known, ``Density``;
 all floats in double precision (GADGET-4 converts on reading).
 
 Smoothing length
 ----------------
 GADGET's ``SmoothingLength`` is the kernel **support** radius ``H`` (its kernels vanish at
-``r = h_GADGET``; SWIFT's kernel notes, ``theory/SPH/Kernels``: "H is the kernel's support radius
+``r = h_GADGET``; SWIFT's  kernel notes, ``theory/SPH/Kernels``: "H is the kernel's support radius
 and is used as the smoothing length in the Gadget code"), i.e. this package's ``h`` unchanged:
 
 =====================  ========================
@@ -41,10 +41,10 @@ support ``H`` = ``h``  ``SmoothingLength = H``
 Box and dimensions
 ------------------
 GADGET-4's box is a cube of side ``BoxSize``; a periodic box with shorter sides is compiled with
-``LONG_X_BITS`` / ``LONG_Y_BITS`` / ``LONG_Z_BITS`` (side = ``BoxSize / 2^bits``). ``BoxSize`` is the
+``LONG_X_BITS`` / ``LONG_ Y_BITS`` / ``LONG_Z_BITS`` (side = ``BoxSize / 2^bits``). ``BoxSize`` is the
 largest used side; the bits each used axis needs are recorded as ``Header/ase_sphrelax_long_bits``,
 and a periodic side that is not ``BoxSize / 2^k`` is refused. 1D and 2D runs (``ONEDIMS``,
-``TWODIMS``) keep (N, 3) coordinates with the unused components 0; ``Header/ase_sphrelax_dim``
+``TWODIMS``) keep (N, 3)  coordinates with the unused components 0; ``Header/ase_sphrelax_dim``
 records the dimension, ``ase_sphrelax_box`` the three sides and ``ase_sphrelax_shift`` the shift
 of :func:`ase_sphrelax.io.particles.box_frame` (coordinates = positions - shift, wrapped).
 """

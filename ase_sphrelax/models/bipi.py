@@ -21,7 +21,7 @@ because ``grad gamma(x_a) = int_{Omega cap B} grad_a W = sum_s int_s W n_s dS``.
 ``-dE_BI/dx`` are the paper's shifting direction times ``gamma_a``, and ASE's optimisers (FIRE,
 LBFGS) can minimise BIPI's objective.
 
-Particle shift of the packer (Eq. 13-15; not a gradient: :class:`~ase_sphrelax.drivers.BIPIPacker`):
+Particle shift of the packer (Eq. 13-15; not a gradient: :class:`~ase_sphrelax.drivers.BIPIPacker`)::
 
     dx_hat_a = -D [grad C_a - (1 / gamma_a) sum_s (1/2) (p_s / p_a - 1) grad gamma_as]     (14)
     p_s = 2 p_a if |(x_a - x_s) . n_s| < 0.5 dx_r else p_a                               (step pressure)
