@@ -419,6 +419,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     """Sample with SPH-ParVI in its default configuration (:data:`DEFAULTS`); returns a SampleResult.
 
     ``result.samples`` has shape (n, dim). Keyword arguments override the defaults (see
-    :class:`ParVISampler`).
+    :class:`ParVISampler`); the variants of issue 18 are keyword options:
+
+    * ``whiten="covariance"`` — the fluid in coordinates whitened by the particles' mean and
+      covariance, renewed every ``whiten_every`` steps until ``whiten_until * steps``, then fixed
+      (exact for the fixed map: theory.py, eqs. W1-W3); ``whiten=L`` fixes ``x = L y`` from the start.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()
