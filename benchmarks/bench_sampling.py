@@ -10,13 +10,22 @@ The full run takes about two hours on the 2-vCPU machine (SVGD at M = 2000 and S
 Methods, all started from the same initial points N(0, I) (seeded per repeat), all returning M points:
 
 * ``iid`` — exact samples of the target (the floor; none for the logistic posterior);
-* ``sph-default`` — SPH-ParVI's default (score force, isothermal, alpha = c0^2, adaptive h, friction 1);
+* ``sph-default`` — SPH-ParVI's default (score force, isothermal, alpha = c0^2, adaptive h) and the default
+  friction, which is now 1 / scale with the scale found from the target's score (1 on the unit targets; the
+  banana, scale ~10 along x0, gets less). The tables published before 2026-12-02 used friction 1 (the default
+  then): ``--sph-friction 1`` reproduces them (the label in the JSON meta says which was used);
 * ``sph-optimal`` — the same run, the paper's "optimal state" rule (the recorded step of largest mean density);
 * ``sph-tait`` — score force with the Tait EOS (gamma 7, rho0 = the initial mean density);
 * ``sph-plog`` / ``sph-pinv`` — Algorithm 1, external pressure -alpha log(p + eps) / 1/(alpha (p + eps)),
   isothermal (these three variants run on the 2D targets at M <= 500 only);
-* ``svgd`` — RBF kernel with the median heuristic, Adam (lr 0.05), numpy, checked against blackjax;
-* ``ula``, ``mala`` — M parallel chains, final states; per-target step sizes below;
+* ``svgd`` — RBF kernel with the median heuristic times a factor, Adam, numpy, checked against blackjax;
+* ``ula``, ``mala`` — M parallel chains, final states;
+  SVGD's learning rate and bandwidth factor and ULA's and MALA's step sizes are set per target by ONE rule
+  (``--tuning pilot``, the default): :func:`ase_sphrelax.sampling.tuning.tune`, a pilot of the run's
+  evaluations on 100 of the initial points over a half-decade log grid, scored by the kernel Stein
+  discrepancy (score only, no reference samples), once per target and number of evaluations. ``--tuning
+  table`` restores the earlier hand-set values (``STEP`` for ULA/MALA, MALA acceptance 0.4-0.9 at the bulk;
+  SVGD lr 0.05, factor 1) with which the tables published before 2026-12-02 were made;
 * ``emcee`` — M walkers (affine-invariant ensemble), final states.
 
 Equal evaluations: every method gets ``steps`` evaluations of the score or density per particle (MALA,
@@ -43,6 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _provenance import git_version  # noqa: E402
 
 from ase_sphrelax.sampling import baselines, get_target, metrics  # noqa: E402
+from ase_sphrelax.sampling import tuning as tuning_rule  # noqa: E402
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -131,8 +141,27 @@ def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.
     return (more["result"].samples, longer) if "result" in more else (res.samples, steps)
 
 
+TUNED = {}  # (target name, steps, tuning) -> {method: tune() result}; filled by tuned_steps()
+
+
+def tuned_steps(target, steps, tuning="pilot"):
+    """{method: (value, bandwidth_factor)} for svgd, ula, mala: the pilot rule, or the earlier hand-set table."""
+    if tuning == "table":
+        return dict(svgd=(0.05, 1.0), ula=(STEP[target.name], 1.0), mala=(STEP[target.name], 1.0))
+    key = (target.name, steps)
+    if key not in TUNED:
+        x0 = np.random.default_rng(0).standard_normal((100, target.dim))
+        TUNED[key] = {m: tuning_rule.tune(m, target.score, x0, steps, log_density=target.log_density)
+                      for m in ("svgd", "ula", "mala")}
+    return {m: (r["value"], r["bandwidth_factor"]) for m, r in TUNED[key].items()}
+
+
+RUN_OPTIONS = dict(tuning="pilot", sph_friction=None)  # set by main() from the command line
+
+
 def run_methods(target, m, seed, steps, methods):
     x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
+    tuned = tuned_steps(target, steps, RUN_OPTIONS["tuning"])
     out = {}
     rec = max(steps // 20, 1)
     for name in methods:
@@ -146,13 +175,14 @@ def run_methods(target, m, seed, steps, methods):
                 res = baselines.SampleResult(target.sample(m, np.random.default_rng(seed + 500)))
             elif name.startswith("sph"):
                 res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0, steps=steps,
-                                   seed=seed, **SPH_VARIANTS[name]).run()
+                                   seed=seed, friction=RUN_OPTIONS["sph_friction"], **SPH_VARIANTS[name]).run()
             elif name == "svgd":
-                res = baselines.svgd(target.score, x0, steps, lr=0.05, record_every=rec)
+                res = baselines.svgd(target.score, x0, steps, lr=tuned["svgd"][0], bandwidth_factor=tuned["svgd"][1],
+                                     record_every=rec)
             elif name == "ula":
-                res = baselines.ula(target.score, x0, steps, STEP[target.name], seed=seed, record_every=rec)
+                res = baselines.ula(target.score, x0, steps, tuned["ula"][0], seed=seed, record_every=rec)
             elif name == "mala":
-                res = baselines.mala(target.log_density, target.score, x0, steps // 2, STEP[target.name], seed=seed,
+                res = baselines.mala(target.log_density, target.score, x0, steps // 2, tuned["mala"][0], seed=seed,
                                      record_every=max(rec // 2, 1))
             elif name == "emcee":
                 if m < 2 * target.dim:
@@ -184,8 +214,14 @@ def main(argv=None):
     parser.add_argument("--wall-factor", type=float, default=20.0,
                         help="equal wall time: a faster baseline runs at most this many times its steps")
     parser.add_argument("--steps", type=int, default=None)
+    parser.add_argument("--tuning", choices=("pilot", "table"), default="pilot",
+                        help="SVGD/ULA/MALA steps: the pilot-KSD rule (default) or the earlier hand-set table")
+    parser.add_argument("--sph-friction", type=float, default=None,
+                        help="SPH-ParVI friction (default: the sampler's, 1 / target scale; 1 reproduces the "
+                             "tables published before 2026-12-02)")
     parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
     args = parser.parse_args(argv)
+    RUN_OPTIONS.update(tuning=args.tuning, sph_friction=args.sph_friction)
     args.out = args.out or (OUT / "quick" if args.quick else OUT)
     sizes = args.sizes or ([100, 500] if args.quick else [100, 500, 2000])
     repeats = args.repeats or (2 if args.quick else 3)
@@ -239,7 +275,11 @@ def main(argv=None):
                                   and r["seed"] == seed)), flush=True)
         # after every target: the report so far (a long run can be read while it goes on)
         meta = dict(git=git_version(), sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
-                    step_sizes=STEP, svgd_lr=0.05, reference_floor=floors, targets_done=done + [tname])
+                    tuning=args.tuning, tuned={t: tuned_steps(get_target(t), steps, args.tuning)
+                                               for t in done + [tname]},
+                    tuning_ksd={f"{k[0]}/{k[1]}": {m: r["table"] for m, r in v.items()} for k, v in TUNED.items()},
+                    sph_friction=args.sph_friction if args.sph_friction is not None else "1 / target scale",
+                    reference_floor=floors, targets_done=done + [tname])
         done.append(tname)
         (args.out / "results.json").write_text(json.dumps(dict(meta=meta, rows=rows), indent=1, default=float))
         write_report(rows, meta, args.out)

@@ -8,6 +8,8 @@
 * :mod:`.theory` — the predicted stationary densities;
 * :mod:`.convergence` — has a run come to rest (moment and kinetic-energy drift against Monte-Carlo errors);
 * :mod:`.target_checks` — the target's mode and scale, a flipped score, a score of another target.
+* :mod:`.whitening` — the affine map of the whitened variant (``sample(..., whiten="covariance")``);
+* :mod:`.tuning` — the one rule that sets the baselines' step sizes (pilot, kernel Stein discrepancy).
 """
 from .result import CountingTarget, SampleResult
 from .sampler import ParVIDivergence, ParVISampler, sample

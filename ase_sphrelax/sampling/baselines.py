@@ -8,7 +8,10 @@ every method is compared at the same number of samples and counted in the same u
 * :func:`svgd` — Stein variational gradient descent (Liu and Wang 2016, Algorithm 1) with
   the RBF kernel ``k(x, y) = exp(-|x - y|^2 / l)`` and the median heuristic
   ``l = med^2 / log M``, updated after every step, and Adam on ``-phi`` as in blackjax
-  (``blackjax.svgd(grad_logp, optax.adam(lr))``, which the tests check it against).
+  (``blackjax.svgd(grad_logp, optax.adam(lr))``, which the tests check it against); the
+  learning rate and a factor on the median heuristic are tuned per target by
+  :mod:`~ase_sphrelax.sampling.tuning` (a pilot over a log grid scored by the kernel Stein
+  discrepancy), the same rule that sets ULA's and MALA's step sizes.
   SVGD is O(M^2) per step by construction (every particle interacts with every other):
   the M x M kernel is computed in row blocks so that memory stays O(block * M). Above
   ``median_points`` particles the median is taken over a fixed random subset.
@@ -111,7 +114,8 @@ def _check_steps(steps):
     return int(steps)
 
 
-def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record_every=0, seed=0):
+def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record_every=0, seed=0,
+         bandwidth_factor=1.0):
     """Stein variational gradient descent with Adam; see the module docstring.
 
     Parameters
@@ -124,6 +128,9 @@ def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record
     length_scale : float or None
         Initial ``l`` (default: the median heuristic of ``x0``); later steps use the median
         heuristic of the previous step's particles, as blackjax does.
+    bandwidth_factor : float
+        Multiplies the median heuristic (1: blackjax's rule). ``lr`` and this factor are tuned per
+        target by :func:`ase_sphrelax.sampling.tuning.tune`, the rule that also sets ULA's and MALA's steps.
     record_every : int
         Record the particles every this many steps into ``trace["samples"]`` (0: never).
     """
@@ -131,14 +138,18 @@ def svgd(score, x0, steps, lr=0.1, length_scale=None, median_points=2000, record
     x = _check_x0(x0)
     steps = _check_steps(steps)
     record = _Recorder(record_every)
-    ell = median_length_scale(x, median_points, seed) if length_scale is None else float(length_scale)
+    if not (np.isfinite(bandwidth_factor) and bandwidth_factor > 0):
+        raise ValueError(f"bandwidth_factor must be a finite number > 0, got {bandwidth_factor!r}")
+    ell = bandwidth_factor * median_length_scale(x, median_points, seed) if length_scale is None \
+        else float(length_scale)
     opt = Adam(lr)
     for k in range(steps):
         phi = svgd_direction(x, target.score(x), ell)
         x = x + opt.update(-phi)
-        ell = median_length_scale(x, median_points, seed)
+        ell = bandwidth_factor * median_length_scale(x, median_points, seed)
         record(k, x)
-    return record.result(x, dict(method="svgd", lr=lr, steps=steps, length_scale=ell), n_score=target.n_score)
+    return record.result(x, dict(method="svgd", lr=lr, steps=steps, length_scale=ell,
+                                 bandwidth_factor=bandwidth_factor), n_score=target.n_score)
 
 
 def ula(score, x0, steps, step_size, seed=0, record_every=0):

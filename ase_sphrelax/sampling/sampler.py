@@ -47,6 +47,7 @@ from ..models.parvi import ParVIModel
 from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
+from .whitening import AffineMap, check_whiten
 
 __all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS"]
 
@@ -111,6 +112,21 @@ class ParVISampler:
         The stopping rule: None runs exactly ``steps``; a number runs ``steps``, then, while the run
         is not converged (:mod:`.convergence`, judged on the last half of the run so far), doubles
         its length, up to ``max_steps`` (annealed supports stay at ``h_end`` after ``steps``).
+    whiten : None, "covariance" or ndarray (d, d)
+        Run the fluid in whitened coordinates ``y = L^-1 (x - c)`` (:mod:`.whitening`; theory.py eqs.
+        W1-W3): None (default) does not. ``"covariance"``: ``c`` and ``L`` are the particles' mean and
+        Cholesky factor of their covariance, set from the initial particles and renewed every
+        ``whiten_every`` steps up to step ``whiten_until * steps``, then held fixed, so that the last
+        part of the run, where the convergence is judged, samples p exactly (for a fixed map the
+        resting density is the pull-back of p); affine invariant. A matrix: the map ``x = L y``
+        (``c = 0``) fixed from the start (exactly affine invariant: sampling N(0, A A^T) with
+        ``whiten=A`` and ``x0 = z A^T`` gives, up to round-off, ``A`` times the samples of N(0, I) with
+        ``whiten=I`` and ``x0 = z``). Checks, start and default friction are those of p_y; ``x0`` is in x;
+        ``trace["mean_density"]`` and ``info["final_h_median"]`` are in y.
+    whiten_every : int
+        Steps between renewals of the ``"covariance"`` map (default 50).
+    whiten_until : float
+        Fraction of ``steps`` after which the ``"covariance"`` map is frozen (default 0.5).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -119,7 +135,8 @@ class ParVISampler:
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=DEFAULTS["courant"], friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
-                 init_scale=None, seed=0, record_every=10, progress=False, max_steps=None):
+                 init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
+                 whiten_every=50, whiten_until=0.5):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -142,6 +159,19 @@ class ParVISampler:
             raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
         alpha = check_positive("alpha", alpha)
         c0 = math.sqrt(alpha) if c0 is None else check_positive("c0", c0)
+        self.whiten = check_whiten(whiten, int(dim))
+        if isinstance(whiten_every, bool) or not isinstance(whiten_every, (int, np.integer)) or whiten_every < 1:
+            raise ValueError(f"whiten_every must be an integer >= 1, got {whiten_every!r}")
+        if isinstance(whiten_until, bool) or not isinstance(whiten_until, numbers.Real) \
+                or not 0.0 <= whiten_until <= 1.0:
+            raise ValueError(f"whiten_until must be a number in [0, 1], got {whiten_until!r}")
+        self.whiten_every, self.whiten_until = int(whiten_every), float(whiten_until)
+        self.map = None
+        if self.whiten is not None:  # the fluid sees the pull-back p_y (whitening.py, eqs. W1, W2)
+            self.map = AffineMap(np.zeros(int(dim)), np.eye(int(dim)) if isinstance(self.whiten, str) else self.whiten)
+            log_density = None if log_density is None else self.map.log_density_y(log_density)
+            score = None if score is None else self.map.score_y(score)
+        self._friction_from_target = friction is None
         self.target = CountingTarget(log_density, score, dim)
         self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
                                 rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
@@ -181,7 +211,9 @@ class ParVISampler:
                                viscosity_alpha=viscosity_alpha, nu=nu, regularisation=regularisation, density=density,
                                diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=courant,
                                friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
-                               max_steps=self.max_steps)
+                               max_steps=self.max_steps, whiten=None if self.whiten is None else
+                               (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
+                               whiten_every=self.whiten_every, whiten_until=self.whiten_until)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -211,7 +243,7 @@ class ParVISampler:
     def initial_particles(self):
         """The initial proposal: ``x0``, or N(centre, diag(scale^2)) drawn with ``seed`` (see ``x0``)."""
         if self.x0 is not None:
-            return self.x0.copy()
+            return self.x0.copy() if self.map is None else self.map.to_y(self.x0)
         if self.start is None:
             self.look_at_target()
         centre_c, scale_c = self.start
@@ -271,8 +303,16 @@ class ParVISampler:
         probe = self._probe if self._probe is not None else self.look_at_target()
         r = self.initial_particles()
         r, jittered = self._separate_coincident(r)
-        r0 = r.copy()
         v = np.zeros_like(r)
+        renewing = isinstance(self.whiten, str)
+        to_x = (lambda y: y) if self.map is None else self.map.to_x
+        if renewing:  # the first map, from the initial particles; the default friction follows the scale
+            old_log_det = self.map.log_det
+            r, v, _ = self.map.renew(r, v)
+            if self._friction_from_target:
+                self.friction *= math.exp((self.map.log_det - old_log_det) / self.dim)
+                self.parameters["friction"] = self.friction
+        r0 = r.copy()
         if self.h_schedule == "anneal":
             model.set_h(self._h_at(0))
         want_energy = model.conservative and self.target.has_density
@@ -282,7 +322,7 @@ class ParVISampler:
         scale = max(model.alpha, model.c0**2)  # energy per unit mass of the problem
         trace = {k: [] for k in ("step", "time", "dt", "mean_density", "kinetic", "energy", "n_density", "n_score",
                                  "wall")}
-        best = dict(step=0, density=-np.inf, samples=r.copy())
+        best = dict(step=0, density=-np.inf, samples=to_x(r).copy())
         moments = []  # ensemble mean and covariance of every recorded state (the convergence diagnostics)
         fallback = 0
         sim_time = 0.0
@@ -300,9 +340,9 @@ class ParVISampler:
             trace["n_density"].append(self.target.n_density)
             trace["n_score"].append(self.target.n_score)
             trace["wall"].append(time.perf_counter() - t0)
-            moments.append(np.concatenate(ensemble_moments(r)))
+            moments.append(np.concatenate(ensemble_moments(to_x(r))))
             if trace["mean_density"][-1] > best["density"]:
-                best.update(step=step, density=trace["mean_density"][-1], samples=r.copy())
+                best.update(step=step, density=trace["mean_density"][-1], samples=to_x(r).copy())
 
         record(0, dt)
         limit = self.steps  # the stopping rule may double it (max_steps)
@@ -328,13 +368,17 @@ class ParVISampler:
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
                                       f"(dt = {dt:.3g}); use a smaller dt or summation densities")
+            if renewing and step % self.whiten_every == 0 and step <= self.whiten_until * self.steps \
+                    and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
+                r, v, rho = self.map.renew(r, v, rho)
+                ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
             if step % self.record_every == 0 or step == limit:
                 record(step, dt)
             dt = self.dt or self.courant * model.cfl_step(ev)
             if bar is not None:
                 bar.update(1)
             if step == limit:
-                verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+                verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
                                              friction=self.friction)
                 if not verdict["converged"] and self.max_steps is not None and limit < self.max_steps:
                     limit = min(2 * limit, self.max_steps)  # a new last half, judged afresh
@@ -344,8 +388,9 @@ class ParVISampler:
         if bar is not None:
             bar.close()
         if verdict is None:  # steps = 0
-            verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, r,
+            verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
                                          friction=self.friction)
+        r = to_x(r)
         samples = r if self.rule == "final" else best["samples"]
         chosen = step if self.rule == "final" else best["step"]
         returned = (f"rule={self.rule!r} returned the state of step {chosen}"
@@ -374,6 +419,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     """Sample with SPH-ParVI in its default configuration (:data:`DEFAULTS`); returns a SampleResult.
 
     ``result.samples`` has shape (n, dim). Keyword arguments override the defaults (see
-    :class:`ParVISampler`).
+    :class:`ParVISampler`); the variants of issue 18 are keyword options:
+
+    * ``whiten="covariance"`` — the fluid in coordinates whitened by the particles' mean and
+      covariance, renewed every ``whiten_every`` steps until ``whiten_until * steps``, then fixed
+      (exact for the fixed map: theory.py, eqs. W1-W3); ``whiten=L`` fixes ``x = L y`` from the start.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()

@@ -28,6 +28,29 @@ inverted paraboloid) or ``rho = (C - 1 / (alpha (p + eps))) / c0^2``, cut where 
 These depend on the additive constant of log p (the unknown normalisation) through the free
 surface, and are not gradient systems.
 
+Whitened coordinates (``whiten=``, :mod:`~ase_sphrelax.sampling.whitening`). For a fixed invertible
+affine map ``x = c + L y`` the fluid moves in y pushed by the score of the pull-back
+
+* (W1) ``p_y(y) = p(c + L y) |det L|``, the density of ``y = L^-1 (x - c)`` when x ~ p;
+* (W2) ``grad_y log p_y(y) = L^T grad_x log p(c + L y)`` (chain rule);
+
+so the result above, applied to ``p_y``, gives the resting density ``rho_y ∝ p_y^(alpha / c0^2)``, i.e. p_y
+itself in the default configuration, and the particles mapped back by ``x = c + L y`` have density
+``rho_y(L^-1 (x - c)) / |det L| = p(x)``:
+
+* (W3) **exact** for a fixed map, with the same continuum-limit and discretisation errors as the
+  unwhitened fluid has for ``p_y`` (whose covariance is the identity when L is the Cholesky factor
+  of p's covariance: the errors of the unit Gaussian, whatever p's correlations and scales);
+* the whitened fluid is affine equivariant: for a target ``q(x) = p(A^-1 x) / |det A|`` and the map
+  ``A L`` (started from ``A`` times the initial points) it sees the same ``p_y`` and moves the
+  same y (up to round-off): its samples are A times those for p (tested);
+* a **renewed** map (``whiten="covariance"``) carries the state over exactly (``y' = L'^-1 (c + L y - c')``,
+  ``v' = L'^-1 L v``), but a fluid at rest under L is not at rest under L' (its arrangement is isotropic in
+  the old y, the kernels in the new): renewals perturb the fluid, and nothing here says what a
+  continually renewed map would converge to. The sampler renews only up to ``whiten_until * steps`` and
+  then holds the map fixed, so the final state is that of the fixed-map fluid (W3); the convergence
+  verdict covers the last half of the run, which lies after the last renewal for ``whiten_until <= 0.5``.
+
 The functions here solve these relations for isotropic targets ``log p = -r^2 / (2 sigma^2)``
 in d dimensions (radial quadrature, the constant from the mass) and return the profile's
 moments, to compare with the particles.
