@@ -29,7 +29,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/bench_fan_forces.py
 
 clean:
-	rm -rf $(VENV) demo_out .pytest_cache
+	rm -rf $(VENV) demo_out .pytest_cache docs/_build docs/generated docs/gallery
 
 # the documentation site (Sphinx, numpydoc, sphinx-gallery): warnings are errors, the gallery runs
 docs: $(STAMP)
