@@ -142,3 +142,16 @@ def test_a_particle_at_an_isolated_zero_of_the_target_is_not_a_zero_region():
     d = result["diagnostics"]
     assert d["zero_target_particles"] == 1 and d["zero_region_particles"] == 0
     assert result["converged"] and "rho* = 0" not in result["convergence_reason"]
+
+
+def test_density_exit_status_says_whether_the_run_converged(tmp_path):
+    """Issue 22 Deliver 1: exit 0 only when the run reached its own stopping rule or the user fixed its length
+    (--max-steps); a degenerate run of the default length exits 3 (EXIT_NOT_CONVERGED)."""
+    from ase_sphrelax.cli.common import EXIT_NOT_CONVERGED
+
+    default = _cli("--n", "2", "--split", "0", "--out", str(tmp_path / "default"))
+    assert default.returncode == EXIT_NOT_CONVERGED, default.stderr
+    assert "not converged" in default.stderr and "degenerate" in default.stderr
+    fixed = _cli("--n", "2", "--split", "0", "--max-steps", "50", "--out", str(tmp_path / "fixed"))
+    assert fixed.returncode == 0, fixed.stderr
+    assert "warning: not converged" in fixed.stderr

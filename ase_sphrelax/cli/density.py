@@ -6,16 +6,24 @@ velocity stops) from N / p^K particles with K splitting stages (p = 3, 4, 5 in 1
 potential (1D; opt-in with --polish in 2D/3D, where it pairs particles). 1D runs on the periodic
 interval [-1, 1); 2D/3D in the unit disc/ball (or --domain).
 Writes relaxed.extxyz (masses, H and rho per particle), density.png, trace.json and summary.json
-(final epsilon of Eq. 45 under "epsilon", the Eq. 48 minimum where known, wall time) to --out.
+(final epsilon of Eq. 45 under "epsilon", the Eq. 48 minimum where known, wall time, "converged" and
+why) to --out.
+
+Exit status: 0 when the run converged, or when --max-steps was given (a fixed length; an unconverged
+run then warns); 3 when a run of the default length ends unconverged or degenerate; 2 for a usage error.
 """
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
-from .common import add_output_arguments, add_progress_argument, output_folder, provenance, show_progress
+from .common import (EXIT_NOT_CONVERGED, add_output_arguments, add_progress_argument, output_folder, provenance,
+                     show_progress)
 from .usage import UsageError, non_negative_int, positive, usage_errors
+
+MAX_STEPS = 50000  # the dynamics' default step cap; reaching it unconverged exits EXIT_NOT_CONVERGED
 
 __all__ = ["add_arguments", "run", "load_profile"]
 
@@ -43,7 +51,8 @@ def add_arguments(parser):
     polish.add_argument("--no-polish", dest="polish", action="store_false", help="no polish")
     parser.add_argument("--polish-steps", type=non_negative_int, default=4000,
                         help="LBFGS steps of the least-squares polish (4000)")
-    parser.add_argument("--max-steps", type=positive(int), default=50000, help="step cap of the dynamics (50000)")
+    parser.add_argument("--max-steps", type=positive(int), default=None,
+                        help="step cap of the dynamics (default 50000; given: a fixed length, exit 0 even unconverged)")
     parser.add_argument("--eps-min", type=positive(float), default=1e-8, help="stop at epsilon below this (1e-8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the start jitter and split orientations (0)")
     add_output_arguments(parser, "sphrelax_density", "relaxed.extxyz, density.png, trace.json, summary.json")
@@ -128,7 +137,8 @@ def run(args):
         eps_teo = alaric_min_error(args.n, args.delta, dim)
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
                            origin=origin, form=args.form, polish=do_polish,
-                           polish_steps=args.polish_steps, max_steps=args.max_steps,
+                           polish_steps=args.polish_steps,
+                           max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
                            eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
     atoms = result["atoms"]
     calc = result["calculator"]
@@ -168,7 +178,15 @@ def run(args):
     print(("converged: " if result["converged"] else "NOT CONVERGED: ") + result["convergence_reason"])
     print(f"wall time: {wall:.1f} s")
     print(f"wrote {out / 'relaxed.extxyz'}, {out / 'density.png'}, {out / 'trace.json'}, {out / 'summary.json'}")
-    return 0
+    if result["converged"]:
+        return 0
+    if args.max_steps is not None:  # a fixed length was asked for
+        print(f"sphrelax density: warning: not converged (--max-steps was given: exit 0): "
+              f"{result['convergence_reason']}", file=sys.stderr)
+        return 0
+    print(f"sphrelax density: not converged: {result['convergence_reason']} (exit {EXIT_NOT_CONVERGED})",
+          file=sys.stderr)
+    return EXIT_NOT_CONVERGED
 
 
 def _plot(atoms, res, dim, path, title):
