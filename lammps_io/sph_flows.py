@@ -60,7 +60,8 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
     """The shared LAMMPS run: write the data file, set up the SPH styles, run in chunks, observe.
 
     ``observe(lmp, n, time)`` is called at t = 0 and after every chunk and returns a dict that is
-    appended to the history. Returns ``(history, n_fluid, n_wall, steps, dt)``.
+    appended to the history. Returns ``(history, (x_pc, rho_p), n_fluid, n_wall, steps, dt)``, with the final
+    positions and densities gathered once, after the last chunk.
     """
     if len(atoms) == 0:
         raise ValueError("atoms: need at least one particle, got an empty Atoms")
@@ -154,6 +155,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
             history.append(observe(lmp, n, done * dt))
             if bar is not None:
                 bar.update(k)
+        final = (_gather(lmp, "x", n, 3), _gather(lmp, "rho", n, 1))
         lmp.close()
     finally:
         os.chdir(cwd)
@@ -161,7 +163,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
             bar.close()
         if tmp is not None:
             tmp.cleanup()
-    return history, int((kinds == FLUID).sum()), int((kinds == WALL).sum()), steps, dt
+    return history, final, int((kinds == FLUID).sum()), int((kinds == WALL).sum()), steps, dt
 
 
 def _gather(lmp, name, n, width):
@@ -244,25 +246,10 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     def observe(lmp, n, time):
         return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]) if time else 0.0)
 
-    def final(lmp, n, time):
-        record = observe(lmp, n, time)
-        record["x"] = _gather(lmp, "x", n, 3)
-        record["rho"] = _gather(lmp, "rho", n, 1)
-        return record
-
-    records = []
-
-    def observe_all(lmp, n, time):
-        record = final(lmp, n, time)
-        records.append(record)
-        return record
-
-    history, n_fluid, n_wall, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end,
+    history, (x_pc, rho_p), n_fluid, n_wall, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end,
                                                dt=dt, samples=samples, density=density, nthreads=nthreads,
                                                workdir=workdir, progress=progress, desc="hydrostatic tank",
-                                               observe=observe_all, rho_p=rho_start)
-    last = records[-1]
-    x_pc, rho_p = last["x"], last["rho"]
+                                               observe=observe, rho_p=rho_start)
     d_p = surface - x_pc[fluid, up]
     p_p = tait_pressure(rho_p[fluid], rho0, c0)
     edges = np.linspace(0.0, depth, int(depth_bins) + 1)
@@ -352,7 +339,7 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
                     a_moment=float(2.0 * np.sqrt(np.mean(r[:, 0] ** 2))), b_moment=float(2.0 * np.sqrt(np.mean(r[:, 1] ** 2))),
                     a_extent=float(np.abs(r[:, 0]).max() + 0.5 * dx), b_extent=float(np.abs(r[:, 1]).max() + 0.5 * dx))
 
-    history, n_fluid, _, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0, t_end=t_end,
+    history, _, n_fluid, _, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0, t_end=t_end,
                                           dt=dt, samples=samples, density=density, nthreads=nthreads,
                                           workdir=workdir, progress=progress, desc="elliptic drop", observe=observe,
                                           velocities=v_pc)
