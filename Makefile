@@ -20,7 +20,7 @@ $(STAMP): $(PY) pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/sphrelax relax --out demo_out
+	$(VENV)/bin/sphrelax relax --out demo_out --overwrite
 
 test: $(STAMP)
 	$(PY) -m pytest -n 2 -q --durations=15
