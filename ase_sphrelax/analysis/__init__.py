@@ -5,7 +5,8 @@ arrangement, Eq. 5.2), ``pattern_cells`` (the cells of the patterns),
 ``pattern_prediction`` (best member of each family, predicted pattern, Table 2),
 ``patterns`` (variable-cell relaxation of periodic patterns, the ``lattice`` and
 ``table`` commands' bodies), ``symmetry`` (spglib classification), ``bounded``
-(patterns in bounded domains), ``cell_filter`` (constant-area cell filter).
+(patterns in bounded domains), ``cell_filter`` (constant-area cell filter), ``shock`` (a blast
+front's radius per direction and its spread over angle).
 
 Names are imported on first use, so ``import ase_sphrelax.analysis.quality`` does
 not load spglib or the lattice machinery.
@@ -36,6 +37,8 @@ _WHERE = {
     "relax_circle": ".bounded",
     "alaric_min_error": ".alaric",
     "pack_summary": ".bipi",
+    "shock_radii": ".shock",
+    "shock_isotropy": ".shock",
 }
 __all__ = sorted(_WHERE)
 _SUBMODULES = ("alaric", "bounded", "cell_filter", "lattice_sums", "pattern_cells", "pattern_prediction", "patterns",
