@@ -42,5 +42,5 @@ _WHERE = {
 }
 __all__ = sorted(_WHERE)
 _SUBMODULES = ("alaric", "bounded", "cell_filter", "lattice_sums", "pattern_cells", "pattern_prediction", "patterns",
-               "quality", "symmetry")
+               "quality", "shock", "symmetry")
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE, _SUBMODULES)
