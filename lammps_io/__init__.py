@@ -42,6 +42,7 @@ _WHERE = {
     "hydrostatic_tank": ".sph_flows",
     "elliptic_drop": ".sph_flows",
     "elliptic_drop_axes": ".sph_flows",
+    "point_explosion": ".sph_explosion",
 }
 __all__ = list(_WHERE) + ["sph_at_rest"]
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)
