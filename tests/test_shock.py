@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ase_sphrelax.analysis.shock import relative_positions, shock_isotropy, shock_radii
+from ase_sphrelax.analysis.shock import angular_modes, relative_positions, shock_isotropy, shock_radii
 
 R0, WIDTH, EPS = 0.25, 0.01, 0.05
 CELL = np.diag([1.0, 1.0, 1.0])
@@ -123,3 +123,19 @@ def test_bad_shapes():
         relative_positions(np.zeros((5, 3)), [0.0])
     with pytest.raises(ValueError, match="orthogonal"):
         relative_positions(np.zeros((5, 3)), np.zeros(3), cell=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]], pbc=(True, True, False))
+
+
+def test_angular_modes_pick_the_harmonic():
+    r_pc, value, centre = ring()
+    angles, radius = shock_radii(r_pc, value, centre, cell=CELL, pbc=PBC2, n_angles=32, dr=0.005, r_max=0.45)
+    a = angular_modes(angles, radius, modes=(2, 4, 6))
+    half = math.pi / 32
+    assert a[4] == pytest.approx(EPS * math.sin(4 * half) / (4 * half), abs=5e-3)
+    assert a[2] < 5e-3 and a[6] < 5e-3
+    theta = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    exact = angular_modes(theta, 2.0 * (1 + 0.1 * np.cos(6 * theta + 0.3)), modes=(6, 4))
+    assert exact[6] == pytest.approx(0.1, rel=1e-12) and exact[4] == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(ValueError, match="modes must be integers >= 1"):
+        angular_modes(theta, theta, modes=(0,))
+    with pytest.raises(ValueError, match="one entry per bin"):
+        angular_modes(theta, theta[:-1])

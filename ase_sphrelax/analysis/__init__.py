@@ -39,6 +39,7 @@ _WHERE = {
     "pack_summary": ".bipi",
     "shock_radii": ".shock",
     "shock_isotropy": ".shock",
+    "angular_modes": ".shock",
 }
 __all__ = sorted(_WHERE)
 _SUBMODULES = ("alaric", "bounded", "cell_filter", "lattice_sums", "pattern_cells", "pattern_prediction", "patterns",

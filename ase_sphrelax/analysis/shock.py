@@ -12,7 +12,9 @@ per-particle field (density, or minus the velocity divergence):
   exceeds ``threshold``.
 
 The isotropy measure is the relative spread over angle, ``std_k R_k / mean_k R_k`` (and the range
-``(max_k R_k - min_k R_k) / mean_k R_k``). Everything is O(N) (``numpy.bincount``).
+``(max_k R_k - min_k R_k) / mean_k R_k``). Everything is O(N) (``numpy.bincount``). In 2D,
+:func:`angular_modes` splits the spread into angular harmonics: a lattice's preferred directions
+show as the m = 4 (square) or m = 6 (hexagonal) harmonic, noise spreads over all of them.
 
 Directions: 2D, ``n_angles`` equal bins of the polar angle; 3D, ``n_angles`` bins of the azimuth times
 ``n_angles // 2`` bins of ``cos(theta)`` (equal solid angle).
@@ -25,7 +27,7 @@ import numpy as np
 
 from ..checks import check_dim, check_positive
 
-__all__ = ["relative_positions", "shock_radii", "shock_isotropy", "SHOCK_METHODS"]
+__all__ = ["relative_positions", "shock_radii", "shock_isotropy", "angular_modes", "SHOCK_METHODS"]
 
 SHOCK_METHODS = ("peak", "threshold")
 
@@ -181,3 +183,37 @@ def shock_isotropy(r_pc, value_p, centre, **kwargs):
     return dict(mean_radius=mean, spread=float(found.std() / mean) if ok else float("nan"),
                 range=float(np.ptp(found) / mean) if ok else float("nan"), radius_k=radius_k.tolist(),
                 directions=directions.tolist(), empty_bins=int(np.sum(~np.isfinite(radius_k))))
+
+
+def angular_modes(angles_k, radius_k, modes=(1, 2, 3, 4, 5, 6, 8, 12)):
+    """Relative amplitudes of the angular harmonics of a 2D front ``R(theta)``.
+
+    ``a_m = 2 |mean_k R_k exp(-i m theta_k)| / mean_k R_k`` over the bins with a front, so that
+    ``R = R0 (1 + eps cos(m theta))`` sampled at bin centres gives ``a_m = eps`` (a bin-mean front
+    gives ``eps sin(m w/2) / (m w/2)``, ``w`` the bin width).
+
+    Parameters
+    ----------
+    angles_k : array (K,) or (K, 1)
+        Polar angles of the bins (:func:`shock_radii`'s 2D ``directions``).
+    radius_k : array (K,)
+        Front radii (NaN bins are left out).
+    modes : sequence of int
+        Harmonics ``m >= 1``.
+
+    Returns
+    -------
+    dict
+        ``{m: a_m}``.
+    """
+    theta = np.asarray(angles_k, dtype=float).reshape(-1)
+    radius_k = np.asarray(radius_k, dtype=float)
+    if theta.shape != radius_k.shape:
+        raise ValueError(f"angles_k and radius_k must have one entry per bin, got {theta.shape} and {radius_k.shape}")
+    bad = [m for m in modes if isinstance(m, bool) or not isinstance(m, numbers.Integral) or m < 1]
+    if bad:
+        raise ValueError(f"modes must be integers >= 1, got {bad!r}")
+    ok = np.isfinite(radius_k)
+    theta, r = theta[ok], radius_k[ok]
+    mean = r.mean() if len(r) else float("nan")
+    return {int(m): float(2.0 * abs(np.mean(r * np.exp(-1j * m * theta))) / mean) for m in modes}
