@@ -103,7 +103,8 @@ def test_periodic_translation_leaves_the_radii(shift, frac):
     (dict(n_angles=3, dr=0.1), "n_angles must be an integer >= 4"),
     (dict(n_angles=8.0, dr=0.1), "n_angles must be an integer >= 4"),
     (dict(), "dr must be a positive finite number"),
-    (dict(method="threshold"), "threshold must be a finite number"),
+    (dict(method="threshold", threshold=float("nan")), "threshold must be a finite number or None"),
+    (dict(method="centroid", threshold="high"), "threshold must be a finite number or None"),
     (dict(dr=0.1, r_max=-1.0), "r_max must be a positive finite number or None"),
     (dict(dr=0.1, pbc=(True, True, False)), "cell is needed"),
     (dict(dr=0.1, dim=4), "dim must be 2 or 3"),
@@ -139,3 +140,22 @@ def test_angular_modes_pick_the_harmonic():
         angular_modes(theta, theta, modes=(0,))
     with pytest.raises(ValueError, match="one entry per bin"):
         angular_modes(theta, theta[:-1])
+
+
+def test_centroid_finds_the_middle_of_a_symmetric_ridge():
+    r_pc, value, centre = ring()
+    half = math.pi / 32
+    for threshold in (None, 2.0):
+        angles, radius = shock_radii(r_pc, value, centre, cell=CELL, pbc=PBC2, n_angles=32, method="centroid",
+                                     threshold=threshold, r_max=0.45)
+        expected = R0 * (1 + EPS * np.cos(4 * angles[:, 0]) * math.sin(4 * half) / (4 * half))
+        assert np.max(np.abs(radius - expected)) < 2.5e-3  # a quarter of the ridge width: sampling noise
+
+
+def test_automatic_threshold_is_midway_to_the_ridge():
+    """ambient 1, ridge top 4: the automatic level is 2.5, the edge where 3 exp(-x^2) = 1.5."""
+    r_pc, value, centre = ring(eps=0.0, centre=(0.5, 0.5))
+    _, auto = shock_radii(r_pc, value, centre, n_angles=16, method="threshold")
+    _, fixed = shock_radii(r_pc, value, centre, n_angles=16, method="threshold", threshold=2.5)
+    np.testing.assert_allclose(auto, fixed, atol=2e-3)
+    assert np.nanmean(fixed) == pytest.approx(R0 + WIDTH * math.sqrt(math.log(2.0)), abs=1.5e-3)

@@ -8,8 +8,15 @@ per-particle field (density, or minus the velocity divergence):
 - ``method="peak"``: the particles of one angular bin are binned in radius (width ``dr``); the
   front is the radius of the radial bin whose mean field is largest, refined by the vertex of the
   parabola through it and its two neighbours (clipped to the bin);
-- ``method="threshold"``: the front is the largest radius of a particle of the bin whose field
-  exceeds ``threshold``.
+- ``method="threshold"``: the front (its leading edge) is the largest radius of a particle of the
+  bin whose field exceeds ``threshold``;
+- ``method="centroid"``: the front is the mean radius of the bin's particles weighted by
+  ``max(field - threshold, 0)`` (the middle of the compressed shell; no radial bins, so it moves
+  continuously with the particles).
+
+``threshold=None`` takes the level midway between the ambient field (its median over all the
+particles: the blast must cover less than half of them) and the median over the direction bins of
+the largest field value of each bin.
 
 The isotropy measure is the relative spread over angle, ``std_k R_k / mean_k R_k`` (and the range
 ``(max_k R_k - min_k R_k) / mean_k R_k``). Everything is O(N) (``numpy.bincount``). In 2D,
@@ -29,7 +36,7 @@ from ..checks import check_dim, check_positive
 
 __all__ = ["relative_positions", "shock_radii", "shock_isotropy", "angular_modes", "SHOCK_METHODS"]
 
-SHOCK_METHODS = ("peak", "threshold")
+SHOCK_METHODS = ("peak", "threshold", "centroid")
 
 
 def relative_positions(r_pc, centre, cell=None, pbc=None, dim=2):
@@ -104,20 +111,21 @@ def shock_radii(r_pc, value_p, centre, *, cell=None, pbc=None, dim=2, n_angles=3
     n_angles : int
         Direction bins: 2D, bins of the polar angle (>= 4); 3D, azimuth bins (times ``n_angles // 2``
         bins of ``cos(theta)``).
-    method : {"peak", "threshold"}
+    method : {"peak", "threshold", "centroid"}
         See the module docstring.
     dr : float
         Radial bin width of ``"peak"`` (about one or two particle spacings; required there).
     r_max : float or None
         Particles beyond are ignored (default: all).
-    threshold : float
-        The field value of ``"threshold"`` (required there).
+    threshold : float or None
+        The field level of ``"threshold"`` and ``"centroid"`` (None: see the module docstring).
 
     Returns
     -------
     (ndarray, ndarray)
         ``directions`` (2D: ``(K, 1)`` polar angles; 3D: ``(K, 2)`` of ``(cos theta, phi)``) and
-        ``radius_k`` (K,), NaN where a bin holds no particle (or, for ``"threshold"``, none above it).
+        ``radius_k`` (K,), NaN where a bin holds no particle (or, for ``"threshold"`` and
+        ``"centroid"``, none above the level).
     """
     if method not in SHOCK_METHODS:
         raise ValueError(f"method must be one of {SHOCK_METHODS}, got {method!r}")
@@ -125,8 +133,9 @@ def shock_radii(r_pc, value_p, centre, *, cell=None, pbc=None, dim=2, n_angles=3
         raise ValueError(f"n_angles must be an integer >= 4, got {n_angles!r}")
     if method == "peak":
         dr = check_positive("dr", dr)
-    elif threshold is None or not np.isfinite(threshold):
-        raise ValueError(f"threshold must be a finite number for method='threshold', got {threshold!r}")
+    elif threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, numbers.Real)
+                                    or not np.isfinite(threshold)):
+        raise ValueError(f"threshold must be a finite number or None for method={method!r}, got {threshold!r}")
     r_max = check_positive("r_max", r_max, allow_none=True)
     d_pd = relative_positions(r_pc, centre, cell, pbc, dim)
     value_p = np.asarray(value_p, dtype=float)
@@ -137,11 +146,22 @@ def shock_radii(r_pc, value_p, centre, *, cell=None, pbc=None, dim=2, n_angles=3
     k_p, n_bins, directions = _direction_bins(d_pd[keep], int(n_angles))
     r_p, v_p = r_p[keep], value_p[keep]
     radius_k = np.full(n_bins, np.nan)
-    if method == "threshold":
+    if method != "peak":
+        if threshold is None:
+            top = np.full(n_bins, -np.inf)
+            np.maximum.at(top, k_p, v_p)
+            ambient = float(np.median(v_p)) if len(v_p) else 0.0
+            threshold = 0.5 * (ambient + float(np.median(top[np.isfinite(top)]))) if np.isfinite(top).any() else ambient
         above = v_p > threshold
-        best = np.full(n_bins, -np.inf)
-        np.maximum.at(best, k_p[above], r_p[above])
-        radius_k[np.isfinite(best)] = best[np.isfinite(best)]
+        if method == "threshold":
+            best = np.full(n_bins, -np.inf)
+            np.maximum.at(best, k_p[above], r_p[above])
+            radius_k[np.isfinite(best)] = best[np.isfinite(best)]
+        else:
+            w_p = v_p[above] - threshold
+            weight = np.bincount(k_p[above], weights=w_p, minlength=n_bins)
+            moment = np.bincount(k_p[above], weights=w_p * r_p[above], minlength=n_bins)
+            radius_k[weight > 0] = moment[weight > 0] / weight[weight > 0]
         return directions, radius_k
     n_r = int(np.floor((r_p.max() if len(r_p) else 0.0) / dr)) + 1
     j_p = np.minimum((r_p / dr).astype(np.int64), n_r - 1)
