@@ -3,11 +3,10 @@ documented single-particle trap of sph/idealgas, and the validation errors.
 
 Energy tolerance: ``fix sph`` integrates ``v``, ``x`` and ``esph`` by velocity Verlet with half-step
 energy updates; the semi-discrete equations conserve ``KE + sum esph`` exactly (each pair's work
-is billed half to each particle), so what remains is the time integration error. Measured on the
-40 x 40 case below (t_end = 0.06): max |(E - E0)/E0| about 1e-4 at cfl = 0.1 and a quarter to a
-third of it at cfl = 0.05 (30 x 30: 8.0e-5 and 2.4e-5; 3D 12^3: 4.8e-5 and 1.9e-5). The tests ask for
-< 3e-4 at cfl 0.1 and for the error to fall by at least 40 % when the step is halved: a leak (an
-energy term LAMMPS does not count) would not shrink with the step.
+is billed half to each particle), so what remains is the time integration error, second order in
+the step: on 40 x 40 to t = 0.09, max |(E - E0)/E0| = 4.6e-4, 9.0e-5, 2.6e-5, 7.3e-6 at cfl = 0.2, 0.1,
+0.05, 0.025 (examples/results/alaric/fig14_15/checks.json). The tests ask for < 3e-4 at cfl 0.1 and for the error to fall by at least 40 % when the step
+is halved: a leak (an energy term LAMMPS does not count) would not shrink with the step.
 """
 import numpy as np
 import pytest
