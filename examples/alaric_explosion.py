@@ -242,6 +242,7 @@ def write_readme(out, args, payload, command):
     lines = [
         "# ALARIC paper Figs. 14-15: point explosion in LAMMPS from lattice, ALARIC and WVT starts", "",
         payload["verdict"], "",
+        "What these numbers say, at both N: `examples/results/alaric/fig14_15/FINDINGS.md`.", "",
         "Command (writes everything here; the relaxed starts are cached in `starts/`, not committed):", "",
         f"    {command}", "",
         f"Set-up: N = {payload['n']} particles in a periodic box of area 1 (hexagonal: "
