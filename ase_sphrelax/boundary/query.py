@@ -13,7 +13,10 @@ until the neighbour list rebuilds its bins.
 
 The pairs come in CSR form over particles (:class:`BoundaryPairs`): row ``p`` holds the
 elements within ``radius`` of particle ``p`` (of any of its periodic images), with their
-distances and the extended point (particle or ghost) that made the pair.
+distances and the extended point (particle or ghost) that made the pair. A periodic boundary
+(``elements.with_cell``) keeps one period of elements inside the cell; the neighbour list's
+ghosts (the particles' images within its cut-off of the cell) make the pairs with the elements'
+images, so a particle in the cell meets every image within ``radius`` once.
 """
 from __future__ import annotations
 
@@ -268,15 +271,19 @@ class BoundaryQuery:
         return BoundaryPairs(start_p, elem_k, d_k, point_k, x_sc.copy(), radius)
 
 
-def boundary_pairs(r_pc, elements, radius, cell=None, pbc=False):
+def boundary_pairs(r_pc, elements, radius, cell=None, pbc=None):
     """One-shot query: (particle, element) pairs within ``radius`` of positions ``r_pc`` (N, 3).
 
     Bins the particles with a one-shot :class:`~ase_sphrelax.neighbors.NeighborList` of cut-off
-    ``radius`` (bounded by default; give ``cell``/``pbc`` for periodic images).
+    ``radius``. ``cell``/``pbc`` default to the elements' own (bounded, or the periods of a
+    periodic boundary, ``elements.with_cell``): the pairs then include those of the periodic images.
     """
     from ..neighbors import NeighborList
 
     r_pc = np.asarray(r_pc, dtype=float)
     nlist = NeighborList(radius)
+    if pbc is None:
+        pbc = getattr(elements, "pbc", False)
+        cell = getattr(elements, "cell", None) if cell is None else cell
     nlist.update(r_pc, np.zeros((3, 3)) if cell is None else cell, pbc, store=False)
     return BoundaryQuery(elements).pairs(nlist, r_pc, radius)

@@ -70,6 +70,9 @@ class BoundaryTriangles:
         self.pseudo_normal_tfc = np.ascontiguousarray(-pseudo_normals(mesh))
         self.packed_tk = np.ascontiguousarray(self.vertices_tkc.reshape(-1, 9))
         self._domain = None
+        self.periodic = None
+        self.cell = np.zeros((3, 3))
+        self.pbc = np.zeros(3, dtype=bool)
 
     # -- sources ------------------------------------------------------------------
     @classmethod
@@ -155,7 +158,10 @@ class BoundaryTriangles:
 
     @property
     def domain(self):
-        """The enclosed region as a :class:`~ase_sphrelax.domains.Mesh` (inside tests, fill)."""
+        """The enclosed region as a :class:`~ase_sphrelax.domains.Mesh` (inside tests, fill).
+
+        Periodic triangles: a :class:`~ase_sphrelax.boundary.periodic.PeriodicDomain` (the mesh's
+        images joined across the periodic faces, evaluated at wrapped positions)."""
         if self._domain is None:
             from ..domains.mesh import Mesh
 
@@ -163,8 +169,96 @@ class BoundaryTriangles:
         return self._domain
 
     def contains(self, r_pc):
-        """Boolean mask of the points strictly inside."""
+        """Boolean mask of the points strictly inside (periodic: the wrapped position)."""
         return self.domain.contains(r_pc)
+
+    # -- periodic directions ---------------------------------------------------------
+    def with_cell(self, pbc=True, cell=None, quiet=False):
+        """These triangles periodic along the axes ``pbc`` (ASE ``cell`` + ``pbc``).
+
+        The mesh stays one period's closed region. Triangles lying on a periodic face (the
+        planes ``x = lo`` and ``x = lo + L``, ``lo`` the mesh's lower bound, ``L`` the period)
+        are dropped, with a :class:`~ase_sphrelax.boundary.periodic.PeriodicFacesWarning`
+        saying how many; the others are moved by whole periods (by their centroid) into the cell
+        ``[0, L)``. The inside/outside pseudo-normals are those of the mesh's images joined
+        across the faces, so the walls continue across the seam. ``gamma`` and the pair sums
+        see the periodic images through a neighbour list with the same cell.
+
+        Parameters
+        ----------
+        pbc : bool or sequence of 3 bool
+            Periodic axes (x, y, z); ``True`` alone: all three.
+        cell : None, float, sequence or (3, 3) array
+            Periods (an ASE cell with its periodic vectors along their axes, or lengths);
+            default (None or a zero length) the mesh's extent along the axis.
+        quiet : bool
+            No warning about dropped face triangles.
+
+        Raises
+        ------
+        ValueError
+            Bad ``pbc``/``cell``, a triangle that crosses a cell face after the move (cut the mesh
+            at the faces), or images that do not join into a closed mesh (the faces' triangulations
+            must match).
+        """
+        import trimesh
+
+        from ..domains.mesh import Mesh, pseudo_normals
+        from .periodic import PeriodicCell, PeriodicDomain
+
+        base = BoundaryTriangles(self.trimesh, name=self.name) if self.periodic is not None else self
+        lo, hi = base.bounds
+        periodic = PeriodicCell(pbc, cell, lo, hi, 3, name=self.name or "mesh")
+        out = BoundaryTriangles(base.trimesh, name=base.name)
+        if not periodic.pbc.any():
+            out._domain = base._domain
+            return out
+        v_tkc = base.vertices_tkc
+        on_lo = {i: np.all(np.abs(v_tkc[:, :, i] - periodic.lo_c[i]) <= periodic.tol, axis=1) for i in periodic.axes}
+        on_hi = {i: np.all(np.abs(v_tkc[:, :, i] - periodic.lo_c[i] - periodic.period_c[i]) <= periodic.tol, axis=1)
+                 for i in periodic.axes}
+        face = periodic.on_face(v_tkc)
+        if face.all():
+            raise ValueError(f"{self.name}: every triangle lies on a periodic face ({periodic.label})")
+        # the images within one period, joined: face triangles kept only on the outermost planes
+        mesh = base.trimesh
+        n_vertex = len(mesh.vertices)
+        vertices, faces, middle = [], [], None
+        count = 0
+        for m, k in enumerate(periodic.shifts(1)):
+            keep = ~face
+            for i in periodic.axes:
+                keep |= (on_lo[i] & (k[i] == -1)) | (on_hi[i] & (k[i] == 1))
+            if not np.any(k):
+                middle = count + np.cumsum(keep)[~face] - 1
+            vertices.append(np.asarray(mesh.vertices) + k * periodic.period_c)
+            faces.append(np.asarray(mesh.faces)[keep] + m * n_vertex)
+            count += int(keep.sum())
+        joined = trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False)
+        joined.merge_vertices()
+        if not joined.is_watertight:
+            raise ValueError(f"{self.name}: the images along {periodic.label} do not join into a closed mesh; the "
+                             "triangulations of opposite periodic faces must match")
+        keep = np.nonzero(~face)[0]
+        shift = periodic.wrap(base.centroid_tc[keep]) - base.centroid_tc[keep]
+        v = v_tkc[keep] + shift[:, None, :]
+        for i in periodic.axes:
+            bad = np.nonzero((v[:, :, i].min(axis=1) < -periodic.tol)
+                             | (v[:, :, i].max(axis=1) > periodic.period_c[i] + periodic.tol))[0]
+            if len(bad):
+                raise ValueError(f"{self.name}: triangle {int(keep[bad[0]])} crosses a periodic cell face along "
+                                 f"{'xyz'[i]} (the cell is [0, {periodic.period_c[i]:.12g})); cut the mesh at the faces")
+        out.vertices_tkc = np.ascontiguousarray(v)
+        out.normal_tc = np.ascontiguousarray(base.normal_tc[keep])
+        out.area_t = base.area_t[keep]
+        out.centroid_tc = out.vertices_tkc.mean(axis=1)
+        out.pseudo_normal_tfc = np.ascontiguousarray(-pseudo_normals(joined)[middle])
+        out.packed_tk = np.ascontiguousarray(out.vertices_tkc.reshape(-1, 9))
+        out.periodic, out.cell, out.pbc = periodic, periodic.cell, periodic.pbc
+        out._domain = PeriodicDomain(base.domain, Mesh(joined), periodic)
+        if not quiet:
+            periodic.warn_dropped(int(face.sum()), self.name or "mesh", "triangles")
+        return out
 
     def refine(self, max_edge=None, dx=None, ratio=EDGE_TO_DX_RATIO):
         """Split triangles until no edge is longer than ``max_edge`` (or ``dx / ratio``).
@@ -183,9 +277,12 @@ class BoundaryTriangles:
         max_edge = check_positive("max_edge", max_edge)
         v, f = trimesh.remesh.subdivide_to_size(self.trimesh.vertices, self.trimesh.faces, max_edge, max_iter=50)
         out = BoundaryTriangles(trimesh.Trimesh(v, f), name=self.name)
+        if self.periodic is not None:
+            return out.with_cell(self.pbc, self.cell, quiet=True)
         out._domain = self._domain
         return out
 
     def __repr__(self):
+        periodic = "" if self.periodic is None else f", periodic in {self.periodic.label}"
         return (f"BoundaryTriangles({self.n_triangles} triangles, area {self.area_t.sum():.6g}, "
-                f"volume {self.volume:.6g})")
+                f"volume {self.volume:.6g}{periodic})")

@@ -1,0 +1,211 @@
+"""Boundaries periodic along some axes: the cell, the face elements, and the periodic domain.
+
+A boundary is made periodic along an axis by an orthogonal period ``L`` (an ASE cell vector
+along that axis) and ``pbc``. The boundary's elements are then one period's worth of walls:
+
+* elements lying on the two *periodic faces* (the planes ``x = lo`` and ``x = lo + L`` of a
+  channel drawn as a closed rectangle, ``lo`` the boundary's lower bound along the axis) are
+  dropped (:class:`PeriodicFacesWarning` says how many);
+* the others are moved by whole periods into the cell ``[0, L)`` (2D segments that cross a plane
+  ``x = k L`` are split there first);
+* the closed loops (or mesh) stay the description of the region of one period; the periodic
+  region is the union of its images (:class:`PeriodicDomain`).
+
+``gamma`` and the pair sums see the periodic images through the neighbour list
+(:class:`~ase_sphrelax.neighbors.NeighborList` with the cell and ``pbc``): particles are wrapped
+into the cell and their ghosts, the images within the cut-off of the cell, pair with the elements
+inside the cell, so the element set is built once and the boundary integrals
+(:mod:`ase_sphrelax.boundary.gamma`) are those of bounded domains.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..domains.base import Domain
+
+__all__ = ["PeriodicCell", "PeriodicDomain", "PeriodicFacesWarning", "AXES"]
+
+AXES = "xyz"
+
+
+class PeriodicFacesWarning(UserWarning):
+    """Boundary elements on the periodic faces were dropped."""
+
+
+class PeriodicCell:
+    """An orthogonal cell periodic along some axes, for a boundary of dimension ``dim``.
+
+    Parameters
+    ----------
+    pbc : bool or sequence of bool
+        Periodic axes (``True`` alone: every one of the ``dim`` axes); axes beyond ``dim`` must
+        be False.
+    cell : None, float, sequence or (3, 3) array
+        ASE cell: a (3, 3) matrix, 3 (or ``dim``) lengths, or None. Along a periodic axis the
+        cell vector must lie along that axis (orthogonal periods); a zero or missing length
+        takes the boundary's extent.
+    lo_c, hi_c : ndarray (dim,)
+        The boundary's bounds (the periodic faces are ``lo`` and ``lo + L``).
+    dim : {2, 3}
+    name : str
+        For messages.
+
+    Attributes
+    ----------
+    pbc : ndarray of bool (3,)
+    period_c : ndarray (3,)
+        ``L`` along periodic axes, 0 elsewhere.
+    cell : ndarray (3, 3)
+        ``diag(period_c)``: the ASE cell of the periodic axes (zero rows elsewhere).
+    lo_c : ndarray (3,)
+        Plane of the lower periodic face along each periodic axis.
+    """
+
+    def __init__(self, pbc, cell, lo_c, hi_c, dim, name="boundary"):
+        pbc_c = np.zeros(3, dtype=bool)
+        flags = np.atleast_1d(np.asarray(pbc))
+        if flags.dtype != bool or flags.size not in (1, dim, 3):
+            raise ValueError(f"pbc must be a bool or {dim} or 3 bools, got {pbc!r}")
+        if flags.size == 1:
+            pbc_c[:dim] = bool(flags[0])
+        else:
+            pbc_c[: flags.size] = flags
+        if np.any(pbc_c[dim:]):
+            raise ValueError(f"pbc: a {dim}D boundary is periodic along its {dim} axes only, got {pbc!r}")
+        lengths = _cell_lengths(cell, pbc_c, dim)
+        extent = np.zeros(3)
+        extent[:dim] = np.asarray(hi_c, float) - np.asarray(lo_c, float)
+        period = np.where(pbc_c & (lengths > 0), lengths, np.where(pbc_c, extent, 0.0))
+        for i in np.nonzero(pbc_c)[0]:
+            if not period[i] > 0:
+                raise ValueError(f"cell: the period along {AXES[i]} must be > 0, got {period[i]!r}")
+            if extent[i] > period[i] * (1 + 1e-9):
+                raise ValueError(f"cell: {name} extends over {extent[i]:.12g} along {AXES[i]}, more than the period "
+                                 f"{period[i]:.12g}; give a period at least the extent")
+        self.dim = dim
+        self.pbc = pbc_c
+        self.period_c = period
+        self.cell = np.diag(period)
+        self.lo_c = np.zeros(3)
+        self.lo_c[:dim] = lo_c
+        self.tol = 1e-9 * max(1.0, float(np.max(np.abs(np.concatenate([lo_c, hi_c])))))
+
+    @property
+    def axes(self):
+        """Indices of the periodic axes."""
+        return np.nonzero(self.pbc)[0]
+
+    @property
+    def label(self):
+        """The periodic axes as letters, e.g. ``"x"`` or ``"x y"``."""
+        return " ".join(AXES[i] for i in self.axes)
+
+    def wrap(self, r_pc):
+        """Positions moved by whole periods into ``[0, L)`` along the periodic axes (a copy)."""
+        r = np.array(r_pc, dtype=float, copy=True)
+        for i in self.axes:
+            if i < r.shape[1]:
+                r[:, i] -= np.floor(r[:, i] / self.period_c[i]) * self.period_c[i]
+                r[:, i][r[:, i] >= self.period_c[i]] = 0.0  # -1e-17 wraps to L in floating point
+        return r
+
+    def on_face(self, corners_kc):
+        """Mask of the elements whose corners ``(E, k, dim)`` all lie on one periodic face plane."""
+        out = np.zeros(len(corners_kc), dtype=bool)
+        for i in self.axes:
+            for plane in (self.lo_c[i], self.lo_c[i] + self.period_c[i]):
+                out |= np.all(np.abs(corners_kc[:, :, i] - plane) <= self.tol, axis=1)
+        return out
+
+    def shifts(self, reach=1):
+        """Integer image vectors ``(M, 3)``, each periodic component in ``-reach..reach``."""
+        ranges = [np.arange(-reach, reach + 1) if p else np.zeros(1, dtype=int) for p in self.pbc]
+        return np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, 3)
+
+    def warn_dropped(self, n, name, what):
+        """The one-line message about elements dropped on the periodic faces."""
+        if n:
+            warnings.warn(f"{name}: {n} {what} on the periodic faces ({self.label}) dropped", PeriodicFacesWarning,
+                          stacklevel=4)
+
+    def __repr__(self):
+        return f"PeriodicCell({self.label}, period={self.period_c[self.pbc].tolist()})"
+
+
+def _cell_lengths(cell, pbc_c, dim):
+    """Lengths of an ASE cell along the axes, checking periodic vectors are axis-aligned."""
+    if cell is None:
+        return np.zeros(3)
+    c = np.asarray(cell, dtype=float)
+    if c.ndim == 0:
+        c = np.full(dim, float(c))
+    if c.shape in ((dim,), (3,)):
+        out = np.zeros(3)
+        out[: c.size] = c
+    elif c.shape == (3, 3):
+        out = np.zeros(3)
+        for i in np.nonzero(pbc_c)[0]:
+            off = np.delete(c[i], i)
+            if np.any(off != 0.0) or not c[i, i] > 0:
+                raise ValueError(f"cell: the periodic vector {i} must lie along {AXES[i]} with a positive length "
+                                 f"(orthogonal periods), got {c[i].tolist()}")
+            out[i] = c[i, i]
+    else:
+        raise ValueError(f"cell must be None, {dim} or 3 lengths or a (3, 3) matrix, got shape {c.shape}")
+    if not np.all(np.isfinite(out)) or np.any(out < 0):
+        raise ValueError(f"cell lengths must be finite and >= 0, got {out.tolist()}")
+    return out
+
+
+class PeriodicDomain(Domain):
+    """The periodic region: the images of one period's closed region, joined across the faces.
+
+    ``phi`` and ``contains`` take positions wrapped into the cell and evaluate a domain made of
+    the images ``-2..2`` (2D) or ``-1..1`` (3D) periods along every periodic axis joined into one
+    (their shared face boundaries removed), so distances are exact up to one period.
+
+    Parameters
+    ----------
+    closed : Domain
+        One period's region (the closed loops or mesh, face edges included).
+    extended : Domain
+        The joined images.
+    periodic : PeriodicCell
+    """
+
+    def __init__(self, closed, extended, periodic):
+        self.closed = closed
+        self.extended = extended
+        self.periodic = periodic
+        self.dim = closed.dim
+
+    def _phi_grad(self, r_pd):
+        return self.extended._phi_grad(self.periodic.wrap(r_pd))
+
+    def phi(self, r_pc):
+        return self.extended.phi(self.periodic.wrap(self.points(r_pc)))
+
+    def phi_and_normal(self, r_pc):
+        return self.extended.phi_and_normal(self.periodic.wrap(self.points(r_pc)))
+
+    def contains(self, r_pc):
+        """Strictly inside: the wrapped position inside the joined images."""
+        return self.extended.contains(self.periodic.wrap(self.points(r_pc)))
+
+    @property
+    def bounds(self):
+        """The closed region's bounds, the cell ``[0, L]`` along periodic axes."""
+        lo, hi = (np.array(b, dtype=float) for b in self.closed.bounds)
+        for i in self.periodic.axes:
+            lo[i], hi[i] = 0.0, self.periodic.period_c[i]
+        return lo, hi
+
+    @property
+    def volume(self):
+        """Area (2D) or volume (3D) of one period."""
+        return float(self.closed.volume)
+
+    def __repr__(self):
+        return f"PeriodicDomain({self.closed!r}, periodic in {self.periodic.label})"
