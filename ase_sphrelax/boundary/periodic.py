@@ -51,6 +51,8 @@ class PeriodicCell:
     dim : {2, 3}
     name : str
         For messages.
+    reach : int
+        Periods of element images on each side of the cell.
 
     Attributes
     ----------
@@ -63,7 +65,7 @@ class PeriodicCell:
         Plane of the lower periodic face along each periodic axis.
     """
 
-    def __init__(self, pbc, cell, lo_c, hi_c, dim, name="boundary"):
+    def __init__(self, pbc, cell, lo_c, hi_c, dim, name="boundary", reach=1):
         pbc_c = np.zeros(3, dtype=bool)
         flags = np.atleast_1d(np.asarray(pbc))
         if flags.dtype != bool or flags.size not in (1, dim, 3):
@@ -84,13 +86,23 @@ class PeriodicCell:
             if extent[i] > period[i] * (1 + 1e-9):
                 raise ValueError(f"cell: {name} extends over {extent[i]:.12g} along {AXES[i]}, more than the period "
                                  f"{period[i]:.12g}; give a period at least the extent")
+        if isinstance(reach, bool) or not isinstance(reach, (int, np.integer)) or reach < 1:
+            raise ValueError(f"reach must be an integer >= 1 (periods of images on each side), got {reach!r}")
+        self.reach = int(reach)
         self.dim = dim
         self.pbc = pbc_c
         self.period_c = period
         self.cell = np.diag(period)
         self.lo_c = np.zeros(3)
         self.lo_c[:dim] = lo_c
+        # the loops span the period along these axes: their edges on the planes lo and lo + L are the cell faces
+        self.spanning = pbc_c & (extent >= period * (1 - 1e-9))
         self.tol = 1e-9 * max(1.0, float(np.max(np.abs(np.concatenate([lo_c, hi_c])))))
+
+    @property
+    def image_reach(self):
+        """Largest kernel support the images cover: ``reach`` times the shortest period."""
+        return self.reach * float(self.period_c[self.pbc].min())
 
     @property
     def axes(self):
@@ -112,16 +124,29 @@ class PeriodicCell:
         return r
 
     def on_face(self, corners_kc):
-        """Mask of the elements whose corners ``(E, k, dim)`` all lie on one periodic face plane."""
+        """Mask of the elements whose corners ``(E, k, dim)`` all lie on one periodic face plane (along the
+        axes the boundary spans: a body shorter than the period has no face elements)."""
         out = np.zeros(len(corners_kc), dtype=bool)
-        for i in self.axes:
+        for i in np.nonzero(self.spanning)[0]:
             for plane in (self.lo_c[i], self.lo_c[i] + self.period_c[i]):
                 out |= np.all(np.abs(corners_kc[:, :, i] - plane) <= self.tol, axis=1)
         return out
 
-    def shifts(self, reach=1):
-        """Integer image vectors ``(M, 3)``, each periodic component in ``-reach..reach``."""
-        ranges = [np.arange(-reach, reach + 1) if p else np.zeros(1, dtype=int) for p in self.pbc]
+    def on_seam(self, r_pc):
+        """Mask of the points on a plane ``x = lo + k L`` or ``x = k L`` of a periodic axis (cell faces and
+        the boundary's periodic faces, modulo the periods)."""
+        out = np.zeros(len(r_pc), dtype=bool)
+        for i in self.axes:
+            for plane in (0.0, self.lo_c[i]):
+                u = np.mod(r_pc[:, i] - plane, self.period_c[i])
+                out |= (u <= self.tol) | (u >= self.period_c[i] - self.tol)
+        return out
+
+    def shifts(self, reach=1, lo_k=None, hi_k=None):
+        """Integer image vectors ``(M, 3)``, each periodic component in ``-reach..reach`` (or ``lo_k..hi_k``)."""
+        lo_k = np.full(3, -reach) if lo_k is None else lo_k
+        hi_k = np.full(3, reach) if hi_k is None else hi_k
+        ranges = [np.arange(lo_k[i], hi_k[i] + 1) if p else np.zeros(1, dtype=int) for i, p in enumerate(self.pbc)]
         return np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, 3)
 
     def warn_dropped(self, n, name, what):

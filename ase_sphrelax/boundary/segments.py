@@ -94,6 +94,7 @@ class BoundarySegments:
         self.pbc = np.zeros(3, dtype=bool)
         self._polygon = None
         self._domain = None
+        self._surface = None
 
     def _set_segments(self, start, end, loop_s, next_s, prev_s, source_s):
         """The per-segment arrays (the class docstring's attributes) of segments ``start -> end``."""
@@ -311,7 +312,7 @@ class BoundarySegments:
         return float(sum(signed_area(v) for v in self.loops))
 
     # -- periodic directions ---------------------------------------------------------
-    def with_cell(self, pbc=True, cell=None, quiet=False):
+    def with_cell(self, pbc=True, cell=None, quiet=False, reach=1):
         """These segments periodic along the axes ``pbc`` (ASE ``cell`` + ``pbc``).
 
         The loops stay one period's closed region. Segments lying on a periodic face (the lines
@@ -320,8 +321,12 @@ class BoundarySegments:
         :class:`~ase_sphrelax.boundary.periodic.PeriodicFacesWarning` saying how many; the others
         are split where they cross a line ``x = k L`` and moved by whole periods into the cell
         ``[0, L)``. A segment's neighbour across the cell face is the segment starting at the
-        image of its end (its own start, for a straight wall). ``gamma`` and the pair sums see the
-        periodic images through a neighbour list with the same cell (:mod:`.periodic`).
+        image of its end (its own start, for a straight wall). The elements are then the images of
+        these segments ``-reach..reach`` periods away along every periodic axis, built once, and a
+        wall that continues straight across a cell face is one segment through all its images (no
+        vertex at the seam, so ``gamma`` is as exact there as along any straight wall). Particles
+        are wrapped into the cell (by the neighbour list of the same cell) and meet the images
+        directly (:mod:`.periodic`).
 
         Parameters
         ----------
@@ -332,6 +337,8 @@ class BoundarySegments:
             (None, or a zero length) the loops' extent along the axis.
         quiet : bool
             No warning about dropped face segments.
+        reach : int
+            Periods of images on each side (the kernel support must not exceed ``reach`` periods).
 
         Returns
         -------
@@ -350,7 +357,7 @@ class BoundarySegments:
 
         base = BoundarySegments(self.loops, name=self.name) if self.periodic is not None else self
         lo, hi = base.bounds
-        periodic = PeriodicCell(pbc, cell, lo, hi, 2, name=self.name or "boundary")
+        periodic = PeriodicCell(pbc, cell, lo, hi, 2, name=self.name or "boundary", reach=reach)
         out = BoundarySegments(base.loops, source_s=base.source_s, name=base.name)
         out._polygon = base._polygon
         if not periodic.pbc.any():
@@ -366,8 +373,11 @@ class BoundarySegments:
         start, end = start + shift, end + shift
         next_s = _match_periodic(end, start, periodic, self.name, "ends")
         prev_s = _match_periodic(start, end, periodic, self.name, "starts")
-        out._set_segments(start, end, np.array([p[2] for p in pieces]), next_s, prev_s,
-                          np.array([p[3] for p in pieces], dtype=np.int64))
+        loop_s = np.array([p[2] for p in pieces])
+        source_s = np.array([p[3] for p in pieces], dtype=np.int64)
+        seam_s = periodic.on_seam(end)
+        out._set_segments(*_periodic_images(start, end, loop_s, source_s, next_s, prev_s, seam_s, periodic, reach))
+        out.surface = float(np.sum(base.length_s[~face]))
         out.periodic, out.cell, out.pbc = periodic, periodic.cell, periodic.pbc
         if not quiet:
             periodic.warn_dropped(int(face.sum()), self.name or "boundary", "segments")
@@ -376,7 +386,17 @@ class BoundarySegments:
     def merged(self):
         """The segments of :attr:`polygon` (runs of collinear segments merged), with the same periodicity."""
         out = BoundarySegments.from_polygon(self.polygon)
-        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True)
+        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True,
+                                                                 reach=self.periodic.reach)
+
+    @property
+    def surface(self):
+        """Length of the walls (of one period, for periodic segments)."""
+        return self._surface if self._surface is not None else float(np.sum(self.length_s))
+
+    @surface.setter
+    def surface(self, value):
+        self._surface = value
 
     @property
     def polygon(self):
@@ -446,7 +466,8 @@ class BoundarySegments:
             first += len(v)
         out = BoundarySegments(loops, source_s=np.concatenate(sources), name=self.name)
         out._polygon = self._polygon
-        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True)
+        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True,
+                                                                 reach=self.periodic.reach)
 
     def __repr__(self):
         periodic = "" if self.periodic is None else f", periodic in {self.periodic.label}"
@@ -488,6 +509,58 @@ def _match_periodic(point_sc, target_sc, periodic, name, what):
                          f"({periodic.label}) and does not continue at the opposite face; the walls of one period "
                          "must meet their images")
     return k.astype(np.int64)
+
+
+def _periodic_images(start, end, loop_s, source_s, next_s, prev_s, seam_s, periodic, reach):
+    """The segments of one period (in the cell, joined by next/prev modulo the periods) and their images
+    ``-reach..reach`` periods away, with the straight joints at the seams merged (``seam_s``: the segment
+    ends on a plane ``x = k L`` or ``x = lo + k L``, a cell face, a periodic face or a split).
+
+    Returns the arguments of :meth:`BoundarySegments._set_segments`.
+    """
+    shifts = periodic.shifts(reach)
+    n, m = len(start), len(shifts)
+    index = {tuple(k): i for i, k in enumerate(shifts)}
+    period = periodic.period_c[:2]
+    offset = shifts[:, :2] * period
+    start_ms = start[None] + offset[:, None]
+    end_ms = end[None] + offset[:, None]
+
+    def neighbour(link_s, sign):
+        """Image index of the next (sign +1) or previous (-1) segment of every image; itself at an open end."""
+        out = np.arange(n * m).reshape(m, n)
+        jump = np.zeros((n, 3), dtype=np.int64)
+        gap = (start[link_s] - end) if sign > 0 else (end[link_s] - start)  # in periods, along each axis
+        jump[:, :2] = np.rint(-gap / np.where(period > 0, period, 1.0)).astype(np.int64)
+        for i, k in enumerate(shifts):
+            for s_ in range(n):
+                j = index.get(tuple(k + jump[s_]))
+                if j is not None:
+                    out[i, s_] = j * n + link_s[s_]
+        return out.ravel()
+
+    next_k, prev_k = neighbour(next_s, 1), neighbour(prev_s, -1)
+    start_k, end_k = start_ms.reshape(-1, 2), end_ms.reshape(-1, 2)
+    tangent = (end - start) / np.linalg.norm(end - start, axis=1)[:, None]
+    tangent_k = np.tile(tangent, (m, 1))
+    # a joint between images of one straight wall is no vertex: merge across it
+    seam = np.tile(seam_s, m)  # ends on a cell face, a periodic face or a split at a plane x = k L
+    straight = seam & (next_k != np.arange(n * m)) & (np.abs(tangent_k[next_k] - tangent_k).max(axis=1) <= 1e-12)
+    into = np.zeros(n * m, dtype=bool)
+    into[next_k[straight]] = True
+    first_k = np.nonzero(~into)[0]
+    chain_of = np.full(n * m, -1, dtype=np.int64)
+    last_k = np.empty(len(first_k), dtype=np.int64)
+    for c, k in enumerate(first_k):
+        chain_of[k] = c
+        while straight[k] and chain_of[next_k[k]] < 0:
+            k = next_k[k]
+            chain_of[k] = c
+        last_k[c] = k
+    if np.any(chain_of < 0):  # a closed straight ring cannot occur in finitely many images
+        raise RuntimeError("periodic images: a straight chain without an end")
+    return (start_k[first_k], end_k[last_k], np.tile(loop_s, m)[first_k], chain_of[next_k[last_k]],
+            chain_of[prev_k[first_k]], np.tile(source_s, m)[first_k])
 
 
 def _joined_images(polygon, periodic, reach=2):

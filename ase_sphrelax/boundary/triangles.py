@@ -73,6 +73,7 @@ class BoundaryTriangles:
         self.periodic = None
         self.cell = np.zeros((3, 3))
         self.pbc = np.zeros(3, dtype=bool)
+        self._surface = None
 
     # -- sources ------------------------------------------------------------------
     @classmethod
@@ -157,6 +158,15 @@ class BoundaryTriangles:
         return float(self.trimesh.volume)
 
     @property
+    def surface(self):
+        """Area of the walls (of one period, for periodic triangles)."""
+        return self._surface if self._surface is not None else float(np.sum(self.area_t))
+
+    @surface.setter
+    def surface(self, value):
+        self._surface = value
+
+    @property
     def domain(self):
         """The enclosed region as a :class:`~ase_sphrelax.domains.Mesh` (inside tests, fill).
 
@@ -173,16 +183,18 @@ class BoundaryTriangles:
         return self.domain.contains(r_pc)
 
     # -- periodic directions ---------------------------------------------------------
-    def with_cell(self, pbc=True, cell=None, quiet=False):
+    def with_cell(self, pbc=True, cell=None, quiet=False, reach=1):
         """These triangles periodic along the axes ``pbc`` (ASE ``cell`` + ``pbc``).
 
         The mesh stays one period's closed region. Triangles lying on a periodic face (the
         planes ``x = lo`` and ``x = lo + L``, ``lo`` the mesh's lower bound, ``L`` the period)
         are dropped, with a :class:`~ase_sphrelax.boundary.periodic.PeriodicFacesWarning`
         saying how many; the others are moved by whole periods (by their centroid) into the cell
-        ``[0, L)``. The inside/outside pseudo-normals are those of the mesh's images joined
-        across the faces, so the walls continue across the seam. ``gamma`` and the pair sums
-        see the periodic images through a neighbour list with the same cell.
+        ``[0, L)``. The elements are these triangles and their images ``-reach..reach`` periods
+        away along every periodic axis, built once; their inside/outside pseudo-normals are those
+        of the mesh's images joined across the faces, so the walls continue across the seam.
+        Particles are wrapped into the cell (by the neighbour list of the same cell) and meet the
+        images directly.
 
         Parameters
         ----------
@@ -193,6 +205,8 @@ class BoundaryTriangles:
             default (None or a zero length) the mesh's extent along the axis.
         quiet : bool
             No warning about dropped face triangles.
+        reach : int
+            Periods of images on each side (the kernel support must not exceed ``reach`` periods).
 
         Raises
         ------
@@ -208,53 +222,67 @@ class BoundaryTriangles:
 
         base = BoundaryTriangles(self.trimesh, name=self.name) if self.periodic is not None else self
         lo, hi = base.bounds
-        periodic = PeriodicCell(pbc, cell, lo, hi, 3, name=self.name or "mesh")
+        periodic = PeriodicCell(pbc, cell, lo, hi, 3, name=self.name or "mesh", reach=reach)
         out = BoundaryTriangles(base.trimesh, name=base.name)
         if not periodic.pbc.any():
             out._domain = base._domain
             return out
-        v_tkc = base.vertices_tkc
-        on_lo = {i: np.all(np.abs(v_tkc[:, :, i] - periodic.lo_c[i]) <= periodic.tol, axis=1) for i in periodic.axes}
-        on_hi = {i: np.all(np.abs(v_tkc[:, :, i] - periodic.lo_c[i] - periodic.period_c[i]) <= periodic.tol, axis=1)
+        period = periodic.period_c
+        # whole periods: the mesh's lower bound into [0, L) (the same periodic region)
+        move = -np.floor(np.where(periodic.pbc, lo / np.where(periodic.pbc, period, 1.0), 0.0)) * period
+        vertices = np.asarray(base.trimesh.vertices, dtype=float) + move
+        faces = np.asarray(base.trimesh.faces)
+        v_tkc = vertices[faces]
+        plane = lo + move
+        on_lo = {i: np.all(np.abs(v_tkc[:, :, i] - plane[i]) <= periodic.tol, axis=1) for i in periodic.axes}
+        on_hi = {i: np.all(np.abs(v_tkc[:, :, i] - plane[i] - period[i]) <= periodic.tol, axis=1)
                  for i in periodic.axes}
-        face = periodic.on_face(v_tkc)
+        face = np.zeros(len(faces), dtype=bool)
+        for i in periodic.axes:
+            face |= on_lo[i] | on_hi[i]
         if face.all():
             raise ValueError(f"{self.name}: every triangle lies on a periodic face ({periodic.label})")
-        # the images within one period, joined: face triangles kept only on the outermost planes
-        mesh = base.trimesh
-        n_vertex = len(mesh.vertices)
-        vertices, faces, middle = [], [], None
+        wall = np.nonzero(~face)[0]
+        centroid = v_tkc[wall].mean(axis=1)
+        jump = np.rint((periodic.wrap(centroid) - centroid) / np.where(periodic.pbc, period, 1.0)).astype(np.int64)
+        for i in periodic.axes:
+            x = v_tkc[wall, :, i] + (jump[:, i] * period[i])[:, None]
+            bad = np.nonzero((x.min(axis=1) < -periodic.tol) | (x.max(axis=1) > period[i] + periodic.tol))[0]
+            if len(bad):
+                raise ValueError(f"{self.name}: triangle {int(wall[bad[0]])} crosses a periodic cell face along "
+                                 f"{'xyz'[i]} (the cell is [0, {period[i]:.12g})); cut the mesh at the faces")
+        # the images joined into one closed mesh (face triangles kept on its outermost planes only)
+        lo_k = np.where(periodic.pbc, -reach - 1, 0)
+        hi_k = np.where(periodic.pbc, reach, 0)
+        copies = periodic.shifts(lo_k=lo_k, hi_k=hi_k)
+        row = {tuple(k): m for m, k in enumerate(copies)}
+        joined_v, joined_f, where = [], [], np.full((len(copies), len(faces)), -1, dtype=np.int64)
         count = 0
-        for m, k in enumerate(periodic.shifts(1)):
+        for m, k in enumerate(copies):
             keep = ~face
             for i in periodic.axes:
-                keep |= (on_lo[i] & (k[i] == -1)) | (on_hi[i] & (k[i] == 1))
-            if not np.any(k):
-                middle = count + np.cumsum(keep)[~face] - 1
-            vertices.append(np.asarray(mesh.vertices) + k * periodic.period_c)
-            faces.append(np.asarray(mesh.faces)[keep] + m * n_vertex)
+                keep |= (on_lo[i] & (k[i] == lo_k[i])) | (on_hi[i] & (k[i] == hi_k[i]))
+            where[m, keep] = count + np.arange(int(keep.sum()))
+            joined_v.append(vertices + k * period)
+            joined_f.append(faces[keep] + m * len(vertices))
             count += int(keep.sum())
-        joined = trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False)
+        joined = trimesh.Trimesh(np.concatenate(joined_v), np.concatenate(joined_f), process=False)
         joined.merge_vertices()
         if not joined.is_watertight:
             raise ValueError(f"{self.name}: the images along {periodic.label} do not join into a closed mesh; the "
                              "triangulations of opposite periodic faces must match")
-        keep = np.nonzero(~face)[0]
-        shift = periodic.wrap(base.centroid_tc[keep]) - base.centroid_tc[keep]
-        v = v_tkc[keep] + shift[:, None, :]
-        for i in periodic.axes:
-            bad = np.nonzero((v[:, :, i].min(axis=1) < -periodic.tol)
-                             | (v[:, :, i].max(axis=1) > periodic.period_c[i] + periodic.tol))[0]
-            if len(bad):
-                raise ValueError(f"{self.name}: triangle {int(keep[bad[0]])} crosses a periodic cell face along "
-                                 f"{'xyz'[i]} (the cell is [0, {periodic.period_c[i]:.12g})); cut the mesh at the faces")
-        out.vertices_tkc = np.ascontiguousarray(v)
-        out.normal_tc = np.ascontiguousarray(base.normal_tc[keep])
-        out.area_t = base.area_t[keep]
+        pseudo = -pseudo_normals(joined)
+        # the elements: the wall triangles (wrapped into the cell) and their images -reach..reach periods away
+        images = periodic.shifts(reach)
+        index = np.array([[where[row[tuple(k + j)], t] for t, j in zip(wall, jump)] for k in images]).ravel()
+        out.vertices_tkc = np.ascontiguousarray(joined.triangles[index])
+        out.normal_tc = np.ascontiguousarray(np.tile(base.normal_tc[wall], (len(images), 1)))
+        out.area_t = np.tile(base.area_t[wall], len(images))
         out.centroid_tc = out.vertices_tkc.mean(axis=1)
-        out.pseudo_normal_tfc = np.ascontiguousarray(-pseudo_normals(joined)[middle])
+        out.pseudo_normal_tfc = np.ascontiguousarray(pseudo[index])
         out.packed_tk = np.ascontiguousarray(out.vertices_tkc.reshape(-1, 9))
         out.periodic, out.cell, out.pbc = periodic, periodic.cell, periodic.pbc
+        out.surface = float(np.sum(base.area_t[wall]))
         out._domain = PeriodicDomain(base.domain, Mesh(joined), periodic)
         if not quiet:
             periodic.warn_dropped(int(face.sum()), self.name or "mesh", "triangles")
@@ -278,7 +306,7 @@ class BoundaryTriangles:
         v, f = trimesh.remesh.subdivide_to_size(self.trimesh.vertices, self.trimesh.faces, max_edge, max_iter=50)
         out = BoundaryTriangles(trimesh.Trimesh(v, f), name=self.name)
         if self.periodic is not None:
-            return out.with_cell(self.pbc, self.cell, quiet=True)
+            return out.with_cell(self.pbc, self.cell, quiet=True, reach=self.periodic.reach)
         out._domain = self._domain
         return out
 

@@ -150,7 +150,7 @@ class BIPICalculator(SPHCalculator):
         of it, as :class:`~ase_sphrelax.drivers.BIPIPacker` does in Step 2a)."""
         self._spacing_checked = True if final else n
         boundary = self.boundary
-        surface = float(np.sum(boundary.length_s if boundary.dim == 2 else boundary.area_t))
+        surface = boundary.surface  # of one period, for periodic boundaries
         message = spacing_mismatch(n, self.model.dx, boundary.dim, float(boundary.domain.volume), surface)
         if message is not None:
             warnings.warn(f"BIPICalculator: {message}", SpacingWarning, stacklevel=4)
