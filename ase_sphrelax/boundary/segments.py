@@ -11,6 +11,11 @@ the loops is the information. Sources: :meth:`BoundarySegments.from_polygon` (a
 (``x1 y1 x2 y2`` per line), :meth:`~BoundarySegments.from_vertices` (vertex loops) and
 :meth:`~BoundarySegments.from_domain` (polygons, 2D boxes and polygonal CSG results).
 
+Periodic directions: :meth:`BoundarySegments.with_cell` (or ``pbc=``/``cell=`` of
+:meth:`~BoundarySegments.from_edges` and :meth:`~BoundarySegments.from_polygon`) drops the edges
+on the periodic faces and keeps the images of the others around the cell
+(:mod:`ase_sphrelax.boundary.periodic`).
+
 Orientation is checked: a loop whose orientation contradicts its role (an outer loop that
 runs clockwise, a hole that runs counter-clockwise; the role follows from nesting, even-odd
 rule) is reversed with an :class:`OrientationWarning`. An edge file whose loop mixes segment
@@ -54,14 +59,23 @@ class BoundarySegments:
     Attributes
     ----------
     start_sc, end_sc : ndarray (S, 2)
-        End points of each segment (``end_sc[s] == start_sc[next_s[s]]`` exactly).
+        End points of each segment (``end_sc[s] == start_sc[next_s[s]]`` exactly; modulo the
+        periods for periodic segments).
     normal_sc : ndarray (S, 2)
         Unit inward normals (into the domain).
     tangent_sc : ndarray (S, 2)
         Unit directions ``(end - start) / length``.
     length_s : ndarray (S,)
+    surface : float
+        Total length of the walls (of one period, for periodic segments: images not counted).
     centroid_sc : ndarray (S, 2)
         Mid points.
+    periodic : PeriodicCell or None
+        The periodic directions (:meth:`with_cell`), None when bounded; the elements are then the
+        segments of one period and their images around the cell.
+    cell, pbc : ndarray (3, 3), ndarray of bool (3,)
+        The periods as an ASE cell (zero rows along bounded axes) and the periodic axes; zeros
+        and all False when bounded.
     loop_s, next_s, prev_s : ndarray of int (S,)
         Loop of each segment and its neighbours along the loop.
     packed_sk : ndarray (S, 8)
@@ -94,7 +108,7 @@ class BoundarySegments:
         self.pbc = np.zeros(3, dtype=bool)
         self._polygon = None
         self._domain = None
-        self._surface = None
+        self.surface = float(np.sum(self.length_s))  # the walls' length (of one period, when periodic)
 
     def _set_segments(self, start, end, loop_s, next_s, prev_s, source_s):
         """The per-segment arrays (the class docstring's attributes) of segments ``start -> end``."""
@@ -388,15 +402,6 @@ class BoundarySegments:
         out = BoundarySegments.from_polygon(self.polygon)
         return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True,
                                                                  reach=self.periodic.reach)
-
-    @property
-    def surface(self):
-        """Length of the walls (of one period, for periodic segments)."""
-        return self._surface if self._surface is not None else float(np.sum(self.length_s))
-
-    @surface.setter
-    def surface(self, value):
-        self._surface = value
 
     @property
     def polygon(self):

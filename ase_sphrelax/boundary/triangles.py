@@ -8,7 +8,8 @@ into the enclosed volume. Sources: :meth:`BoundaryTriangles.from_mesh` (a
 through trimesh), :meth:`~BoundaryTriangles.from_trimesh` and :meth:`~BoundaryTriangles.from_domain`
 (meshes and 3D boxes; an analytic sphere has no triangles: mesh it, e.g.
 ``Mesh(trimesh.creation.icosphere(...))``). :meth:`~BoundaryTriangles.refine` splits large triangles
-(trimesh's ``subdivide_to_size``).
+(trimesh's ``subdivide_to_size``). :meth:`~BoundaryTriangles.with_cell` makes the mesh periodic along
+some axes (:mod:`ase_sphrelax.boundary.periodic`).
 """
 from __future__ import annotations
 
@@ -38,7 +39,15 @@ class BoundaryTriangles:
     normal_tc : ndarray (T, 3)
         Unit inward normals.
     area_t : ndarray (T,)
+    surface : float
+        Total area of the walls (of one period, for periodic triangles: images not counted).
     centroid_tc : ndarray (T, 3)
+    periodic : PeriodicCell or None
+        The periodic directions (:meth:`with_cell`), None when bounded; the elements are then the
+        triangles of one period and their images around the cell.
+    cell, pbc : ndarray (3, 3), ndarray of bool (3,)
+        The periods as an ASE cell (zero rows along bounded axes) and the periodic axes; zeros
+        and all False when bounded.
     pseudo_normal_tfc : ndarray (T, 7, 3)
         Inward angle-weighted pseudo-normals of the features of each triangle (vertices a, b,
         c, edges ab, ac, bc, face; Baerentzen & Aanaes 2005), for inside/outside decisions.
@@ -73,7 +82,7 @@ class BoundaryTriangles:
         self.periodic = None
         self.cell = np.zeros((3, 3))
         self.pbc = np.zeros(3, dtype=bool)
-        self._surface = None
+        self.surface = float(np.sum(area))  # the walls' area (of one period, when periodic)
 
     # -- sources ------------------------------------------------------------------
     @classmethod
@@ -157,14 +166,6 @@ class BoundaryTriangles:
     def volume(self):
         return float(self.trimesh.volume)
 
-    @property
-    def surface(self):
-        """Area of the walls (of one period, for periodic triangles)."""
-        return self._surface if self._surface is not None else float(np.sum(self.area_t))
-
-    @surface.setter
-    def surface(self, value):
-        self._surface = value
 
     @property
     def domain(self):

@@ -209,7 +209,8 @@ def run(args):
     from .relax import _print_quality
 
     model = packer.model
-    print(f"boundary: {path.name} ({boundary.dim}D, {len(boundary)} elements), {len(atoms)} particles, "
+    images = "" if boundary.periodic is None else f" with their images, periodic in {boundary.periodic.label}"
+    print(f"boundary: {path.name} ({boundary.dim}D, {len(boundary)} elements{images}), {len(atoms)} particles, "
           f"dx = {args.dx:g}, h = {ratio:g} dx (support; the paper's h_B/dx_r = {ratio / 2:g}), method = {args.method}")
     before = quality_summary(start, h, dx=args.dx, domain=boundary.domain, dim=boundary.dim)
     from ..checks import NotConvergedWarning
