@@ -197,6 +197,15 @@ def test_with_cell_bad_input(pbc, cell, message):
         BoundarySegments.from_polygon(channel_polygon()).with_cell(pbc, cell)
 
 
+def test_support_beyond_the_images_is_refused():
+    with pytest.raises(ValueError, match="exceeds the periodic images' reach"):
+        gamma_and_gradient([[0.5, 0.3, 0.0]], PERIODIC, 1.5 * L)
+    wide = PERIODIC.with_cell([True, False], reach=2, quiet=True)
+    g, _ = gamma_and_gradient([[0.5, 0.3, 0.0]], wide, 1.5 * L)
+    g_long, _ = gamma_and_gradient(np.array([[0.5, 0.3, 0.0]]) + MIDDLE, LONG, 1.5 * L)
+    assert abs(g[0] - g_long[0]) <= 1e-12
+
+
 def test_wall_without_continuation_is_refused():
     # a step in the floor: the wall ends at y = 0 on the left face but at y = 0.1 on the right one
     steps = Polygon([np.array([[0, 0], [0.5, 0], [0.5, 0.1], [L, 0.1], [L, W], [0, W]])])
