@@ -5,17 +5,21 @@ along that axis) and ``pbc``. The boundary's elements are then one period's wort
 
 * elements lying on the two *periodic faces* (the planes ``x = lo`` and ``x = lo + L`` of a
   channel drawn as a closed rectangle, ``lo`` the boundary's lower bound along the axis) are
-  dropped (:class:`PeriodicFacesWarning` says how many);
+  dropped (:class:`PeriodicFacesWarning` says how many) when the boundary spans the period; a body
+  shorter than the period keeps all its elements;
 * the others are moved by whole periods into the cell ``[0, L)`` (2D segments that cross a plane
-  ``x = k L`` are split there first);
+  ``x = k L`` are split there first), and their images ``-reach..reach`` periods away along every
+  periodic axis are built once; a 2D wall that continues straight across a seam becomes one
+  segment through its images, so no vertex appears where the long bounded wall has none;
 * the closed loops (or mesh) stay the description of the region of one period; the periodic
   region is the union of its images (:class:`PeriodicDomain`).
 
-``gamma`` and the pair sums see the periodic images through the neighbour list
-(:class:`~ase_sphrelax.neighbors.NeighborList` with the cell and ``pbc``): particles are wrapped
-into the cell and their ghosts, the images within the cut-off of the cell, pair with the elements
-inside the cell, so the element set is built once and the boundary integrals
-(:mod:`ase_sphrelax.boundary.gamma`) are those of bounded domains.
+The particles are wrapped into the cell by the neighbour list
+(:class:`~ase_sphrelax.neighbors.NeighborList` with the cell and ``pbc``), whose ghosts serve the
+pair sums; the particle-element query (:class:`~ase_sphrelax.boundary.BoundaryQuery`) skips the
+ghosts and pairs each particle with the element images directly, so ``gamma`` and its gradient come
+from the boundary integrals of bounded domains (:mod:`ase_sphrelax.boundary.gamma`), unchanged.
+A point is inside when its wrapped image is.
 """
 from __future__ import annotations
 
