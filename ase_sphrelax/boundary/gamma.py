@@ -370,7 +370,7 @@ class BoundaryIntegrals:
             m = b.pseudo_normal_tfc[t, f]
             moved[i] = q + NUDGE * self.h * m / np.linalg.norm(m)
         nlist = NeighborList(self.h)
-        nlist.update(moved, np.zeros((3, 3)), False, store=False)
+        nlist.update(moved, b.cell, b.pbc, store=False)
         out = self.compute(nlist, moved, _nudge=False)
         if np.any(out.chi_p != 1.0):
             raise FloatingPointError("a point moved inside the surface is not inside (degenerate mesh?)")
@@ -397,7 +397,7 @@ def boundary_terms(r_pc, boundary, h, kernel="wendland_c2", band=0.0, band_rule=
     integrals = BoundaryIntegrals(boundary, h, kernel)
     r = _positions(r_pc, integrals.dim)
     nlist = NeighborList(integrals.h)
-    nlist.update(r, np.zeros((3, 3)), False, store=False)
+    nlist.update(r, integrals.boundary.cell, integrals.boundary.pbc, store=False)  # periodic images of the boundary
     return integrals.compute(nlist, r, terms=True, band=band, band_rule=band_rule)
 
 

@@ -13,7 +13,10 @@ until the neighbour list rebuilds its bins.
 
 The pairs come in CSR form over particles (:class:`BoundaryPairs`): row ``p`` holds the
 elements within ``radius`` of particle ``p`` (of any of its periodic images), with their
-distances and the extended point (particle or ghost) that made the pair.
+distances and the extended point (particle or ghost) that made the pair. A periodic boundary
+(``elements.with_cell``) holds the images of its elements around the cell: the particles,
+wrapped into the cell by the neighbour list, meet them directly and the ghosts are skipped, so a
+particle meets every image within ``radius`` once.
 """
 from __future__ import annotations
 
@@ -89,10 +92,16 @@ def _register(kind, elem, origin_c, bin_size, nbin_c, reach, start, out, fill):
 
 
 @numba.njit(cache=True, nogil=True)
-def _query_chunk(kind, elem, x_sc, bin_s, reg_start, reg_elem, radius2, count_s, row_s, elem_k, d_k, fill,
+def _query_chunk(kind, elem, x_sc, bin_s, reg_start, reg_elem, radius2, skip_s, count_s, row_s, elem_k, d_k, fill,
                  first, last):
-    """Elements within the radius of sorted points [first, last): counts, then the pairs."""
+    """Elements within the radius of sorted points [first, last): counts, then the pairs (none for the
+    points ``skip_s`` marks, if it is not empty)."""
+    skip = skip_s.shape[0] > 0
     for s in range(first, last):
+        if skip and skip_s[s]:
+            if not fill:
+                count_s[s] = 0
+            continue
         b = bin_s[s]
         n = 0
         pos = row_s[s] if fill else 0
@@ -212,6 +221,7 @@ class BoundaryQuery:
     def __init__(self, elements):
         self.elements = elements
         self.kind, self._elem = _kind(elements)
+        self.periodic = getattr(elements, "periodic", None)
         self._points = None
         self._reach = -1.0
         self._reg = None
@@ -250,6 +260,10 @@ class BoundaryQuery:
         radius = float(radius)
         if not radius > 0:
             raise ValueError(f"radius must be > 0, got {radius!r}")
+        if self.periodic is not None and radius > self.periodic.image_reach:
+            raise ValueError(f"radius (the kernel support h) {radius!r} exceeds the periodic images' reach "
+                             f"{self.periodic.image_reach!r}; build the boundary with with_cell(..., reach=k) for "
+                             "k periods of images")
         pts = nlist.points
         margin = 0.5 * nlist.skin if nlist.stored else 0.0
         reg_start, reg_elem = self._registered(pts, radius + margin)
@@ -258,7 +272,9 @@ class BoundaryQuery:
         count_s = np.zeros(n_ext, dtype=np.int64)
         row_s = np.zeros(n_ext + 1, dtype=np.int64)
         empty_i = np.empty(0, dtype=np.int64)
-        common = (self.kind, self._elem, x_sc, pts.bin_s, reg_start, reg_elem, radius * radius, count_s)
+        # periodic elements are images around the cell: the particles (wrapped into it) meet them, not their ghosts
+        skip_s = pts.is_ghost_s if self.periodic is not None else np.zeros(0, dtype=np.bool_)
+        common = (self.kind, self._elem, x_sc, pts.bin_s, reg_start, reg_elem, radius * radius, skip_s, count_s)
         run_chunks(_query_chunk, n_ext, common + (row_s, empty_i, np.empty(0), False))
         np.cumsum(count_s, out=row_s[1:])
         elem_s = np.empty(row_s[-1], dtype=np.int64)
@@ -268,15 +284,19 @@ class BoundaryQuery:
         return BoundaryPairs(start_p, elem_k, d_k, point_k, x_sc.copy(), radius)
 
 
-def boundary_pairs(r_pc, elements, radius, cell=None, pbc=False):
+def boundary_pairs(r_pc, elements, radius, cell=None, pbc=None):
     """One-shot query: (particle, element) pairs within ``radius`` of positions ``r_pc`` (N, 3).
 
     Bins the particles with a one-shot :class:`~ase_sphrelax.neighbors.NeighborList` of cut-off
-    ``radius`` (bounded by default; give ``cell``/``pbc`` for periodic images).
+    ``radius``. ``cell``/``pbc`` default to the elements' own (bounded, or the periods of a
+    periodic boundary, ``elements.with_cell``): the pairs then include those of the periodic images.
     """
     from ..neighbors import NeighborList
 
     r_pc = np.asarray(r_pc, dtype=float)
     nlist = NeighborList(radius)
+    if pbc is None:
+        pbc = getattr(elements, "pbc", False)
+        cell = getattr(elements, "cell", None) if cell is None else cell
     nlist.update(r_pc, np.zeros((3, 3)) if cell is None else cell, pbc, store=False)
     return BoundaryQuery(elements).pairs(nlist, r_pc, radius)

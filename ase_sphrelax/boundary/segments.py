@@ -11,6 +11,11 @@ the loops is the information. Sources: :meth:`BoundarySegments.from_polygon` (a
 (``x1 y1 x2 y2`` per line), :meth:`~BoundarySegments.from_vertices` (vertex loops) and
 :meth:`~BoundarySegments.from_domain` (polygons, 2D boxes and polygonal CSG results).
 
+Periodic directions: :meth:`BoundarySegments.with_cell` (or ``pbc=``/``cell=`` of
+:meth:`~BoundarySegments.from_edges` and :meth:`~BoundarySegments.from_polygon`) drops the edges
+on the periodic faces and keeps the images of the others around the cell
+(:mod:`ase_sphrelax.boundary.periodic`).
+
 Orientation is checked: a loop whose orientation contradicts its role (an outer loop that
 runs clockwise, a hole that runs counter-clockwise; the role follows from nesting, even-odd
 rule) is reversed with an :class:`OrientationWarning`. An edge file whose loop mixes segment
@@ -54,14 +59,23 @@ class BoundarySegments:
     Attributes
     ----------
     start_sc, end_sc : ndarray (S, 2)
-        End points of each segment (``end_sc[s] == start_sc[next_s[s]]`` exactly).
+        End points of each segment (``end_sc[s] == start_sc[next_s[s]]`` exactly; modulo the
+        periods for periodic segments).
     normal_sc : ndarray (S, 2)
         Unit inward normals (into the domain).
     tangent_sc : ndarray (S, 2)
         Unit directions ``(end - start) / length``.
     length_s : ndarray (S,)
+    surface : float
+        Total length of the walls (of one period, for periodic segments: images not counted).
     centroid_sc : ndarray (S, 2)
         Mid points.
+    periodic : PeriodicCell or None
+        The periodic directions (:meth:`with_cell`), None when bounded; the elements are then the
+        segments of one period and their images around the cell.
+    cell, pbc : ndarray (3, 3), ndarray of bool (3,)
+        The periods as an ASE cell (zero rows along bounded axes) and the periodic axes; zeros
+        and all False when bounded.
     loop_s, next_s, prev_s : ndarray of int (S,)
         Loop of each segment and its neighbours along the loop.
     packed_sk : ndarray (S, 8)
@@ -78,38 +92,50 @@ class BoundarySegments:
         self.name = name
         start = np.concatenate(loops)
         end = np.concatenate([np.roll(v, -1, axis=0) for v in loops])
+        counts = [len(v) for v in loops]
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        loop_s = np.repeat(np.arange(len(loops)), counts)
+        local = np.arange(len(start)) - first[loop_s]
+        size = np.asarray(counts)[loop_s]
+        next_s = first[loop_s] + (local + 1) % size
+        prev_s = first[loop_s] + (local - 1) % size
+        source_s = np.arange(len(start)) if source_s is None else np.asarray(source_s, dtype=np.int64)
+        if source_s.shape != (len(start),):
+            raise ValueError(f"source_s must have one entry per segment ({len(start)}), got {source_s.shape}")
+        self._set_segments(start, end, loop_s, next_s, prev_s, source_s)
+        self.periodic = None
+        self.cell = np.zeros((3, 3))
+        self.pbc = np.zeros(3, dtype=bool)
+        self._polygon = None
+        self._domain = None
+        self.surface = float(np.sum(self.length_s))  # the walls' length (of one period, when periodic)
+
+    def _set_segments(self, start, end, loop_s, next_s, prev_s, source_s):
+        """The per-segment arrays (the class docstring's attributes) of segments ``start -> end``."""
         edge = end - start
         length = np.sqrt(np.einsum("sc,sc->s", edge, edge))
         if not np.all(length > 0):
             s = int(np.nonzero(~(length > 0))[0][0])
             raise ValueError(f"segment {s} has zero length")
-        self.start_sc = start
-        self.end_sc = end
+        self.start_sc = np.ascontiguousarray(start)
+        self.end_sc = np.ascontiguousarray(end)
         self.length_s = length
         self.tangent_sc = edge / length[:, None]
         self.normal_sc = np.stack([-self.tangent_sc[:, 1], self.tangent_sc[:, 0]], axis=1)
         self.centroid_sc = 0.5 * (start + end)
-        counts = [len(v) for v in loops]
-        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        self.loop_s = np.repeat(np.arange(len(loops)), counts)
-        local = np.arange(len(start)) - first[self.loop_s]
-        size = np.asarray(counts)[self.loop_s]
-        self.next_s = first[self.loop_s] + (local + 1) % size
-        self.prev_s = first[self.loop_s] + (local - 1) % size
-        self.source_s = np.arange(len(start)) if source_s is None else np.asarray(source_s, dtype=np.int64)
-        if self.source_s.shape != (len(start),):
-            raise ValueError(f"source_s must have one entry per segment ({len(start)}), got {self.source_s.shape}")
+        self.loop_s, self.next_s, self.prev_s = loop_s, next_s, prev_s
+        self.source_s = source_s
         self.packed_sk = np.ascontiguousarray(np.column_stack(
             [start, end, self.normal_sc, length, 1.0 / length**2]))
-        self._polygon = None
 
     # -- sources ------------------------------------------------------------------
     @classmethod
-    def from_polygon(cls, polygon):
+    def from_polygon(cls, polygon, pbc=None, cell=None):
         """The segments of a :class:`~ase_sphrelax.domains.Polygon` (its loops, holes included).
 
         The polygon's loops are already validated and oriented (outer counter-clockwise,
         holes clockwise); runs of exactly collinear segments were merged by the polygon.
+        ``pbc`` (and ``cell``): periodic directions, as :meth:`with_cell`.
         """
         from ..domains.polygon import Polygon
 
@@ -117,7 +143,7 @@ class BoundarySegments:
             raise TypeError(f"polygon must be an ase_sphrelax.domains.Polygon, got {type(polygon).__name__}")
         out = cls(polygon.loops, name=repr(polygon))
         out._polygon = polygon
-        return out
+        return out if pbc is None else out.with_cell(pbc, cell)
 
     @classmethod
     def from_vertices(cls, loops, holes=None, name="vertices"):
@@ -160,7 +186,7 @@ class BoundarySegments:
         return cls._oriented(clean, sources, names, n_outer=len(loops), name=name)
 
     @classmethod
-    def from_edges(cls, path, tol=None):
+    def from_edges(cls, path, tol=None, pbc=None, cell=None):
         """Segments of an edge file, ``x1 y1 x2 y2`` per line (one or more closed loops).
 
         End points are matched within ``tol`` (default ``1e-9`` times the size). Each loop must
@@ -169,6 +195,10 @@ class BoundarySegments:
         :class:`OrientationWarning`. Errors (naming the file and the 0-based segment index):
         unreadable file, open polyline or branching end point, zero-length segment, a loop whose
         segments run in both directions (ambiguous orientation), crossing segments.
+
+        ``pbc`` (and ``cell``): periodic directions (:meth:`with_cell`); the segments on the
+        periodic faces, e.g. the ends of a channel drawn as a closed rectangle, are dropped with
+        a warning saying how many.
         """
         from ..domains.loops import read_edge_loops
 
@@ -186,7 +216,8 @@ class BoundarySegments:
             loops.append(loop.vertices)
             sources.append(seg)
             names.append(f"{path}: loop {i} (segments {int(seg.min())}..{int(seg.max())})")
-        return cls._oriented(loops, sources, names, n_outer=len(loops), name=str(path), file_sources=True)
+        out = cls._oriented(loops, sources, names, n_outer=len(loops), name=str(path), file_sources=True)
+        return out if pbc is None else out.with_cell(pbc, cell)
 
     @classmethod
     def _oriented(cls, loops, sources, names, n_outer, name, file_sources=False):
@@ -294,6 +325,84 @@ class BoundarySegments:
         """Enclosed area (shoelace over the oriented loops)."""
         return float(sum(signed_area(v) for v in self.loops))
 
+    # -- periodic directions ---------------------------------------------------------
+    def with_cell(self, pbc=True, cell=None, quiet=False, reach=1):
+        """These segments periodic along the axes ``pbc`` (ASE ``cell`` + ``pbc``).
+
+        The loops stay one period's closed region. Segments lying on a periodic face (the lines
+        ``x = lo`` and ``x = lo + L``, ``lo`` the lower bound of the loops, ``L`` the period:
+        e.g. the ends of a channel drawn as a closed rectangle) are dropped, with a
+        :class:`~ase_sphrelax.boundary.periodic.PeriodicFacesWarning` saying how many; the others
+        are split where they cross a line ``x = k L`` and moved by whole periods into the cell
+        ``[0, L)``. A segment's neighbour across the cell face is the segment starting at the
+        image of its end (its own start, for a straight wall). The elements are then the images of
+        these segments ``-reach..reach`` periods away along every periodic axis, built once, and a
+        wall that continues straight across a cell face is one segment through all its images (no
+        vertex at the seam, so ``gamma`` is as exact there as along any straight wall). Particles
+        are wrapped into the cell (by the neighbour list of the same cell) and meet the images
+        directly (:mod:`.periodic`).
+
+        Parameters
+        ----------
+        pbc : bool or sequence of 2 or 3 bool
+            Periodic axes (x, y); ``True`` alone makes both periodic.
+        cell : None, float, sequence or (3, 3) array
+            Periods: an ASE cell (its periodic vectors along their axes) or lengths; default
+            (None, or a zero length) the loops' extent along the axis.
+        quiet : bool
+            No warning about dropped face segments.
+        reach : int
+            Periods of images on each side (the kernel support must not exceed ``reach`` periods).
+
+        Returns
+        -------
+        BoundarySegments
+            With ``periodic`` (a :class:`~ase_sphrelax.boundary.periodic.PeriodicCell`), ``cell``
+            (3, 3) and ``pbc`` (3,) set; ``domain`` is the
+            :class:`~ase_sphrelax.boundary.periodic.PeriodicDomain`.
+
+        Raises
+        ------
+        ValueError
+            Bad ``pbc``/``cell``, a period shorter than the loops' extent, every segment on a
+            face, or a wall ending on a face without a continuation at the opposite face.
+        """
+        from .periodic import PeriodicCell
+
+        base = BoundarySegments(self.loops, name=self.name) if self.periodic is not None else self
+        lo, hi = base.bounds
+        periodic = PeriodicCell(pbc, cell, lo, hi, 2, name=self.name or "boundary", reach=reach)
+        out = BoundarySegments(base.loops, source_s=base.source_s, name=base.name)
+        out._polygon = base._polygon
+        if not periodic.pbc.any():
+            return out
+        face = periodic.on_face(np.stack([base.start_sc, base.end_sc], axis=1))
+        if face.all():
+            raise ValueError(f"{self.name}: every segment lies on a periodic face ({periodic.label}): no wall is left")
+        pieces = [(a, b, base.loop_s[s], base.source_s[s]) for s in np.nonzero(~face)[0]
+                  for a, b in _split_at_periods(base.start_sc[s], base.end_sc[s], periodic)]
+        start = np.array([p[0] for p in pieces])
+        end = np.array([p[1] for p in pieces])
+        shift = periodic.wrap(0.5 * (start + end)) - 0.5 * (start + end)
+        start, end = start + shift, end + shift
+        next_s = _match_periodic(end, start, periodic, self.name, "ends")
+        prev_s = _match_periodic(start, end, periodic, self.name, "starts")
+        loop_s = np.array([p[2] for p in pieces])
+        source_s = np.array([p[3] for p in pieces], dtype=np.int64)
+        seam_s = periodic.on_seam(end)
+        out._set_segments(*_periodic_images(start, end, loop_s, source_s, next_s, prev_s, seam_s, periodic, reach))
+        out.surface = float(np.sum(base.length_s[~face]))
+        out.periodic, out.cell, out.pbc = periodic, periodic.cell, periodic.pbc
+        if not quiet:
+            periodic.warn_dropped(int(face.sum()), self.name or "boundary", "segments")
+        return out
+
+    def merged(self):
+        """The segments of :attr:`polygon` (runs of collinear segments merged), with the same periodicity."""
+        out = BoundarySegments.from_polygon(self.polygon)
+        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True,
+                                                                 reach=self.periodic.reach)
+
     @property
     def polygon(self):
         """The enclosed region as a :class:`~ase_sphrelax.domains.Polygon` (inside tests, fill)."""
@@ -305,12 +414,21 @@ class BoundarySegments:
 
     @property
     def domain(self):
-        """The enclosed region as a level-set domain (the :attr:`polygon`), as for BoundaryTriangles."""
-        return self.polygon
+        """The enclosed region as a level-set domain (the :attr:`polygon`), as for BoundaryTriangles.
+
+        Periodic segments: a :class:`~ase_sphrelax.boundary.periodic.PeriodicDomain` (the images of
+        the polygon joined across the periodic faces, evaluated at wrapped positions)."""
+        if self.periodic is None:
+            return self.polygon
+        if self._domain is None:
+            from .periodic import PeriodicDomain
+
+            self._domain = PeriodicDomain(self.polygon, _joined_images(self.polygon, self.periodic), self.periodic)
+        return self._domain
 
     def contains(self, r_pc):
-        """Boolean mask of the points strictly inside (through :attr:`polygon`)."""
-        return self.polygon.contains(r_pc)
+        """Boolean mask of the points strictly inside (through :attr:`domain`; periodic: the wrapped position)."""
+        return self.domain.contains(r_pc)
 
     def refine(self, max_length=None, dx=None, ratio=EDGE_TO_DX_RATIO):
         """Split every segment longer than ``max_length`` into equal parts.
@@ -339,24 +457,128 @@ class BoundarySegments:
         max_length = check_positive("max_length", max_length)
         loops, sources = [], []
         first = 0
+        closed = self if self.periodic is None else BoundarySegments(self.loops, name=self.name)
         for v in self.loops:
             w = np.roll(v, -1, axis=0)
-            length = self.length_s[first:first + len(v)]
+            length = closed.length_s[first:first + len(v)]
             parts = np.maximum(1, np.ceil(length / max_length - 1e-12).astype(np.int64))
             pts = []
             for a, b, k in zip(v, w, parts):
                 frac = np.arange(k)[:, None] / k
                 pts.append(a + frac * (b - a))
             loops.append(np.concatenate(pts))
-            sources.append(np.repeat(self.source_s[first:first + len(v)], parts))
+            sources.append(np.repeat(closed.source_s[first:first + len(v)], parts))
             first += len(v)
         out = BoundarySegments(loops, source_s=np.concatenate(sources), name=self.name)
         out._polygon = self._polygon
-        return out
+        return out if self.periodic is None else out.with_cell(self.pbc, self.cell, quiet=True,
+                                                                 reach=self.periodic.reach)
 
     def __repr__(self):
+        periodic = "" if self.periodic is None else f", periodic in {self.periodic.label}"
         return (f"BoundarySegments({len(self.loops)} loops, {self.n_segments} segments, "
-                f"length {self.length_s.min():.4g}..{self.length_s.max():.4g})")
+                f"length {self.length_s.min():.4g}..{self.length_s.max():.4g}{periodic})")
+
+
+def _split_at_periods(a, b, periodic):
+    """Pieces of the segment a -> b split where it crosses a line ``x = k L`` of a periodic axis."""
+    cuts = [0.0, 1.0]
+    for i in periodic.axes:
+        L = periodic.period_c[i]
+        lo, hi = sorted((a[i], b[i]))
+        for k in range(int(np.floor(lo / L)) + 1, int(np.ceil(hi / L))):
+            t = (k * L - a[i]) / (b[i] - a[i])
+            if periodic.tol < t * abs(b[i] - a[i]) < abs(b[i] - a[i]) - periodic.tol:
+                cuts.append(t)
+    cuts = np.unique(cuts)
+    points = a + cuts[:, None] * (b - a)
+    points[0], points[-1] = a, b
+    return list(zip(points[:-1], points[1:]))
+
+
+def _match_periodic(point_sc, target_sc, periodic, name, what):
+    """For every point, the index of the target point at the same place modulo the periods."""
+    from scipy.spatial import cKDTree
+
+    def folded(r):
+        w = periodic.wrap(r)
+        for i in periodic.axes:
+            w[:, i][w[:, i] > periodic.period_c[i] - periodic.tol] -= periodic.period_c[i]
+        return w
+
+    d, k = cKDTree(folded(target_sc)).query(folded(point_sc), distance_upper_bound=10 * periodic.tol)
+    missing = np.nonzero(~np.isfinite(d))[0]
+    if len(missing):
+        s = int(missing[0])
+        raise ValueError(f"{name}: a wall {what} at {np.round(point_sc[s], 12).tolist()} on a periodic face "
+                         f"({periodic.label}) and does not continue at the opposite face; the walls of one period "
+                         "must meet their images")
+    return k.astype(np.int64)
+
+
+def _periodic_images(start, end, loop_s, source_s, next_s, prev_s, seam_s, periodic, reach):
+    """The segments of one period (in the cell, joined by next/prev modulo the periods) and their images
+    ``-reach..reach`` periods away, with the straight joints at the seams merged (``seam_s``: the segment
+    ends on a plane ``x = k L`` or ``x = lo + k L``, a cell face, a periodic face or a split).
+
+    Returns the arguments of :meth:`BoundarySegments._set_segments`.
+    """
+    shifts = periodic.shifts(reach)
+    n, m = len(start), len(shifts)
+    index = {tuple(k): i for i, k in enumerate(shifts)}
+    period = periodic.period_c[:2]
+    offset = shifts[:, :2] * period
+    start_ms = start[None] + offset[:, None]
+    end_ms = end[None] + offset[:, None]
+
+    def neighbour(link_s, sign):
+        """Image index of the next (sign +1) or previous (-1) segment of every image; itself at an open end."""
+        out = np.arange(n * m).reshape(m, n)
+        jump = np.zeros((n, 3), dtype=np.int64)
+        gap = (start[link_s] - end) if sign > 0 else (end[link_s] - start)  # in periods, along each axis
+        jump[:, :2] = np.rint(-gap / np.where(period > 0, period, 1.0)).astype(np.int64)
+        for i, k in enumerate(shifts):
+            for s_ in range(n):
+                j = index.get(tuple(k + jump[s_]))
+                if j is not None:
+                    out[i, s_] = j * n + link_s[s_]
+        return out.ravel()
+
+    next_k, prev_k = neighbour(next_s, 1), neighbour(prev_s, -1)
+    start_k, end_k = start_ms.reshape(-1, 2), end_ms.reshape(-1, 2)
+    tangent = (end - start) / np.linalg.norm(end - start, axis=1)[:, None]
+    tangent_k = np.tile(tangent, (m, 1))
+    # a joint between images of one straight wall is no vertex: merge across it
+    seam = np.tile(seam_s, m)  # ends on a cell face, a periodic face or a split at a plane x = k L
+    straight = seam & (next_k != np.arange(n * m)) & (np.abs(tangent_k[next_k] - tangent_k).max(axis=1) <= 1e-12)
+    into = np.zeros(n * m, dtype=bool)
+    into[next_k[straight]] = True
+    first_k = np.nonzero(~into)[0]
+    chain_of = np.full(n * m, -1, dtype=np.int64)
+    last_k = np.empty(len(first_k), dtype=np.int64)
+    for c, k in enumerate(first_k):
+        chain_of[k] = c
+        while straight[k] and chain_of[next_k[k]] < 0:
+            k = next_k[k]
+            chain_of[k] = c
+        last_k[c] = k
+    if np.any(chain_of < 0):  # a closed straight ring cannot occur in finitely many images
+        raise RuntimeError("periodic images: a straight chain without an end")
+    return (start_k[first_k], end_k[last_k], np.tile(loop_s, m)[first_k], chain_of[next_k[last_k]],
+            chain_of[prev_k[first_k]], np.tile(source_s, m)[first_k])
+
+
+def _joined_images(polygon, periodic, reach=2):
+    """The images of ``polygon`` within ``reach`` periods, joined into one Polygon (face edges removed)."""
+    import shapely
+    from shapely.affinity import translate
+
+    from ..domains.polygon import Polygon
+
+    geometry = polygon.to_shapely()
+    copies = [translate(geometry, *(k[:2] * periodic.period_c[:2])) for k in periodic.shifts(reach)]
+    joined = shapely.union_all(copies, grid_size=periodic.tol)
+    return Polygon(BoundarySegments.from_shapely(joined, name="periodic images").loops)
 
 
 class NoSegmentsError(ValueError, AttributeError):

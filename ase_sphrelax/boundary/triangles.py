@@ -8,7 +8,8 @@ into the enclosed volume. Sources: :meth:`BoundaryTriangles.from_mesh` (a
 through trimesh), :meth:`~BoundaryTriangles.from_trimesh` and :meth:`~BoundaryTriangles.from_domain`
 (meshes and 3D boxes; an analytic sphere has no triangles: mesh it, e.g.
 ``Mesh(trimesh.creation.icosphere(...))``). :meth:`~BoundaryTriangles.refine` splits large triangles
-(trimesh's ``subdivide_to_size``).
+(trimesh's ``subdivide_to_size``). :meth:`~BoundaryTriangles.with_cell` makes the mesh periodic along
+some axes (:mod:`ase_sphrelax.boundary.periodic`).
 """
 from __future__ import annotations
 
@@ -38,7 +39,15 @@ class BoundaryTriangles:
     normal_tc : ndarray (T, 3)
         Unit inward normals.
     area_t : ndarray (T,)
+    surface : float
+        Total area of the walls (of one period, for periodic triangles: images not counted).
     centroid_tc : ndarray (T, 3)
+    periodic : PeriodicCell or None
+        The periodic directions (:meth:`with_cell`), None when bounded; the elements are then the
+        triangles of one period and their images around the cell.
+    cell, pbc : ndarray (3, 3), ndarray of bool (3,)
+        The periods as an ASE cell (zero rows along bounded axes) and the periodic axes; zeros
+        and all False when bounded.
     pseudo_normal_tfc : ndarray (T, 7, 3)
         Inward angle-weighted pseudo-normals of the features of each triangle (vertices a, b,
         c, edges ab, ac, bc, face; Baerentzen & Aanaes 2005), for inside/outside decisions.
@@ -70,6 +79,10 @@ class BoundaryTriangles:
         self.pseudo_normal_tfc = np.ascontiguousarray(-pseudo_normals(mesh))
         self.packed_tk = np.ascontiguousarray(self.vertices_tkc.reshape(-1, 9))
         self._domain = None
+        self.periodic = None
+        self.cell = np.zeros((3, 3))
+        self.pbc = np.zeros(3, dtype=bool)
+        self.surface = float(np.sum(area))  # the walls' area (of one period, when periodic)
 
     # -- sources ------------------------------------------------------------------
     @classmethod
@@ -153,9 +166,13 @@ class BoundaryTriangles:
     def volume(self):
         return float(self.trimesh.volume)
 
+
     @property
     def domain(self):
-        """The enclosed region as a :class:`~ase_sphrelax.domains.Mesh` (inside tests, fill)."""
+        """The enclosed region as a :class:`~ase_sphrelax.domains.Mesh` (inside tests, fill).
+
+        Periodic triangles: a :class:`~ase_sphrelax.boundary.periodic.PeriodicDomain` (the mesh's
+        images joined across the periodic faces, evaluated at wrapped positions)."""
         if self._domain is None:
             from ..domains.mesh import Mesh
 
@@ -163,8 +180,114 @@ class BoundaryTriangles:
         return self._domain
 
     def contains(self, r_pc):
-        """Boolean mask of the points strictly inside."""
+        """Boolean mask of the points strictly inside (periodic: the wrapped position)."""
         return self.domain.contains(r_pc)
+
+    # -- periodic directions ---------------------------------------------------------
+    def with_cell(self, pbc=True, cell=None, quiet=False, reach=1):
+        """These triangles periodic along the axes ``pbc`` (ASE ``cell`` + ``pbc``).
+
+        The mesh stays one period's closed region. Triangles lying on a periodic face (the
+        planes ``x = lo`` and ``x = lo + L``, ``lo`` the mesh's lower bound, ``L`` the period)
+        are dropped, with a :class:`~ase_sphrelax.boundary.periodic.PeriodicFacesWarning`
+        saying how many; the others are moved by whole periods (by their centroid) into the cell
+        ``[0, L)``. The elements are these triangles and their images ``-reach..reach`` periods
+        away along every periodic axis, built once; their inside/outside pseudo-normals are those
+        of the mesh's images joined across the faces, so the walls continue across the seam.
+        Particles are wrapped into the cell (by the neighbour list of the same cell) and meet the
+        images directly.
+
+        Parameters
+        ----------
+        pbc : bool or sequence of 3 bool
+            Periodic axes (x, y, z); ``True`` alone: all three.
+        cell : None, float, sequence or (3, 3) array
+            Periods (an ASE cell with its periodic vectors along their axes, or lengths);
+            default (None or a zero length) the mesh's extent along the axis.
+        quiet : bool
+            No warning about dropped face triangles.
+        reach : int
+            Periods of images on each side (the kernel support must not exceed ``reach`` periods).
+
+        Raises
+        ------
+        ValueError
+            Bad ``pbc``/``cell``, a triangle that crosses a cell face after the move (cut the mesh
+            at the faces), or images that do not join into a closed mesh (the faces' triangulations
+            must match).
+        """
+        import trimesh
+
+        from ..domains.mesh import Mesh, pseudo_normals
+        from .periodic import PeriodicCell, PeriodicDomain
+
+        base = BoundaryTriangles(self.trimesh, name=self.name) if self.periodic is not None else self
+        lo, hi = base.bounds
+        periodic = PeriodicCell(pbc, cell, lo, hi, 3, name=self.name or "mesh", reach=reach)
+        out = BoundaryTriangles(base.trimesh, name=base.name)
+        if not periodic.pbc.any():
+            out._domain = base._domain
+            return out
+        period = periodic.period_c
+        # whole periods: the mesh's lower bound into [0, L) (the same periodic region)
+        move = -np.floor(np.where(periodic.pbc, lo / np.where(periodic.pbc, period, 1.0), 0.0)) * period
+        vertices = np.asarray(base.trimesh.vertices, dtype=float) + move
+        faces = np.asarray(base.trimesh.faces)
+        v_tkc = vertices[faces]
+        plane = lo + move
+        on_lo = {i: np.all(np.abs(v_tkc[:, :, i] - plane[i]) <= periodic.tol, axis=1) for i in periodic.axes}
+        on_hi = {i: np.all(np.abs(v_tkc[:, :, i] - plane[i] - period[i]) <= periodic.tol, axis=1)
+                 for i in periodic.axes}
+        face = np.zeros(len(faces), dtype=bool)
+        for i in periodic.axes:
+            face |= on_lo[i] | on_hi[i]
+        if face.all():
+            raise ValueError(f"{self.name}: every triangle lies on a periodic face ({periodic.label})")
+        wall = np.nonzero(~face)[0]
+        centroid = v_tkc[wall].mean(axis=1)
+        jump = np.rint((periodic.wrap(centroid) - centroid) / np.where(periodic.pbc, period, 1.0)).astype(np.int64)
+        for i in periodic.axes:
+            x = v_tkc[wall, :, i] + (jump[:, i] * period[i])[:, None]
+            bad = np.nonzero((x.min(axis=1) < -periodic.tol) | (x.max(axis=1) > period[i] + periodic.tol))[0]
+            if len(bad):
+                raise ValueError(f"{self.name}: triangle {int(wall[bad[0]])} crosses a periodic cell face along "
+                                 f"{'xyz'[i]} (the cell is [0, {period[i]:.12g})); cut the mesh at the faces")
+        # the images joined into one closed mesh (face triangles kept on its outermost planes only)
+        lo_k = np.where(periodic.pbc, -reach - 1, 0)
+        hi_k = np.where(periodic.pbc, reach, 0)
+        copies = periodic.shifts(lo_k=lo_k, hi_k=hi_k)
+        row = {tuple(k): m for m, k in enumerate(copies)}
+        joined_v, joined_f, where = [], [], np.full((len(copies), len(faces)), -1, dtype=np.int64)
+        count = 0
+        for m, k in enumerate(copies):
+            keep = ~face
+            for i in periodic.axes:
+                keep |= (on_lo[i] & (k[i] == lo_k[i])) | (on_hi[i] & (k[i] == hi_k[i]))
+            where[m, keep] = count + np.arange(int(keep.sum()))
+            joined_v.append(vertices + k * period)
+            joined_f.append(faces[keep] + m * len(vertices))
+            count += int(keep.sum())
+        joined = trimesh.Trimesh(np.concatenate(joined_v), np.concatenate(joined_f), process=False)
+        joined.merge_vertices()
+        if not joined.is_watertight:
+            raise ValueError(f"{self.name}: the images along {periodic.label} do not join into a closed mesh; the "
+                             "triangulations of opposite periodic faces must match")
+        pseudo = -pseudo_normals(joined)
+        # the elements: the wall triangles (wrapped into the cell) and their images -reach..reach periods away
+        images = periodic.shifts(reach)
+        index = np.array([[where[row[tuple(k + j)], t] for t, j in zip(wall, jump)] for k in images]).ravel()
+        out.vertices_tkc = np.ascontiguousarray(joined.triangles[index])
+        out.normal_tc = np.ascontiguousarray(np.tile(base.normal_tc[wall], (len(images), 1)))
+        out.area_t = np.tile(base.area_t[wall], len(images))
+        out.centroid_tc = out.vertices_tkc.mean(axis=1)
+        out.pseudo_normal_tfc = np.ascontiguousarray(pseudo[index])
+        out.packed_tk = np.ascontiguousarray(out.vertices_tkc.reshape(-1, 9))
+        out.periodic, out.cell, out.pbc = periodic, periodic.cell, periodic.pbc
+        out.surface = float(np.sum(base.area_t[wall]))
+        out._domain = PeriodicDomain(base.domain, Mesh(joined), periodic)
+        if not quiet:
+            periodic.warn_dropped(int(face.sum()), self.name or "mesh", "triangles")
+        return out
 
     def refine(self, max_edge=None, dx=None, ratio=EDGE_TO_DX_RATIO):
         """Split triangles until no edge is longer than ``max_edge`` (or ``dx / ratio``).
@@ -183,9 +306,12 @@ class BoundaryTriangles:
         max_edge = check_positive("max_edge", max_edge)
         v, f = trimesh.remesh.subdivide_to_size(self.trimesh.vertices, self.trimesh.faces, max_edge, max_iter=50)
         out = BoundaryTriangles(trimesh.Trimesh(v, f), name=self.name)
+        if self.periodic is not None:
+            return out.with_cell(self.pbc, self.cell, quiet=True, reach=self.periodic.reach)
         out._domain = self._domain
         return out
 
     def __repr__(self):
+        periodic = "" if self.periodic is None else f", periodic in {self.periodic.label}"
         return (f"BoundaryTriangles({self.n_triangles} triangles, area {self.area_t.sum():.6g}, "
-                f"volume {self.volume:.6g})")
+                f"volume {self.volume:.6g}{periodic})")

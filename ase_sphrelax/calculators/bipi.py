@@ -19,7 +19,7 @@ import warnings
 
 import numpy as np
 
-from ..boundary import BoundaryIntegrals, BoundarySegments, as_boundary
+from ..boundary import BoundaryIntegrals, as_boundary
 from ..boundary.gamma import BAND_RULES
 from ..checks import SpacingWarning, spacing_mismatch
 from ..kernel_sums import kernel_sums
@@ -27,7 +27,29 @@ from ..models.bipi import J_DEFAULT, BIPIModel, support_from_paper
 from ..models.fan import verlet_skin
 from .base import SPHCalculator
 
-__all__ = ["BIPICalculator"]
+__all__ = ["BIPICalculator", "check_periodic_atoms"]
+
+
+def check_periodic_atoms(atoms, boundary, dim):
+    """One-line error unless ``atoms.pbc`` (and the periodic cell vectors) match the boundary's.
+
+    A bounded boundary needs ``pbc`` False along the ``dim`` axes; a periodic one
+    (``boundary.with_cell``) the same ``pbc`` and, along each periodic axis, the cell vector of
+    the boundary's period.
+    """
+    want = boundary.pbc[:dim]
+    if not np.array_equal(np.asarray(atoms.pbc[:dim], dtype=bool), want):
+        if not want.any():
+            raise ValueError(f"atoms.pbc must be False along the {dim} axes of a bounded BIPI domain, got "
+                             f"{atoms.pbc}; for periodic directions make the boundary periodic "
+                             "(boundary.with_cell(pbc, cell))")
+        raise ValueError(f"atoms.pbc must be {want.tolist()} along the {dim} axes (the boundary is periodic in "
+                         f"{boundary.periodic.label}), got {atoms.pbc.tolist()}")
+    cell = atoms.cell.array
+    for i in np.nonzero(want)[0]:
+        if not np.allclose(cell[i], boundary.cell[i], rtol=1e-12, atol=0.0):
+            raise ValueError(f"atoms.cell[{i}] must be the boundary's period {boundary.cell[i].tolist()}, got "
+                             f"{cell[i].tolist()}")
 
 
 class BIPICalculator(SPHCalculator):
@@ -59,7 +81,11 @@ class BIPICalculator(SPHCalculator):
 
     Notes
     -----
-    Bounded systems only (``pbc`` False along the ``dim`` axes); 2D particles must lie at z = 0.
+    Periodic directions come with the boundary (``boundary.with_cell(pbc, cell)``,
+    :mod:`ase_sphrelax.boundary.periodic`): ``atoms.pbc`` must match the boundary's ``pbc`` along
+    the ``dim`` axes and ``atoms.cell`` its periods (a bounded boundary: ``pbc`` False). The
+    neighbour list then wraps the particles into the cell, and both the pair sums and
+    ``gamma`` see the periodic images. 2D particles must lie at z = 0.
     ``C`` and ``grad C`` are undefined where ``gamma = 0`` (a particle farther than ``h``
     outside the boundary): asking for them then raises, naming the particles.
     """
@@ -100,14 +126,13 @@ class BIPICalculator(SPHCalculator):
         if boundary.dim == 2 and p.band_rule != "centroid":
             # runs of collinear segments merged (the polygon's segments): the same integrals over fewer
             # elements (AirFoilFluid: 5224 -> 686); only the "centroid" rule depends on the elements
-            elements = BoundarySegments.from_polygon(boundary.polygon)
+            elements = boundary.merged()
         self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
         self._boundary_pairs = None
         self._spacing_checked = None
 
     def check_atoms(self, atoms, dim, properties):
-        if np.any(atoms.pbc[:dim]):
-            raise ValueError(f"atoms.pbc must be False along the {dim} axes of a bounded BIPI domain, got {atoms.pbc}")
+        check_periodic_atoms(atoms, self.boundary, dim)
         if self._spacing_checked is not True and self._spacing_checked != len(atoms):  # once per particle count
             self.check_spacing(len(atoms))
 
@@ -125,7 +150,7 @@ class BIPICalculator(SPHCalculator):
         of it, as :class:`~ase_sphrelax.drivers.BIPIPacker` does in Step 2a)."""
         self._spacing_checked = True if final else n
         boundary = self.boundary
-        surface = float(np.sum(boundary.length_s if boundary.dim == 2 else boundary.area_t))
+        surface = boundary.surface  # of one period, for periodic boundaries
         message = spacing_mismatch(n, self.model.dx, boundary.dim, float(boundary.domain.volume), surface)
         if message is not None:
             warnings.warn(f"BIPICalculator: {message}", SpacingWarning, stacklevel=4)

@@ -11,6 +11,12 @@ h_B / dx_r = 2); --h-paper gives the paper's h_B / dx_r instead (h = 2 h_B). Bot
 The support must be more than 1 dx (refused otherwise) and below 1.5 dx gives a warning (--strict: an
 error), as for ``sphrelax relax``.
 
+--periodic x (x, y or "x y" in 2D; x, y, z in 3D) makes the boundary periodic along those axes: the
+edges (or triangles) on the periodic faces, e.g. the ends of a channel drawn as a closed rectangle, are
+dropped (a line says how many), gamma and the pair sums see the periodic images, and packed.extxyz carries
+the periodic cell. The period is the boundary's extent along the axis unless --cell gives it (one length
+per axis of the boundary; 0 takes the extent).
+
 Before the fill the particle count and memory are estimated and printed; past --max-particles
 (default 2e7) the fill is refused.
 
@@ -22,6 +28,7 @@ nothing to pack); summary.json says ``converged`` and why. 2 for a usage error (
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 import warnings
@@ -32,7 +39,7 @@ from .common import (EXIT_NOT_CONVERGED, add_output_arguments, add_progress_argu
                      check_fill_size, check_h_ratio, output_folder, provenance, show_progress)
 from .usage import UsageError, non_negative_int, positive, usage_errors
 
-__all__ = ["add_arguments", "run", "BIPIMethod"]
+__all__ = ["add_arguments", "run", "BIPIMethod", "parse_periodic", "parse_cell", "periodic_boundary"]
 
 COMMAND = "pack"
 
@@ -104,10 +111,70 @@ def add_arguments(parser):
     parser.add_argument("--walls", type=positive(int), nargs="?", const=0, default=None, metavar="K",
                         help="also write wall particles: K layers (default ceil(h/dx)) of the Step-1 grid outside the "
                              "boundary; packed.extxyz then carries a 'type' column (1 fluid, 2 wall)")
+    parser.add_argument("--periodic", nargs="+", default=None, metavar="AXIS",
+                        help="periodic axes: x, y or 'x y' in 2D; x, y, z in 3D (edges on the periodic faces are "
+                             "dropped; the period is the boundary's extent unless --cell gives it)")
+    parser.add_argument("--cell", nargs="+", default=None, metavar="L",
+                        help="with --periodic: the cell lengths along x, y (and z in 3D), one per axis of the boundary; "
+                             "0 takes the boundary's extent")
     parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
             obj.add_arguments(parser.add_argument_group(f"--method {name}"))
+
+
+def parse_periodic(values, dim):
+    """``--periodic`` tokens (``["x", "y"]``, ``["x y"]``, ``["x,y"]``) as a pbc list of length 3."""
+    accepted = "x, y, or x y in 2D" if dim == 2 else "x, y, z (any of them) in 3D"
+    axes = [a for v in values for a in v.replace(",", " ").split()]
+    pbc = [False, False, False]
+    if not axes:
+        raise UsageError(f"--periodic: no axis given; accepted: {accepted}")
+    for a in axes:
+        if a not in "xyz"[:dim] or len(a) != 1:
+            raise UsageError(f"--periodic: {a!r} is not an axis of the {dim}D boundary; accepted: {accepted}")
+        if pbc["xyz".index(a)]:
+            raise UsageError(f"--periodic: axis {a} given twice; accepted: {accepted}")
+        pbc["xyz".index(a)] = True
+    return pbc
+
+
+def parse_cell(values, dim):
+    """``--cell`` lengths (one per axis of the boundary, >= 0)."""
+    try:
+        lengths = [float(v) for v in values]
+    except ValueError:
+        raise UsageError(f"--cell: {values!r} are not numbers; give {dim} lengths (x y{' z' if dim == 3 else ''}), "
+                         "0 for the boundary's extent") from None
+    if len(lengths) != dim or not all(math.isfinite(v) and v >= 0 for v in lengths):
+        raise UsageError(f"--cell: give {dim} finite lengths >= 0 (x y{' z' if dim == 3 else ''}; 0 takes the "
+                         f"boundary's extent), got {' '.join(values)}")
+    return lengths
+
+
+def periodic_boundary(boundary, periodic, cell):
+    """The boundary made periodic by ``--periodic``/``--cell`` (one printed line on dropped face elements)."""
+    if periodic is None:
+        if cell is not None:
+            raise UsageError("--cell needs --periodic (the axes it makes periodic)")
+        return boundary
+    from ..boundary.periodic import PeriodicFacesWarning
+
+    pbc = parse_periodic(periodic, boundary.dim)
+    lengths = None if cell is None else parse_cell(cell, boundary.dim)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PeriodicFacesWarning)
+        try:
+            out = boundary.with_cell(pbc, lengths)
+        except ValueError as err:
+            raise UsageError(f"--periodic/--cell: {err}") from None
+    for w in caught:
+        if issubclass(w.category, PeriodicFacesWarning):
+            print(f"sphrelax pack: {w.message}")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    print(f"periodic in {out.periodic.label}: period {out.periodic.period_c[out.pbc].tolist()}")
+    return out
 
 
 def run(args):
@@ -120,7 +187,7 @@ def run(args):
         path = Path(args.boundary)
         if not path.is_file():
             raise UsageError(f"--boundary {args.boundary!r}: no such file")
-        boundary = as_boundary(path)
+        boundary = periodic_boundary(as_boundary(path), args.periodic, args.cell)
         ratio = args.h if args.h is not None else (2.0 * args.h_paper if args.h_paper is not None else 4.0)
         if args.h_paper is not None:
             label = f"--h-paper {args.h_paper:g} (= --h {ratio:g}, the support in units of dx)"
@@ -142,7 +209,8 @@ def run(args):
     from .relax import _print_quality
 
     model = packer.model
-    print(f"boundary: {path.name} ({boundary.dim}D, {len(boundary)} elements), {len(atoms)} particles, "
+    images = "" if boundary.periodic is None else f" with their images, periodic in {boundary.periodic.label}"
+    print(f"boundary: {path.name} ({boundary.dim}D, {len(boundary)} elements{images}), {len(atoms)} particles, "
           f"dx = {args.dx:g}, h = {ratio:g} dx (support; the paper's h_B/dx_r = {ratio / 2:g}), method = {args.method}")
     before = quality_summary(start, h, dx=args.dx, domain=boundary.domain, dim=boundary.dim)
     from ..checks import NotConvergedWarning
@@ -170,6 +238,7 @@ def run(args):
                                       f"2c {summary['iterations_2c']} iterations")
     plot_packing_history(packer.history, out / "history.png", title=path.name)
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
+                   periodic=[bool(p) for p in atoms.pbc[:boundary.dim]], cell=atoms.cell.array.tolist(),
                    wall_time_s=wall, n_wall=int(export.info.get("n_wall", 0)),
                    wall_layers=export.info.get("wall_layers"))
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),

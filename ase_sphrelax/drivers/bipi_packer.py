@@ -72,7 +72,10 @@ def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=No
     Returns
     -------
     ase.Atoms
-        Bounded, ``info["dx"] = dx``; 2D particles at z = 0.
+        Bounded, ``info["dx"] = dx``; 2D particles at z = 0. A periodic boundary
+        (``boundary.with_cell``): the cell centres in the cell ``[0, L)`` along the periodic
+        axes, with the boundary's periods as cell vectors and ``pbc`` set (a warning when ``L``
+        is not a whole number of ``dx``: the spacing across the seam then differs).
     """
     from ..boundary import as_boundary
     from ..build import fill
@@ -89,9 +92,39 @@ def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=No
     if not keep.any():
         raise ValueError(f"dx={dx!r}: no cell centre lies farther than {drop:g} dx inside the boundary; choose a "
                          "smaller dx")
+    if boundary.periodic is not None:
+        keep &= in_cell(atoms.positions, boundary)
     del atoms[np.nonzero(~keep)[0]]
     atoms.info["volume"] = float(getattr(domain, "volume", np.nan))
+    if boundary.periodic is not None:
+        periodic_cell(atoms, boundary, dx)
     return atoms
+
+
+def in_cell(r_pc, boundary):
+    """Mask of the positions inside the cell ``[0, L)`` along the boundary's periodic axes."""
+    inside = np.ones(len(r_pc), dtype=bool)
+    for i in boundary.periodic.axes:
+        inside &= (r_pc[:, i] >= 0.0) & (r_pc[:, i] < boundary.periodic.period_c[i])
+    return inside
+
+
+def periodic_cell(atoms, boundary, dx):
+    """Give ``atoms`` the boundary's periods (cell vectors, ``pbc``); warn when a period is not a whole number of dx."""
+    cell = atoms.cell.array.copy()
+    pbc = np.array(atoms.pbc, dtype=bool)
+    disp = np.asarray(atoms.get_celldisp()).reshape(3).copy()
+    for i in boundary.periodic.axes:
+        cell[i] = boundary.cell[i]
+        pbc[i] = True
+        disp[i] = 0.0
+        ratio = boundary.periodic.period_c[i] / dx
+        if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio):
+            warnings.warn(f"the period along {'xyz'[i]} is {ratio:.6g} dx, not a whole number: the Cartesian start's "
+                          "spacing across the periodic seam differs from dx", UserWarning, stacklevel=3)
+    atoms.set_cell(cell)
+    atoms.set_celldisp(disp)
+    atoms.pbc = pbc
 
 
 def wall_layers(h, dx):
@@ -133,7 +166,8 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
             raise ValueError("wall_particles: give layers (an integer >= 1) or h (the kernel support) for the default")
         layers = wall_layers(h, dx)
     layers = _count("layers", layers, minimum=1)
-    domain = as_boundary(boundary).domain
+    boundary = as_boundary(boundary)
+    domain = boundary.domain
     dim = domain.dim
     origin = np.zeros(dim) if origin is None else np.asarray(origin, dtype=float).reshape(-1)[:dim]
     lo, hi = domain.bounds
@@ -153,6 +187,8 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
     r_pd = np.concatenate(found) if found else np.zeros((0, dim))
     positions = np.zeros((len(r_pd), 3))
     positions[:, :dim] = r_pd
+    if boundary.periodic is not None:  # one period of walls: the cell centres in [0, L) along the periodic axes
+        positions = positions[in_cell(positions, boundary)]
     walls = Atoms(positions=positions, pbc=False)
     walls.arrays["type"] = np.full(len(walls), WALL, dtype=int)
     walls.info.update(dx=dx, wall_layers=layers)
@@ -186,7 +222,10 @@ class BIPIPacker(Optimizer):
     Parameters
     ----------
     atoms : ase.Atoms
-        Bounded particles (e.g. :func:`initial_fill`), all strictly inside the boundary.
+        Particles (e.g. :func:`initial_fill`), all strictly inside the boundary. Bounded, or
+        periodic with a periodic boundary (``boundary.with_cell``: the same ``pbc`` and periods):
+        the pair sums and ``gamma`` then see the periodic images, displacements are taken as
+        minimum images, and the particles are wrapped into the cell at the end of each stage.
     calculator : BIPICalculator, optional
         Default ``atoms.calc``; attached to ``atoms``.
     max_steps_2a, max_steps_2c : int
@@ -309,7 +348,7 @@ class BIPIPacker(Optimizer):
         near = boundary_pairs(r, self.calc.boundary, self.k_a).nearest_distance()
         packable = near < self.k_a
         nlist = NeighborList(self.model.h)
-        nlist.update(r, np.zeros((3, 3)), False, store=True)
+        nlist.update(r, atoms.cell.array, self._pbc(), store=True)
         i, j, d = nlist.get_pairs(r)
         close = np.einsum("kc,kc->k", d, d) < self.model.h**2
         selected = packable.copy()
@@ -322,6 +361,27 @@ class BIPIPacker(Optimizer):
         self._sub = sub
         self._movable = packable[self._sel] & ~self._user_fixed(len(atoms))[self._sel]
         self._x0_sub = self.x0[self._sel]
+
+    def _pbc(self):
+        """The atoms' pbc along the boundary's axes (False beyond its dimension)."""
+        pbc = np.array(self.atoms.pbc, dtype=bool)
+        pbc[self.model.dim:] = False
+        return pbc
+
+    def _displacement(self, r_pc, r0_pc):
+        """``r - r0``, the minimum image along periodic axes."""
+        d = r_pc - r0_pc
+        periodic = self.calc.boundary.periodic
+        if periodic is not None:
+            for i in periodic.axes:
+                d[:, i] -= np.round(d[:, i] / periodic.period_c[i]) * periodic.period_c[i]
+        return d
+
+    def wrap(self):
+        """Wrap the particles into the cell along the boundary's periodic axes (no-op when bounded)."""
+        periodic = self.calc.boundary.periodic
+        if periodic is not None:
+            self.atoms.positions = periodic.wrap(self.atoms.positions)
 
     def _freeze(self):
         """Step 2b: FixAtoms on the particles whose gamma is below gamma at k_b from a straight wall."""
@@ -358,7 +418,7 @@ class BIPIPacker(Optimizer):
             rejected = int(out.sum())
         pos = atoms.positions + step
         atoms.positions = pos
-        tpd = np.linalg.norm(pos[movable] - x0[movable], axis=1)
+        tpd = np.linalg.norm(self._displacement(pos[movable], x0[movable]), axis=1)
         return (float(tpd.mean()) if len(tpd) else 0.0), rejected
 
     def _stop(self, values):
@@ -416,6 +476,7 @@ class BIPIPacker(Optimizer):
         self.history.append(row)
 
     def _next_stage(self):
+        self.wrap()
         order = list(self.stages)
         k = order.index(self.stage) + 1 if self.stage in order else len(order)
         self.stage = order[k] if k < len(order) else "done"
@@ -468,6 +529,7 @@ class BIPIPacker(Optimizer):
             if self._done:
                 self._next_stage()
             yield self.stage == "done"
+        self.wrap()
         for bar in bars.values():
             bar.close()
 
@@ -537,7 +599,7 @@ class BIPIPacker(Optimizer):
 
 
 def pack(boundary, dx, h=None, h_over_dx_paper=None, kernel="wendland_c2", J=None, band_rule="ball", skin=None,
-         **packer_kwargs):
+         pbc=None, cell=None, **packer_kwargs):
     """Step 1 and Step 2 in one call: :func:`initial_fill`, a BIPICalculator and :class:`BIPIPacker`.
 
     Parameters
@@ -547,6 +609,9 @@ def pack(boundary, dx, h=None, h_over_dx_paper=None, kernel="wendland_c2", J=Non
     h, h_over_dx_paper : float
         The support ``h`` (our convention), or the paper's ``h_B / dx_r`` (``h = 2 h_B``); default
         BIPI2D's ``h_B / dx_r = 2`` (``h = 4 dx``).
+    pbc, cell : optional
+        Periodic directions and periods of the boundary (``boundary.with_cell(pbc, cell)``;
+        default: the boundary's own).
     **packer_kwargs
         Passed to :class:`BIPIPacker` (caps, ``window``, ``stages``, ``progress``, ...).
 
@@ -562,6 +627,8 @@ def pack(boundary, dx, h=None, h_over_dx_paper=None, kernel="wendland_c2", J=Non
     if h is not None and h_over_dx_paper is not None:
         raise ValueError("give h (support) or h_over_dx_paper (h_B / dx_r), not both")
     boundary = as_boundary(boundary)
+    if pbc is not None:
+        boundary = boundary.with_cell(pbc, cell)
     if h is None:
         h = support_from_paper(2.0 if h_over_dx_paper is None else h_over_dx_paper, dx)
     calc = BIPICalculator(h=h, dx=dx, boundary=boundary, kernel=kernel, J=J_DEFAULT if J is None else J,
