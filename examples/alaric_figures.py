@@ -227,7 +227,7 @@ def figure9(out, quick, command):
         log_eps = np.log10(eps)
         cs = ax.contourf(sizes, deltas, log_eps, levels=20, cmap="viridis")
         ax.contour(sizes, deltas, log_eps, levels=np.arange(math.floor(log_eps.min()), math.ceil(log_eps.max()) + 1),
-                   colors="w", linewidths=0.6)
+                   colors="w", linewidths=0.6, linestyles="solid")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("N")

@@ -27,12 +27,10 @@ def _brute_closest(x_pd, box_d):
 
 
 def _disc_atoms(n, seed):
-    rng = np.random.default_rng(seed)
-    r = np.sqrt(rng.uniform(0, 1, n))
-    t = rng.uniform(0, 2 * np.pi, n)
-    pos = np.zeros((n, 3))
-    pos[:, 0], pos[:, 1] = r * np.cos(t), r * np.sin(t)
-    return Atoms(numbers=np.zeros(n, int), positions=pos, pbc=False)
+    """``n`` uniformly random particles in the open unit disc (rejection from the square)."""
+    xy = np.random.default_rng(seed).uniform(-1, 1, (4 * n, 2))
+    xy = xy[(xy**2).sum(axis=1) < 0.999][:n]
+    return Atoms(numbers=np.zeros(n, int), positions=np.column_stack([xy, np.zeros(n)]), pbc=False)
 
 
 def _epsilon(atoms, domain):
