@@ -16,7 +16,8 @@ BIPI (Boregowda & Liu), packing against boundary segments/triangles with exact b
     :class:`BIPICalculator`, :class:`BIPIPacker` (Steps 2a/2b/2c), :func:`pack`.
 ALARIC (Vela Vela et al.), isothermal SPH in an external potential for any target density
     :class:`ALARICCalculator`, :class:`ALARICDynamics`, :func:`relax_density`; the baseline
-    :class:`WVTRelaxation` (weighted Voronoi tessellation, Diehl et al.).
+    :class:`WVTRelaxation` (weighted Voronoi tessellation, Diehl et al.) and :class:`AFCRelaxation`
+    (the paper's naive away-from-closest baseline, Sec. 5.1).
 SPH-ParVI (Huang), SPH as a sampler of unnormalised densities
     :class:`ParVICalculator`, :class:`ParVISampler`, :func:`sample`.
 
@@ -66,6 +67,7 @@ _WHERE = {
     "ALARICDynamics": ".drivers.alaric_dynamics",
     "relax_density": ".drivers.alaric_dynamics",
     "WVTRelaxation": ".drivers.wvt",
+    "AFCRelaxation": ".drivers.afc",
     # SPH-ParVI
     "ParVICalculator": ".calculators.parvi",
     "ParVISampler": ".sampling.sampler",

@@ -14,6 +14,7 @@ _WHERE = {
     "SPHScaleWarning": ".optimizers",
     "ALARICDynamics": ".alaric_dynamics",
     "WVTRelaxation": ".wvt",
+    "AFCRelaxation": ".afc",
     "limit_blas_in_steps": ".blas",
 }
 __all__ = list(_WHERE)
