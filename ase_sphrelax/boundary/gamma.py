@@ -5,8 +5,8 @@
 kernel **support** (BIPI's smoothing length is ``h_B = h / 2``). ``gamma`` comes from the
 divergence-theorem identity ``gamma_a = chi_a - sum_s gamma_as``
 (:mod:`~ase_sphrelax.boundary.radial`), evaluated per element in closed form in 2D
-(:mod:`~ase_sphrelax.boundary.line_integrals`) and with the singular part in closed form plus
-Gauss-Legendre on smooth remainders in 3D (:mod:`~ase_sphrelax.boundary.surface_integrals`).
+(:mod:`~ase_sphrelax.boundary.line_integrals`) and in 3D as closed-form integrals along the
+triangles' edges (:mod:`~ase_sphrelax.boundary.surface_integrals`).
 
 Only the elements within ``h`` of a particle contribute; they come from the particle-element
 query on the neighbour bins (:class:`~ase_sphrelax.boundary.BoundaryQuery`). A particle farther
@@ -42,10 +42,8 @@ from .segments import BoundarySegments
 from .surface_integrals import plane_offset, triangle_terms
 from .triangles import BoundaryTriangles
 
-__all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary",
-           "GAUSS_NODES"]
+__all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
 
-GAUSS_NODES = 8  # 3D Gauss-Legendre nodes per smooth interval (see tests/test_boundary_gamma.py for the errors)
 UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point within NUDGE h of the surface
 # 3D: points closer than NUDGE h to the surface (whose side the closest-point test cannot resolve) are evaluated
 # NUDGE h inside and carried back by the exact gradient there (remainder ~ NUDGE^2, about 1e-14)
@@ -109,16 +107,16 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
 
 
 @numba.njit(cache=True, inline="always")
-def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, xg, wg, q_max, cuts):
+def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, q_max, cuts):
     """(gamma_as, int W dS, delta) of a segment (kind 0) or a triangle (kind 1)."""
     if kind == 0:
         return segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, q_max)
-    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, xg, wg, q_max, cuts)
+    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
 
 
 @numba.njit(cache=True, nogil=True)
 def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, next_s, prev_s, pseudo, inv_h, breaks,
-          fc, gc, a, lp, lq, p1_one, sigma, xg, wg, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p,
+          fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p,
           grad_pc, near_pc, chi_p, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
 
@@ -139,7 +137,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             e = elem_k[k]
             x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
             g, gr, d = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                      xg, wg, 1.0, cuts)
+                                      1.0, cuts)
             total += g
             g0 += gr * nrm[e, 0]
             g1 += gr * nrm[e, 1]
@@ -148,7 +146,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             if rule == 2:
                 if dist_k[k] < band:
                     gb = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                        xg, wg, band * inv_h, cuts)[1]
+                                        band * inv_h, cuts)[1]
             elif rule == 1:
                 cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
                 gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
@@ -246,19 +244,14 @@ class BoundaryIntegrals:
         Kernel support radius (BIPI: ``h = 2 h_B``).
     kernel : str
         Kernel name (BIPI: ``"wendland_c2"``, the paper's Wendland "quintic").
-    gauss_nodes : int
-        3D only: Gauss-Legendre nodes per smooth interval.
     """
 
-    def __init__(self, boundary, h, kernel="wendland_c2", gauss_nodes=GAUSS_NODES):
+    def __init__(self, boundary, h, kernel="wendland_c2"):
         self.boundary = as_boundary(boundary)
         self.dim = self.boundary.dim
         self.h = check_positive("h", h)
         self.tables = RadialTables(kernel, self.dim)
         self.query = BoundaryQuery(self.boundary)
-        if isinstance(gauss_nodes, bool) or not isinstance(gauss_nodes, (int, np.integer)) or gauss_nodes < 2:
-            raise ValueError(f"gauss_nodes must be an integer >= 2, got {gauss_nodes!r}")
-        self._xg, self._wg = np.polynomial.legendre.leggauss(int(gauss_nodes))
         b = self.boundary
         self._empty2 = np.zeros((1, 1))
         if self.dim == 2:  # normals and centroids with a zero z, connectivity for the point term
@@ -328,7 +321,7 @@ class BoundaryIntegrals:
             close2 = (NUDGE * self.h) ** 2 if _nudge else 0.0
         run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
                               nrm, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
-                              self._xg, self._wg, close2, float(band), BAND_RULES.index(band_rule), bool(terms),
+                              close2, float(band), BAND_RULES.index(band_rule), bool(terms),
                               gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p))
         unknown = chi_p == UNKNOWN
         if unknown.any():
