@@ -120,9 +120,30 @@ def plane_offset(px, py, pz, tri, nrm, t):
 
 
 @numba.njit(cache=True, inline="always")
-def _phi(x, e, e2, ad, r):
-    """``atan(x / e) - atan(|delta| x / (e rho))`` in a form without cancellation (``r = rho(x)``)."""
-    return math.atan2(x * e * (e2 + x * x), (r + ad) * (e2 * r + ad * x * x))
+def _phi_difference(x0, r0, x1, r1, e, e2, ad):
+    """``phi(x1) - phi(x0)``, ``phi(x) = atan(x / e) - atan(|delta| x / (e rho))`` (``r = rho(x)``).
+
+    ``tan phi = y / z`` with ``y = x e (e^2 + x^2)``, ``z = (rho + |delta|)(e^2 rho + |delta| x^2) > 0``
+    (no cancellation), so ``phi`` lies in (-pi/2, pi/2) and the difference is one ``atan2`` of
+    ``(y1 z0 - y0 z1, z1 z0 + y1 y0)``; two where the products could underflow.
+    """
+    y0 = x0 * e * (e2 + x0 * x0)
+    z0 = (r0 + ad) * (e2 * r0 + ad * x0 * x0)
+    y1 = x1 * e * (e2 + x1 * x1)
+    z1 = (r1 + ad) * (e2 * r1 + ad * x1 * x1)
+    zz = z1 * z0
+    if zz > 1e-200:
+        return math.atan2(y1 * z0 - y0 * z1, zz + y1 * y0)
+    return math.atan2(y1, z1) - math.atan2(y0, z0)
+
+
+@numba.njit(cache=True, inline="always")
+def _piece_squared(breaks, r2):
+    """The kernel piece holding ``rho`` given ``rho^2`` (as :func:`_piece`, without the root)."""
+    j = 0
+    while j < breaks.shape[0] - 2 and r2 >= breaks[j + 1] * breaks[j + 1]:
+        j += 1
+    return j
 
 
 @numba.njit(cache=True, inline="always")
@@ -271,16 +292,16 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
             if x1 <= x0:
                 continue
             xm = 0.5 * (x0 + x1)
-            rm = math.sqrt(d2 + xm * xm)
-            if rm >= q_max:
+            rm2 = d2 + xm * xm
+            if rm2 >= q_max * q_max:
                 ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
                 jf += kf_inf * ang
                 gam += kg_inf * ang
                 continue
-            j = _piece(breaks, rm)
+            j = _piece_squared(breaks, rm2)
             r1 = math.sqrt(d2 + x1 * x1)
             r0 = math.sqrt(d2 + x0 * x0)
-            dphi = _phi(x1, e, e2, ad, r1) - _phi(x0, e, e2, ad, r0)
+            dphi = _phi_difference(x0, r0, x1, r1, e, e2, ad)
             if sgn != 0.0 and with_gamma:
                 gam += a0 * sgn * dphi  # the solid angle
             das = _asinh_difference(x0, r0, x1, r1, d, d2)
