@@ -5,8 +5,8 @@
 kernel **support** (BIPI's smoothing length is ``h_B = h / 2``). ``gamma`` comes from the
 divergence-theorem identity ``gamma_a = chi_a - sum_s gamma_as``
 (:mod:`~ase_sphrelax.boundary.radial`), evaluated per element in closed form in 2D
-(:mod:`~ase_sphrelax.boundary.line_integrals`) and with the singular part in closed form plus
-Gauss-Legendre on smooth remainders in 3D (:mod:`~ase_sphrelax.boundary.surface_integrals`).
+(:mod:`~ase_sphrelax.boundary.line_integrals`) and in 3D as closed-form integrals along the
+triangles' edges (:mod:`~ase_sphrelax.boundary.surface_integrals`).
 
 Only the elements within ``h`` of a particle contribute; they come from the particle-element
 query on the neighbour bins (:class:`~ase_sphrelax.boundary.BoundaryQuery`). A particle farther
@@ -34,7 +34,7 @@ import numpy as np
 
 from ..checks import check_positive
 from ..domains.closest import closest_on_triangle
-from ..parallel import run_chunks
+from ..parallel import run_chunks, thread_count
 from .line_integrals import line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
@@ -42,10 +42,8 @@ from .segments import BoundarySegments
 from .surface_integrals import plane_offset, triangle_terms
 from .triangles import BoundaryTriangles
 
-__all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary",
-           "GAUSS_NODES"]
+__all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
 
-GAUSS_NODES = 8  # 3D Gauss-Legendre nodes per smooth interval (see tests/test_boundary_gamma.py for the errors)
 UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point within NUDGE h of the surface
 # 3D: points closer than NUDGE h to the surface (whose side the closest-point test cannot resolve) are evaluated
 # NUDGE h inside and carried back by the exact gradient there (remainder ~ NUDGE^2, about 1e-14)
@@ -109,26 +107,30 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
 
 
 @numba.njit(cache=True, inline="always")
-def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, xg, wg, q_max, cuts):
+def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, q_max, cuts):
     """(gamma_as, int W dS, delta) of a segment (kind 0) or a triangle (kind 1)."""
     if kind == 0:
         return segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, q_max)
-    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, xg, wg, q_max, cuts)
+    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
 
 
 @numba.njit(cache=True, nogil=True)
 def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, next_s, prev_s, pseudo, inv_h, breaks,
-          fc, gc, a, lp, lq, p1_one, sigma, xg, wg, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p,
+          fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k, grad_k, delta_k, sum_p,
           grad_pc, near_pc, chi_p, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
 
     ``rule``: 0 normal, 1 centroid, 2 ball (:data:`BAND_RULES`). The kernel tables are those of
     :class:`~ase_sphrelax.boundary.radial.RadialTables` (segments use fc, gc, a; triangles lp, lq,
-    a[0], p1_one).
+    a[0], p1_one). Particles with ``skip_p[p]`` (when ``skip_p`` is not empty) are left untouched:
+    their values come from the cache of unmoved particles (:meth:`BoundaryIntegrals.compute`).
     """
     h = 1.0 / inv_h
     cuts = np.empty(2 * breaks.shape[0] + 5)
+    use_skip = skip_p.shape[0] > 0
     for p in range(first, last):
+        if use_skip and skip_p[p]:
+            continue
         total = 0.0
         g0 = g1 = g2 = 0.0
         w0 = w1 = w2 = 0.0
@@ -139,7 +141,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             e = elem_k[k]
             x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
             g, gr, d = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                      xg, wg, 1.0, cuts)
+                                      1.0, cuts)
             total += g
             g0 += gr * nrm[e, 0]
             g1 += gr * nrm[e, 1]
@@ -148,7 +150,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             if rule == 2:
                 if dist_k[k] < band:
                     gb = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                        xg, wg, band * inv_h, cuts)[1]
+                                        band * inv_h, cuts)[1]
             elif rule == 1:
                 cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
                 gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
@@ -246,19 +248,14 @@ class BoundaryIntegrals:
         Kernel support radius (BIPI: ``h = 2 h_B``).
     kernel : str
         Kernel name (BIPI: ``"wendland_c2"``, the paper's Wendland "quintic").
-    gauss_nodes : int
-        3D only: Gauss-Legendre nodes per smooth interval.
     """
 
-    def __init__(self, boundary, h, kernel="wendland_c2", gauss_nodes=GAUSS_NODES):
+    def __init__(self, boundary, h, kernel="wendland_c2"):
         self.boundary = as_boundary(boundary)
         self.dim = self.boundary.dim
         self.h = check_positive("h", h)
         self.tables = RadialTables(kernel, self.dim)
         self.query = BoundaryQuery(self.boundary)
-        if isinstance(gauss_nodes, bool) or not isinstance(gauss_nodes, (int, np.integer)) or gauss_nodes < 2:
-            raise ValueError(f"gauss_nodes must be an integer >= 2, got {gauss_nodes!r}")
-        self._xg, self._wg = np.polynomial.legendre.leggauss(int(gauss_nodes))
         b = self.boundary
         self._empty2 = np.zeros((1, 1))
         if self.dim == 2:  # normals and centroids with a zero z, connectivity for the point term
@@ -272,6 +269,8 @@ class BoundaryIntegrals:
         self._inside_points = None
         self._inside_p = None
         self.inside_tests = 0
+        self._cache = None
+        self.reused = 0  # particles whose terms came from the cache in the last compute
 
     def _inside(self, nlist, r_pc):
         """Inside test of every particle, redone when the neighbour list builds new bins."""
@@ -282,6 +281,14 @@ class BoundaryIntegrals:
             self._inside_points = pts
             self.inside_tests += 1
         return self._inside_p
+
+    def _unmoved(self, r_pc, band, band_rule):
+        """Particles at exactly the position of the last call (same band and rule), or None."""
+        c = self._cache
+        if c is None or c["r_pc"].shape != r_pc.shape or c["band"] != band or c["rule"] != band_rule:
+            return None
+        same_p = np.all(c["r_pc"] == r_pc, axis=1)
+        return same_p if same_p.any() else None
 
     def compute(self, nlist, r_pc, terms=False, band=0.0, band_rule="ball", _nudge=True):
         """Boundary terms for particles at ``r_pc`` (N, 3); ``nlist`` updated for them.
@@ -302,6 +309,14 @@ class BoundaryIntegrals:
             (the distance to the element's line or plane, as BIPI's Eq. 14 is written);
             "centroid": whole elements with ``|x_a - c_s| < band``, ``c_s`` the centroid (as Eq. 21
             is written; depends on the element size, hence BIPI2D's refinement to ``dx / 10``).
+
+        Notes
+        -----
+        A particle at exactly (bit for bit) the position it had in the previous call, with the same
+        ``band`` and ``band_rule``, keeps its ``gamma``, ``grad gamma``, band sum and point term
+        from that call (issue 17 item 6: BIPI's frozen particles in Step 2c, the unselected ones
+        in 2a): the same computation at the same position, so the same value (the boundary and
+        ``h`` are fixed per instance). ``terms=True`` always recomputes every particle.
         """
         if band_rule not in BAND_RULES:
             raise ValueError(f"band_rule must be one of {BAND_RULES}, got {band_rule!r}")
@@ -326,10 +341,17 @@ class BoundaryIntegrals:
             kind, elem, nrm, centroid = 1, b.packed_tk, b.normal_tc, b.centroid_tc
             tables = (t.breaks, self._empty2, self._empty2, t.a, t.lp, t.lq, t.p1_one)
             close2 = (NUDGE * self.h) ** 2 if _nudge else 0.0
+        same_p = None if terms or not _nudge else self._unmoved(r_pc, float(band), band_rule)
+        skip_p = np.zeros(0, dtype=np.bool_) if same_p is None else same_p
+        if same_p is not None:
+            c = self._cache
+            chi_p[same_p] = c["chi_p"][same_p]  # final values: never UNKNOWN or NEAR_SURFACE
+            sum_p[same_p] = 0.0
+        # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
         run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
                               nrm, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
-                              self._xg, self._wg, close2, float(band), BAND_RULES.index(band_rule), bool(terms),
-                              gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p))
+                              close2, float(band), BAND_RULES.index(band_rule), bool(terms), skip_p,
+                              gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p), nthreads=thread_count(m))
         unknown = chi_p == UNKNOWN
         if unknown.any():
             chi_p[unknown] = self._inside(nlist, r_pc)[unknown]
@@ -338,6 +360,15 @@ class BoundaryIntegrals:
         if close.any():
             gamma_p[close] = self._nudged(r_pc[close], pairs, np.nonzero(close)[0])
             chi_p[close] = 1.0 if self.dim == 3 else chi_p[close]
+        self.reused = 0 if same_p is None else int(same_p.sum())
+        if same_p is not None:
+            c = self._cache
+            gamma_p[same_p] = c["gamma_p"][same_p]
+            grad_pc[same_p] = c["grad_pc"][same_p]
+            near_pc[same_p] = c["near_pc"][same_p]
+        if _nudge:
+            self._cache = dict(r_pc=r_pc.copy(), band=float(band), rule=band_rule, gamma_p=gamma_p.copy(),
+                               grad_pc=grad_pc.copy(), near_pc=near_pc.copy(), chi_p=chi_p.copy())
         return BoundaryTerms(gamma_p, grad_pc, chi_p, near_pc if band > 0 else None, pairs,
                              gamma_k if terms else None, grad_k if terms else None, delta_k if terms else None)
 

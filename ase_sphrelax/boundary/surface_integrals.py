@@ -12,9 +12,10 @@ coordinate ``x`` from the foot of ``p`` on the edge's line (edge distance ``e``)
 * Beyond the support (``rho >= 1``) ``R`` is constant and the integral is an arctangent.
 * The singular part of ``gamma`` (``Q ~ -A3_0 / rho``, the solid angle) is integrated in closed
   form: ``A3_0 sign(delta) [atan(x / e) - atan(|delta| x / (e rho))]``.
-* The smooth remainders are divided differences ``(R(rho) - R(|delta|)) / (rho^2 - delta^2)``
-  (``rho^2 - delta^2 = e^2 + x^2`` exactly, no cancellation), integrated by Gauss-Legendre on
-  intervals split at the foot ``x = 0`` and where ``rho`` crosses the kernel's break radii.
+* The remainders are divided differences ``(R(rho) - R(|delta|)) / (rho^2 - delta^2)``
+  (``rho^2 - delta^2 = e^2 + x^2`` exactly), integrated in closed form per power of ``rho``
+  (:func:`triangle_terms`: arctangents, one ``asinh`` and polynomials in ``x`` and ``rho``) on
+  intervals split where ``rho`` crosses the kernel's break radii.
 
 Near an edge's line the edge's share of the solid angle, ``atan2`` of the foot's distance ``e`` to
 the line against ``delta``, is ill-conditioned (``1e-16 L / sqrt(e^2 + delta^2)``) while the sum over
@@ -22,8 +23,9 @@ the triangles around the edge is not: ``e`` and ``delta`` come from the particle
 computed identically by every triangle sharing it (:func:`_edge_offset`), so the rounding is that of
 one slightly moved particle and cancels in the sum (exact near edges, their lines and vertices).
 
-This is exact up to the Gauss rule on smooth integrands (``n = 16`` nodes by default; the
-tests compare with direct 3D integration to 1e-6 and with adaptive 2D quadrature per triangle).
+Exact to rounding (no quadrature; issue 17 items 1 and 6): the closed form agrees with 64-node
+Gauss-Legendre on the same intervals to 5e-15 (where the former 8-node rule erred by up to 4e-8),
+and ``tests/test_gamma_3d_exact.py`` checks it against adaptive quadrature over the ball.
 """
 from __future__ import annotations
 
@@ -117,13 +119,76 @@ def plane_offset(px, py, pz, tri, nrm, t):
             + (pz - tri[t, 3 * k_best + 2]) * nrm[t, 2])
 
 
+@numba.njit(cache=True, inline="always")
+def _phi_difference(x0, r0, x1, r1, e, e2, ad):
+    """``phi(x1) - phi(x0)``, ``phi(x) = atan(x / e) - atan(|delta| x / (e rho))`` (``r = rho(x)``).
+
+    ``tan phi = y / z`` with ``y = x e (e^2 + x^2)``, ``z = (rho + |delta|)(e^2 rho + |delta| x^2) > 0``
+    (no cancellation), so ``phi`` lies in (-pi/2, pi/2) and the difference is one ``atan2`` of
+    ``(y1 z0 - y0 z1, z1 z0 + y1 y0)``; two where the products could underflow.
+    """
+    y0 = x0 * e * (e2 + x0 * x0)
+    z0 = (r0 + ad) * (e2 * r0 + ad * x0 * x0)
+    y1 = x1 * e * (e2 + x1 * x1)
+    z1 = (r1 + ad) * (e2 * r1 + ad * x1 * x1)
+    zz = z1 * z0
+    if zz > 1e-200:
+        return math.atan2(y1 * z0 - y0 * z1, zz + y1 * y0)
+    return math.atan2(y1, z1) - math.atan2(y0, z0)
+
+
+@numba.njit(cache=True, inline="always")
+def _piece_squared(breaks, r2):
+    """The kernel piece holding ``rho`` given ``rho^2`` (as :func:`_piece`, without the root)."""
+    j = 0
+    while j < breaks.shape[0] - 2 and r2 >= breaks[j + 1] * breaks[j + 1]:
+        j += 1
+    return j
+
+
+@numba.njit(cache=True, inline="always")
+def _asinh_difference(x0, r0, x1, r1, d, d2):
+    """``asinh(x1 / d) - asinh(x0 / d)`` for ``x0 < x1`` (``r = sqrt(d^2 + x^2)``), with no cancellation.
+
+    ``asinh(x / d) = sign(x) log((|x| + r) / d)``: on one side of 0 the ``d`` cancels in a ratio;
+    across 0 it is ``log((x1 + r1)(r0 - x0) / d^2)``.
+    """
+    if x0 >= 0.0:
+        return math.log((x1 + r1) / (x0 + r0))
+    if x1 <= 0.0:
+        return math.log((r0 - x0) / (r1 - x1))
+    if d2 > 1e-280:
+        return math.log((x1 + r1) * (r0 - x0) / d2)
+    return math.log(x1 + r1) + math.log(r0 - x0) - 2.0 * math.log(d)
+
+
+@numba.njit(cache=True, inline="always")
+def _polynomial_part(row, r):
+    """``sum_{m >= 1} row[m] r^(m - 1)``: the Laurent polynomial of ``row`` without its ``1 / r`` column."""
+    total = 0.0
+    for m in range(row.shape[0] - 1, 0, -1):
+        total = total * r + row[m]
+    return total
+
+
 @numba.njit(cache=True)
-def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, xg, wg, q_max, cuts):
+def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, q_max, cuts):
     """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
 
     ``q_max`` is the radius (units of ``h``) the triangle is clipped to: 1, the support, for both
     terms; less for ``int_{t cap B(x_a, q_max h)} W dS`` alone (``gamma_at`` is then returned as 0).
     ``cuts`` is scratch space of at least ``2 (number of kernel pieces) + 5`` entries.
+
+    Every edge integral is in closed form (module docstring): with ``a = |delta|``,
+    ``d^2 = a^2 + e^2``, ``rho^2 = d^2 + x^2`` and ``T_k = int e (rho^k - a^k) / (e^2 + x^2) dx``,
+
+    * ``T_1 = e asinh(x / d) - a phi(x)``, ``phi = atan(x / e) - atan(a x / (e rho))``;
+    * ``T_2n = e sum_{i<n} a^(2(n-1-i)) E_i``, ``E_i = int rho^(2i) dx``;
+    * ``T_(2n+1) = e sum_{i<n} a^(2(n-1-i)) J_i + a^(2n) T_1``, ``J_i = int rho^(2i+1) dx``;
+    * ``delta T_(-1) = -sign(delta) phi`` (the ``1 / rho`` column of a kernel with several pieces),
+
+    with ``E_i = (x rho^(2i) + 2i d^2 E_(i-1)) / (2i + 1)``, ``E_0 = x``, and
+    ``J_i = (x rho^(2i+1) + (2i + 1) d^2 J_(i-1)) / (2i + 2)``, ``J_(-1) = asinh(x / d)``.
 
     Returns
     -------
@@ -160,6 +225,8 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
         kf_inf = _laurent(lp[_piece(breaks, q_max)], q_max) - p1_d
         kg_inf = 0.0
     nb = breaks.shape[0] - 1
+    cols = lp.shape[1]
+    a2 = ad * ad
     gam = 0.0
     jf = 0.0
     for i in range(3):
@@ -189,15 +256,13 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
             continue
         xa = ((ax - px) * ux + (ay - py) * uy + (az - pz) * uz) * inv_h  # u is normal to n: as from the foot
         xb = ((bx - px) * ux + (by - py) * uy + (bz - pz) * uz) * inv_h
-        d2 = delta * delta + e * e
         e2 = e * e
-        # interval end points: xa, the foot 0, the break crossings, xb
+        d2 = a2 + e2
+        d = math.sqrt(d2) if d2 > 1e-280 else math.hypot(ad, e)
+        # interval end points: xa, the break crossings, xb
         n_cut = 0
         cuts[n_cut] = xa
         n_cut += 1
-        if xa < 0.0 < xb:
-            cuts[n_cut] = 0.0
-            n_cut += 1
         for j in range(1, nb + 2):
             radius = breaks[j] if j <= nb else q_max
             if radius > q_max or (j == nb + 1 and with_gamma):
@@ -227,35 +292,56 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
             if x1 <= x0:
                 continue
             xm = 0.5 * (x0 + x1)
-            rm = math.sqrt(d2 + xm * xm)
-            if rm >= q_max:
+            rm2 = d2 + xm * xm
+            if rm2 >= q_max * q_max:
                 ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
                 jf += kf_inf * ang
                 gam += kg_inf * ang
                 continue
-            j = _piece(breaks, rm)
+            j = _piece_squared(breaks, rm2)
+            r1 = math.sqrt(d2 + x1 * x1)
+            r0 = math.sqrt(d2 + x0 * x0)
+            dphi = _phi_difference(x0, r0, x1, r1, e, e2, ad)
             if sgn != 0.0 and with_gamma:
-                r1 = math.sqrt(d2 + x1 * x1)
-                r0 = math.sqrt(d2 + x0 * x0)
-                phi1 = math.atan2(x1 * e * (e2 + x1 * x1), (r1 + ad) * (e2 * r1 + ad * x1 * x1))
-                phi0 = math.atan2(x0 * e * (e2 + x0 * x0), (r0 + ad) * (e2 * r0 + ad * x0 * x0))
-                gam += a0 * sgn * (phi1 - phi0)
-            half = 0.5 * (x1 - x0)
-            sf = 0.0
-            sq = 0.0
-            for g in range(xg.shape[0]):
-                x = xm + half * xg[g]
-                r = math.sqrt(d2 + x * x)
-                if j == jd:
-                    ddp = _divided_difference(lp[j], r, ad)
-                    ddq = _divided_difference(lq[j], r, ad)
-                else:
-                    y = e2 + x * x
-                    ddp = (_laurent(lp[j], r) - p1_d) / y
-                    ddq = (_laurent(lq[j], r) - qt_d) / y
-                sf += wg[g] * ddp
-                sq += wg[g] * ddq
-            jf += half * e * sf
+                gam += a0 * sgn * dphi  # the solid angle
+            das = _asinh_difference(x0, r0, x1, r1, d, d2)
+            t1 = e * das - ad * dphi  # T_1
+            sf = lp[j, 2] * t1
+            sq = lq[j, 2] * t1
+            de = x1 - x0  # E_0
+            dj = 0.5 * ((x1 * r1 - x0 * r0) + d2 * das)  # J_0
+            u_n = 0.0
+            v_n = 0.0
+            a2n = 1.0
+            xe0, xe1 = x0, x1  # x rho^(2n)
+            xo0, xo1 = x0 * r0, x1 * r1  # x rho^(2n + 1)
+            s0, s1 = r0 * r0, r1 * r1
+            n = 1
+            while 2 * n + 1 < cols:
+                u_n = a2 * u_n + de
+                sf += lp[j, 2 * n + 1] * e * u_n  # T_2n
+                sq += lq[j, 2 * n + 1] * e * u_n
+                if 2 * n + 2 >= cols:
+                    break
+                v_n = a2 * v_n + dj
+                a2n *= a2
+                term = e * v_n + a2n * t1  # T_(2n+1)
+                sf += lp[j, 2 * n + 2] * term
+                sq += lq[j, 2 * n + 2] * term
+                xe0 *= s0
+                xe1 *= s1
+                de = ((xe1 - xe0) + 2 * n * d2 * de) / (2 * n + 1)
+                xo0 *= s0
+                xo1 *= s1
+                dj = ((xo1 - xo0) + (2 * n + 1) * d2 * dj) / (2 * n + 2)
+                n += 1
+            if j != jd:  # the difference of the pieces' constants at rho = a: times atan(x / e)
+                ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
+                sf += (_polynomial_part(lp[j], ad) - _polynomial_part(lp[jd], ad)) * ang
+                sq += (_polynomial_part(lq[j], ad) - _polynomial_part(lq[jd], ad)) * ang
+                if with_gamma:
+                    gam += sgn * (lq[j, 0] - lq[jd, 0]) * ang
+            jf += sf
             if with_gamma:
-                gam += half * e * delta * sq
+                gam += delta * sq - sgn * lq[j, 0] * dphi  # the 1 / rho column: delta T_(-1) = -sign phi
     return sigma * gam, sigma * inv_h * jf, delta
