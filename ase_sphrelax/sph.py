@@ -57,7 +57,9 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from .kernels import get_kernel, kernel_derivatives, kernel_profile
+from numpy.polynomial import polynomial as P
+
+from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
 from .pairs import Output, PairInteraction
 
 __all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
@@ -157,6 +159,31 @@ def _solve_pair(a, b, r2, d, ih_s, m_s, active_s, equal_masses):
     ma = m_s[a]
     mb = m_s[b]
     return ((mb * fa, mb * qa * sa, mb * qa2 * ca, fa, na), (ma * fb, ma * qb * sb, ma * qb2 * cb, fb, nb), ())
+
+
+# Powers of u = 1 - q that the power-sum pass gathers: u^0 (the neighbour count) to u^POWER_DEGREE.
+POWER_DEGREE = 8
+
+
+@numba.njit(cache=True, inline="always")
+def _power_pair(a, b, r2, d, ih_s, active_s):
+    """Both partners' sums of u^j, ``u = 1 - q`` (``q = r / H`` with the partner's own H), j = 0..8 (u^0 = 1
+    within H: the neighbour count); zeros beyond H and for an inactive particle. With a one-piece
+    polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
+    (:func:`_power_moments`): no kernel evaluation per pair."""
+    r = math.sqrt(r2)
+    qa = r * ih_s[a] if active_s[a] else 1.0
+    qb = r * ih_s[b] if active_s[b] else 1.0
+    ua = 0.0 if qa >= 1.0 else 1.0 - qa
+    ub = 0.0 if qb >= 1.0 else 1.0 - qb
+    a2 = ua * ua
+    a3 = a2 * ua
+    a4 = a2 * a2
+    b2 = ub * ub
+    b3 = b2 * ub
+    b4 = b2 * b2
+    return ((1.0 if qa < 1.0 else 0.0, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
+            (1.0 if qb < 1.0 else 0.0, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
 
 
 @numba.njit(cache=True, inline="always")
@@ -259,6 +286,9 @@ def _build_interaction(name, dim_points):
     if name == "solve":  # equal masses; sums: M_0 .. M_4, count
         return PairInteraction(_solve_pair, dict(sums=Output((6,))), inputs=("ih_s", "active_s"),
                                constants=dict(equal_masses=True, m_s=None), dim=dim_points)
+    if name == "solve_powers":  # equal masses, a one-piece kernel; sums: u^0 .. u^8 (_power_moments)
+        return PairInteraction(_power_pair, dict(sums=Output((POWER_DEGREE + 1,))), inputs=("ih_s", "active_s"),
+                               dim=dim_points)
     if name == "solve_masses":  # sums: s, t, M_2, n, count
         return PairInteraction(_solve_pair, dict(sums=Output((5,))), inputs=("ih_s", "m_s", "active_s"),
                                constants=dict(equal_masses=False), dim=dim_points)
@@ -341,10 +371,61 @@ def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
     return sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2] + kernel.f0, sums[:, 3]
 
 
+_POWER_MOMENTS: dict = {}
+
+
+def _power_moments(kernel):
+    """``E`` (5, POWER_DEGREE + 1) with ``sum_b q^k f^(k)(q) = sum_j E[k, j] sum_b u^j`` (``u = 1 - q``, the sums
+    over the partners within H), or None when the kernel is not one polynomial of degree <= POWER_DEGREE on
+    [0, 1).
+
+    ``q^k f^(k)(q) = (1 - u)^k d^k f/dq^k`` is a polynomial in u of the kernel's degree, with the
+    coefficients of the kernel's definition in powers of u (:attr:`Kernel.coef`): near the cut-off the
+    terms are small powers of u, as in the kernel's closed forms.
+    """
+    if kernel.key not in _POWER_MOMENTS:
+        table = None
+        if len(kernel.breaks) == 3 and kernel.breaks[1] == 1.0 and kernel.coef.shape[1] <= POWER_DEGREE + 1:
+            table = np.zeros((5, POWER_DEGREE + 1))
+            for k in range(5):
+                poly = P.polymul(P.polypow([1.0, -1.0], k), _derivative_in_q(kernel.coef[0], k))
+                table[k, : len(poly)] = poly
+        _POWER_MOMENTS[kernel.key] = table
+    return _POWER_MOMENTS[kernel.key]
+
+
+@numba.njit(cache=True)
+def _moments_from_powers(sums_pj, table_kj):
+    """``(M_0, ..., M_4, count)``, each (N,), from the power sums (N, POWER_DEGREE + 1) (no BLAS: it is slow
+    under load on these machines)."""
+    n = sums_pj.shape[0]
+    moments_kp = np.zeros((6, n))
+    for p in range(n):
+        for k in range(5):
+            total = 0.0
+            for j in range(sums_pj.shape[1]):
+                total += table_kj[k, j] * sums_pj[p, j]
+            moments_kp[k, p] = total
+        moments_kp[5, p] = sums_pj[p, 0]
+    return moments_kp
+
+
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     """(s, t, M_2, M_3, M_4, n, count) with the self terms, ``M_k = sum_b m_b q^k f^(k)``, ``s = M_0``,
-    ``t = M_1``, ``n = sum_b f``; ``M_3``, ``M_4`` only with equal masses (else None)."""
+    ``t = M_1``, ``n = sum_b f``; ``M_3``, ``M_4`` only with equal masses (else None).
+
+    Equal masses and a one-piece kernel (Wendland): one pass of power sums (:func:`_power_pair`,
+    :func:`_power_moments`); otherwise the kernel's derivatives per pair (:func:`_solve_pair`).
+    """
     reach = float(h_p.max())
+    table = _power_moments(kernel) if equal else None
+    if table is not None:
+        sums = _interaction("solve_powers", r_pc.shape[1]).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+        moments = _moments_from_powers(sums, table)
+        n_p = moments[0] + kernel.f0
+        m = m_p[0]
+        return m * n_p, m * moments[1], m * moments[2], m * moments[3], m * moments[4], n_p, moments[5]
     if equal:  # m_p constant: s = m sum f, n = sum f
         sums = _interaction("solve", r_pc.shape[1]).compute(
             nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
