@@ -61,6 +61,7 @@ from numpy.polynomial import polynomial as P
 
 from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
 from .pairs import Output, PairInteraction
+from .parallel import run_chunks, thread_count
 
 __all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
            "SmoothingLengthError", "initial_smoothing_length", "pressure_forces", "viscosity_forces",
@@ -395,19 +396,22 @@ def _power_moments(kernel):
 
 
 @numba.njit(cache=True)
-def _moments_from_powers(sums_pj, table_kj):
-    """``(M_0, ..., M_4, count)``, each (N,), from the power sums (N, POWER_DEGREE + 1) (no BLAS: it is slow
-    under load on these machines)."""
+def _moments_from_powers(sums_pj, table_kj, m, f0):
+    """Rows ``s, t, M_2, M_3, M_4, n, count`` (7, N) with the self terms, for equal masses ``m``, from the power
+    sums (N, POWER_DEGREE + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
     n = sums_pj.shape[0]
-    moments_kp = np.zeros((6, n))
+    out_kp = np.empty((7, n))
     for p in range(n):
         for k in range(5):
             total = 0.0
             for j in range(sums_pj.shape[1]):
                 total += table_kj[k, j] * sums_pj[p, j]
-            moments_kp[k, p] = total
-        moments_kp[5, p] = sums_pj[p, 0]
-    return moments_kp
+            if k == 0:
+                total += f0  # the self term: f(0) = f0, and q^k f^(k) = 0 at q = 0 for k >= 1
+                out_kp[5, p] = total
+            out_kp[k, p] = m * total
+        out_kp[6, p] = sums_pj[p, 0]
+    return out_kp
 
 
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
@@ -422,10 +426,7 @@ def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     if table is not None:
         sums = _interaction("solve_powers", r_pc.shape[1]).compute(
             nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
-        moments = _moments_from_powers(sums, table)
-        n_p = moments[0] + kernel.f0
-        m = m_p[0]
-        return m * n_p, m * moments[1], m * moments[2], m * moments[3], m * moments[4], n_p, moments[5]
+        return tuple(_moments_from_powers(sums, table, float(m_p[0]), kernel.f0))
     if equal:  # m_p constant: s = m sum f, n = sum f
         sums = _interaction("solve", r_pc.shape[1]).compute(
             nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
@@ -600,11 +601,25 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
 
 
-@numba.njit(cache=True)
 def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
                            sigma_over_m_p, target, tol, bisect_only, step_max):
-    """One update of every active particle's H from its sums (in place); the first particle with a
-    non-finite sum, or -1.
+    """One update of every active particle's H from its sums (in place; the particles in chunks on the
+    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1."""
+    nthreads = thread_count(h_p.shape[0])
+    bad_t = np.full(nthreads, -1, dtype=np.int64)
+    run_chunks(_smoothing_length_chunk, h_p.shape[0], (s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
+                                                        h_p, lo_p, hi_p, active_p, sigma_over_m_p, float(target),
+                                                        float(tol), bool(bisect_only), float(step_max), bad_t),
+               per_thread=[(t,) for t in range(nthreads)])
+    bad = bad_t[bad_t >= 0]
+    return int(bad.min()) if bad.size else -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
+                            sigma_over_m_p, target, tol, bisect_only, step_max, bad_t, thread, first, last):
+    """:func:`_smoothing_length_step` for the particles ``[first, last)``: ``bad_t[thread]`` = the first
+    particle with a non-finite sum, else left at -1.
 
     The root of ``G(l) = ln(sigma s / m) - ln(eta^d)``, ``l = ln H``, is found by Halley steps, with the
     moments ``M_k = sum_b m_b q^k f^(k)(q)`` of one density pass (``s = M_0``, ``t = M_1``):
@@ -624,7 +639,7 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
     (doubling/halving while one side is open); ``bisect_only`` after :data:`NEWTON_ITERATIONS`.
     """
     log_target = math.log(target)
-    for a in range(h_p.shape[0]):
+    for a in range(first, last):
         if not active_p[a]:
             continue
         s, t, w = s_a[a], t_a[a], w_a[a]
@@ -632,7 +647,8 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
         h = h_p[a]
         g = target - sigma_over_m_p[a] * s
         if not math.isfinite(g) or not math.isfinite(t) or not math.isfinite(w):
-            return a
+            bad_t[thread] = a
+            return
         lo = h if g > 0.0 else lo_p[a]
         hi = h if g < 0.0 else hi_p[a]
         lo_p[a], hi_p[a] = lo, hi
@@ -675,7 +691,6 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
             else:
                 h_new = 0.5 * (lo + hi)
         h_p[a] = h_new
-    return -1
 
 
 # -- forces ----------------------------------------------------------------------------------------
