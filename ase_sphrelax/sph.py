@@ -57,8 +57,11 @@ import numba
 import numpy as np
 from numba.extending import overload
 
-from .kernels import get_kernel, kernel_derivatives, kernel_profile
+from numpy.polynomial import polynomial as P
+
+from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
 from .pairs import Output, PairInteraction
+from .parallel import run_chunks, thread_count
 
 __all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
            "SmoothingLengthError", "initial_smoothing_length", "pressure_forces", "viscosity_forces",
@@ -116,38 +119,72 @@ def _scaled_overload(g, d):
 # -- pair physics -------------------------------------------------------------------------------
 # Each pair function calls the kernel placeholders of ase_sphrelax.kernels, bound per kernel by PairInteraction;
 # flags bound as constants (equal_masses, with_virial) give each variant's flat form from one source.
+# The density and solve pairs are symmetric (one call per pair: one square root, a's and b's kernels at
+# their own H) and write their sums as one vector per point (one cache line per partner); beyond a partner's
+# H, or for an inactive one, q = 1 gives the kernel's zeros (a select, not a branch, for the kernels whose
+# closed form has no branch: ase_sphrelax.kernels._closed_form_source).
 @numba.njit(cache=True, inline="always")
 def _density_pair(a, b, r2, d, ih_s, m_s, active_s):
-    """a gathers from b with its own H_a: sum m_b f(q), sum m_b q f'(q), sum f(q), neighbour count.
+    """Each partner gathers from the other with its own H: sum m f(q), sum m q f'(q), sum f(q), neighbour count.
 
-    The inputs carry 1/H, so that q is a product rather than a division per pair. The early return
-    is tested in this order on purpose: with ``q >= 1.0 or not active`` the pass was 6x slower
-    (measured on 1e5 points in 2D; LLVM then evaluates the kernel for every listed pair).
+    The inputs carry 1/H, so that q is a product rather than a division per pair.
     """
-    q = math.sqrt(r2) * ih_s[a]
-    if not active_s[a] or q >= 1.0:
-        return (0.0, 0.0, 0.0, 0.0), ()
-    value, slope = kernel_profile(q)
+    r = math.sqrt(r2)
+    qa = r * ih_s[a] if active_s[a] else 1.0
+    qb = r * ih_s[b] if active_s[b] else 1.0
+    fa, sa = kernel_profile(qa)
+    fb, sb = kernel_profile(qb)
+    ma = m_s[a]
     mb = m_s[b]
-    return (mb * value, mb * q * slope, value, 1.0), ()
+    return ((mb * fa, mb * qa * sa, fa, 1.0 if qa < 1.0 else 0.0),
+            (ma * fb, ma * qb * sb, fb, 1.0 if qb < 1.0 else 0.0), ())
 
 
 @numba.njit(cache=True, inline="always")
 def _solve_pair(a, b, r2, d, ih_s, m_s, active_s, equal_masses):
-    """The smoothing-length solve's gather. Equal masses (``m_s`` unused): the moments sum q^k f^(k)(q),
-    k = 0..4, and the neighbour count; per-particle masses: sum m f, sum m q f', sum m q^2 f'', sum f, count."""
-    q = math.sqrt(r2) * ih_s[a]
+    """The smoothing-length solve's sums of both partners, each with its own H. Equal masses (``m_s``
+    unused): the moments sum q^k f^(k)(q), k = 0..4, and the neighbour count; per-particle masses:
+    sum m f, sum m q f', sum m q^2 f'', sum f, count."""
+    r = math.sqrt(r2)
+    qa = r * ih_s[a] if active_s[a] else 1.0
+    qb = r * ih_s[b] if active_s[b] else 1.0
+    fa, sa, ca, ta, ua = kernel_derivatives(qa)
+    fb, sb, cb, tb, ub = kernel_derivatives(qb)
+    qa2 = qa * qa
+    qb2 = qb * qb
+    na = 1.0 if qa < 1.0 else 0.0
+    nb = 1.0 if qb < 1.0 else 0.0
     if equal_masses:
-        if not active_s[a] or q >= 1.0:
-            return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0), ()
-        value, slope, curv, third, fourth = kernel_derivatives(q)
-        q2 = q * q
-        return (value, q * slope, q2 * curv, q2 * q * third, q2 * q2 * fourth, 1.0), ()
-    if not active_s[a] or q >= 1.0:
-        return (0.0, 0.0, 0.0, 0.0, 0.0), ()
-    value, slope, curv, _, _ = kernel_derivatives(q)
+        return ((fa, qa * sa, qa2 * ca, qa2 * qa * ta, qa2 * qa2 * ua, na),
+                (fb, qb * sb, qb2 * cb, qb2 * qb * tb, qb2 * qb2 * ub, nb), ())
+    ma = m_s[a]
     mb = m_s[b]
-    return (mb * value, mb * q * slope, mb * q * q * curv, value, 1.0), ()
+    return ((mb * fa, mb * qa * sa, mb * qa2 * ca, fa, na), (ma * fb, ma * qb * sb, ma * qb2 * cb, fb, nb), ())
+
+
+# Powers of u = 1 - q that the power-sum pass gathers: u^0 (the neighbour count) to u^POWER_DEGREE.
+POWER_DEGREE = 8
+
+
+@numba.njit(cache=True, inline="always")
+def _power_pair(a, b, r2, d, ih_s, active_s):
+    """Both partners' sums of u^j, ``u = 1 - q`` (``q = r / H`` with the partner's own H), j = 0..8 (u^0 = 1
+    within H: the neighbour count); zeros beyond H and for an inactive particle. With a one-piece
+    polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
+    (:func:`_power_moments`): no kernel evaluation per pair."""
+    r = math.sqrt(r2)
+    qa = r * ih_s[a] if active_s[a] else 1.0
+    qb = r * ih_s[b] if active_s[b] else 1.0
+    ua = 0.0 if qa >= 1.0 else 1.0 - qa
+    ub = 0.0 if qb >= 1.0 else 1.0 - qb
+    a2 = ua * ua
+    a3 = a2 * ua
+    a4 = a2 * a2
+    b2 = ub * ub
+    b3 = b2 * ub
+    b4 = b2 * b2
+    return ((1.0 if qa < 1.0 else 0.0, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
+            (1.0 if qb < 1.0 else 0.0, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
 
 
 @numba.njit(cache=True, inline="always")
@@ -244,17 +281,18 @@ def _pressure_interaction(dim_points, equal_masses, with_virial):
 
 def _build_interaction(name, dim_points):
     scalar = Output(())
-    if name == "density":
-        return PairInteraction(_density_pair, dict(s=scalar, t=scalar, n=scalar, count=scalar),
-                               inputs=("ih_s", "m_s", "active_s"), symmetric=False, dim=dim_points)
-    if name == "solve":  # equal masses
-        return PairInteraction(_solve_pair, dict(s=scalar, t=scalar, w=scalar, x=scalar, y=scalar, count=scalar),
-                               inputs=("ih_s", "active_s"), constants=dict(equal_masses=True, m_s=None),
-                               symmetric=False, dim=dim_points)
-    if name == "solve_masses":
-        return PairInteraction(_solve_pair, dict(s=scalar, t=scalar, w=scalar, n=scalar, count=scalar),
-                               inputs=("ih_s", "m_s", "active_s"), constants=dict(equal_masses=False),
-                               symmetric=False, dim=dim_points)
+    if name == "density":  # sums: s, t, n, count
+        return PairInteraction(_density_pair, dict(sums=Output((4,))), inputs=("ih_s", "m_s", "active_s"),
+                               dim=dim_points)
+    if name == "solve":  # equal masses; sums: M_0 .. M_4, count
+        return PairInteraction(_solve_pair, dict(sums=Output((6,))), inputs=("ih_s", "active_s"),
+                               constants=dict(equal_masses=True, m_s=None), dim=dim_points)
+    if name == "solve_powers":  # equal masses, a one-piece kernel; sums: u^0 .. u^8 (_power_moments)
+        return PairInteraction(_power_pair, dict(sums=Output((POWER_DEGREE + 1,))), inputs=("ih_s", "active_s"),
+                               dim=dim_points)
+    if name == "solve_masses":  # sums: s, t, M_2, n, count
+        return PairInteraction(_solve_pair, dict(sums=Output((5,))), inputs=("ih_s", "m_s", "active_s"),
+                               constants=dict(equal_masses=False), dim=dim_points)
     if name.startswith("pressure"):
         return _pressure_interaction(dim_points, name.endswith("_equal"), "virial" in name)
     if name == "viscosity":
@@ -327,25 +365,77 @@ class DensitySums:
 
 
 def _raw_sums(nlist, r_pc, h_p, m_p, active_p, kernel):
-    out = _interaction("density", r_pc.shape[1]).compute(
-        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=float(h_p.max()), kernel=kernel)
+    sums = _interaction("density", r_pc.shape[1]).compute(
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=float(h_p.max()),
+        kernel=kernel).sums
     # self terms: f(0) = f0, q f'(q) = 0 at q = 0
-    return out.s + m_p * kernel.f0, out.t, out.n + kernel.f0, out.count
+    return sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2] + kernel.f0, sums[:, 3]
+
+
+_POWER_MOMENTS: dict = {}
+
+
+def _power_moments(kernel):
+    """``E`` (5, POWER_DEGREE + 1) with ``sum_b q^k f^(k)(q) = sum_j E[k, j] sum_b u^j`` (``u = 1 - q``, the sums
+    over the partners within H), or None when the kernel is not one polynomial of degree <= POWER_DEGREE on
+    [0, 1).
+
+    ``q^k f^(k)(q) = (1 - u)^k d^k f/dq^k`` is a polynomial in u of the kernel's degree, with the
+    coefficients of the kernel's definition in powers of u (:attr:`Kernel.coef`): near the cut-off the
+    terms are small powers of u, as in the kernel's closed forms.
+    """
+    if kernel.key not in _POWER_MOMENTS:
+        table = None
+        if len(kernel.breaks) == 3 and kernel.breaks[1] == 1.0 and kernel.coef.shape[1] <= POWER_DEGREE + 1:
+            table = np.zeros((5, POWER_DEGREE + 1))
+            for k in range(5):
+                poly = P.polymul(P.polypow([1.0, -1.0], k), _derivative_in_q(kernel.coef[0], k))
+                table[k, : len(poly)] = poly
+        _POWER_MOMENTS[kernel.key] = table
+    return _POWER_MOMENTS[kernel.key]
+
+
+@numba.njit(cache=True)
+def _moments_from_powers(sums_pj, table_kj, m, f0):
+    """Rows ``s, t, M_2, M_3, M_4, n, count`` (7, N) with the self terms, for equal masses ``m``, from the power
+    sums (N, POWER_DEGREE + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
+    n = sums_pj.shape[0]
+    out_kp = np.empty((7, n))
+    for p in range(n):
+        for k in range(5):
+            total = 0.0
+            for j in range(sums_pj.shape[1]):
+                total += table_kj[k, j] * sums_pj[p, j]
+            if k == 0:
+                total += f0  # the self term: f(0) = f0, and q^k f^(k) = 0 at q = 0 for k >= 1
+                out_kp[5, p] = total
+            out_kp[k, p] = m * total
+        out_kp[6, p] = sums_pj[p, 0]
+    return out_kp
 
 
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     """(s, t, M_2, M_3, M_4, n, count) with the self terms, ``M_k = sum_b m_b q^k f^(k)``, ``s = M_0``,
-    ``t = M_1``, ``n = sum_b f``; ``M_3``, ``M_4`` only with equal masses (else None)."""
+    ``t = M_1``, ``n = sum_b f``; ``M_3``, ``M_4`` only with equal masses (else None).
+
+    Equal masses and a one-piece kernel (Wendland): one pass of power sums (:func:`_power_pair`,
+    :func:`_power_moments`); otherwise the kernel's derivatives per pair (:func:`_solve_pair`).
+    """
     reach = float(h_p.max())
+    table = _power_moments(kernel) if equal else None
+    if table is not None:
+        sums = _interaction("solve_powers", r_pc.shape[1]).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+        return tuple(_moments_from_powers(sums, table, float(m_p[0]), kernel.f0))
     if equal:  # m_p constant: s = m sum f, n = sum f
-        out = _interaction("solve", r_pc.shape[1]).compute(nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p),
-                                                           reach=reach, kernel=kernel)
-        n_p = out.s + kernel.f0
+        sums = _interaction("solve", r_pc.shape[1]).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
+        n_p = sums[:, 0] + kernel.f0
         m = m_p[0]
-        return m * n_p, m * out.t, m * out.w, m * out.x, m * out.y, n_p, out.count
-    out = _interaction("solve_masses", r_pc.shape[1]).compute(
-        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel)
-    return out.s + m_p * kernel.f0, out.t, out.w, None, None, out.n + kernel.f0, out.count
+        return m * n_p, m * sums[:, 1], m * sums[:, 2], m * sums[:, 3], m * sums[:, 4], n_p, sums[:, 5]
+    sums = _interaction("solve_masses", r_pc.shape[1]).compute(
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel).sums
+    return sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2], None, None, sums[:, 3] + kernel.f0, sums[:, 4]
 
 
 def density_sums(nlist, r_pc, masses, h, kernel):
@@ -511,11 +601,25 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
 
 
-@numba.njit(cache=True)
 def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
                            sigma_over_m_p, target, tol, bisect_only, step_max):
-    """One update of every active particle's H from its sums (in place); the first particle with a
-    non-finite sum, or -1.
+    """One update of every active particle's H from its sums (in place; the particles in chunks on the
+    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1."""
+    nthreads = thread_count(h_p.shape[0])
+    bad_t = np.full(nthreads, -1, dtype=np.int64)
+    run_chunks(_smoothing_length_chunk, h_p.shape[0], (s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
+                                                        h_p, lo_p, hi_p, active_p, sigma_over_m_p, float(target),
+                                                        float(tol), bool(bisect_only), float(step_max), bad_t),
+               per_thread=[(t,) for t in range(nthreads)])
+    bad = bad_t[bad_t >= 0]
+    return int(bad.min()) if bad.size else -1
+
+
+@numba.njit(cache=True, nogil=True)
+def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
+                            sigma_over_m_p, target, tol, bisect_only, step_max, bad_t, thread, first, last):
+    """:func:`_smoothing_length_step` for the particles ``[first, last)``: ``bad_t[thread]`` = the first
+    particle with a non-finite sum, else left at -1.
 
     The root of ``G(l) = ln(sigma s / m) - ln(eta^d)``, ``l = ln H``, is found by Halley steps, with the
     moments ``M_k = sum_b m_b q^k f^(k)(q)`` of one density pass (``s = M_0``, ``t = M_1``):
@@ -535,7 +639,7 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
     (doubling/halving while one side is open); ``bisect_only`` after :data:`NEWTON_ITERATIONS`.
     """
     log_target = math.log(target)
-    for a in range(h_p.shape[0]):
+    for a in range(first, last):
         if not active_p[a]:
             continue
         s, t, w = s_a[a], t_a[a], w_a[a]
@@ -543,7 +647,8 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
         h = h_p[a]
         g = target - sigma_over_m_p[a] * s
         if not math.isfinite(g) or not math.isfinite(t) or not math.isfinite(w):
-            return a
+            bad_t[thread] = a
+            return
         lo = h if g > 0.0 else lo_p[a]
         hi = h if g < 0.0 else hi_p[a]
         lo_p[a], hi_p[a] = lo, hi
@@ -586,7 +691,6 @@ def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, cou
             else:
                 h_new = 0.5 * (lo + hi)
         h_p[a] = h_new
-    return -1
 
 
 # -- forces ----------------------------------------------------------------------------------------

@@ -1,44 +1,67 @@
 """One ALARIC force evaluation (H solve included) against a LAMMPS SPH step and a FanCalculator evaluation.
 
 For a jittered periodic lattice (dx = 1, jitter 0.25 dx) of N particles in 2D and 3D, uniform target
-(rho* = 1, so the target's own cost is nil), at 1 and 2 threads:
+(rho* = 1, so the target's own cost is nil), at 1 and 2 threads, in interleaved rounds (one of each
+measurement per round, so that a change of the machine's load hits all three):
 
-* ``alaric_cold``: first ALARICCalculator forces (H from a global guess, one-shot bins);
-* ``alaric_warm``: forces after every particle moved by 1e-3 dx (H from the previous step, Verlet list
-  reused): what each step of ALARICDynamics costs, without the viscosity pass;
-* ``lammps_step``: a LAMMPS SPH time step, ``pair_style hybrid/overlay sph/rhosum 1 sph/idealgas`` with
+* ``alaric``: ALARICCalculator forces after every particle moved by up to 1e-3 dx (H from the previous
+  step, Verlet list reused): what each step of ALARICDynamics costs, without the viscosity pass; the
+  median of ``--repeats`` such calls;
+* ``fan``: FanCalculator (h = the mean ALARIC H) forces after the same kind of move, median of ``--repeats``;
+* ``lammps``: a LAMMPS SPH time step, ``pair_style hybrid/overlay sph/rhosum 1 sph/idealgas`` with
   ``fix sph`` (density summation + ideal-gas pressure forces + Monaghan viscosity, neighbour check every
   step), kernel support ``h`` = the mean ALARIC ``H`` (same neighbour count), time per step inside
-  ``run 20`` (engine only);
-* ``fan_warm``: FanCalculator (h = the same H) forces after the same displacement.
+  ``run 20`` (engine only).
 
-Then the 2D scaling of ``alaric_warm`` from 1e4 to 1e6 (ratio per decade, goal <= 11) and the peak
-RSS of a 1e6 2D ALARIC evaluation (a subprocess; goal < 2 GB). Ratios are taken in one run; the load
-average is printed and stored.
+Each figure is the median over ``--rounds`` rounds, wall and CPU (process) time; the ratios are the medians
+of the per-round ratios. On one thread CPU time is the robust figure on this shared machine (it leaves out
+the time slices of other processes); on two threads wall time is the figure.
 
-    .venv/bin/python benchmarks/bench_alaric.py                    # 1e5 2D/3D, scaling, memory
-    .venv/bin/python benchmarks/bench_alaric.py --sizes 1e4 --no-scaling --no-memory   # quick
+``--profile``: where one ALARIC evaluation's time goes (1 thread, CPU time, median over the rounds): the
+smoothing-length solve's density passes (how many, and their time), its per-particle H update, the force
+pass, the neighbour-list check and the rest (target, energies, Python).
 
-Writes benchmarks/results/bench_alaric.json.
+Scaling (``--scaling-sizes``, default 1e4, 1e5, 3e5): the warm evaluation's CPU time per particle on one
+thread in 2D and 3D, the sizes interleaved in each round (goal: flat). ``--memory``: peak RSS of a 1e6 2D
+ALARIC evaluation (a subprocess; goal < 2 GB).
+
+    .venv/bin/python benchmarks/bench_alaric.py --profile                 # 1e5 2D/3D, 1/2 threads, scaling
+    .venv/bin/python benchmarks/bench_alaric.py --sizes 1e4 --no-scaling --rounds 3   # quick
+
+Writes benchmarks/results/bench_alaric.json (``--out``).
 """
 import argparse
-import json
+import functools
 import os
 import resource
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numba
 import numpy as np
 
-from ase_sphrelax import ALARICCalculator, FanCalculator
+from ase_sphrelax import ALARICCalculator, FanCalculator, sph
 from ase_sphrelax.build import periodic_box
+from ase_sphrelax.neighbors import NeighborList
+
+try:
+    from _provenance import git_version, write_json
+except ImportError:  # run as a module
+    from benchmarks._provenance import git_version, write_json
+
+STEP = 1e-3  # largest move per coordinate between evaluations (dx = 1)
 
 
 def uniform(x):
     return np.ones(len(x))
+
+
+def no_gradient(x):
+    return np.zeros_like(x)
 
 
 def system(n, dim, seed=0):
@@ -47,86 +70,179 @@ def system(n, dim, seed=0):
                         seed=seed)
 
 
-def best_of(fn, repeats=3):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
-def time_alaric(atoms, dim):
-    calc = ALARICCalculator(target_density=uniform, target_gradient=lambda x: np.zeros_like(x), dim=dim, mass=1.0)
-    atoms.calc = calc
+def clocked(fn):
+    """(wall, CPU) seconds of one call."""
+    c0 = time.process_time()
     t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def median_of(fn, repeats):
+    """(wall, CPU): the medians over ``repeats`` calls."""
+    times = [clocked(fn) for _ in range(repeats)]
+    return statistics.median(t[0] for t in times), statistics.median(t[1] for t in times)
+
+
+class Mover:
+    """Forces of ``atoms`` after a random move of every particle by up to STEP per coordinate."""
+
+    def __init__(self, atoms, dim, seed):
+        self.atoms, self.dim = atoms, dim
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self):
+        delta = np.zeros((len(self.atoms), 3))
+        delta[:, : self.dim] = self.rng.uniform(-STEP, STEP, (len(self.atoms), self.dim))
+        self.atoms.positions += delta
+        self.atoms.get_forces()
+
+
+def alaric_case(n, dim):
+    """(mover, calculator) of a warm ALARIC evaluation: three evaluations done (the second stores the list, the
+    third walks it: every loop compiled or loaded from numba's cache)."""
+    atoms = system(n, dim)
+    calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=dim, mass=1.0)
+    atoms.calc = calc
     atoms.get_forces()
-    cold = time.perf_counter() - t0
-    rng = np.random.default_rng(1)
-    step = {"k": 0}
-
-    def warm():
-        delta = np.zeros((len(atoms), 3))
-        delta[:, :dim] = rng.uniform(-1e-3, 1e-3, (len(atoms), dim))
-        atoms.positions += delta
-        atoms.get_forces()
-        step["k"] += 1
-
-    warm()  # builds the stored list
-    t_warm = best_of(warm)
-    neighbours = float(np.mean(calc.state.neighbours_p))
-    return dict(cold=cold, warm=t_warm, h_mean=float(np.mean(calc.h_p)), neighbours=neighbours,
-                h_iterations=int(calc.state.iterations))
+    move = Mover(atoms, dim, seed=1)
+    move()
+    move()
+    return move, calc
 
 
-def time_fan(atoms, dim, h):
+def fan_case(n, dim, h):
+    atoms = system(n, dim)
     atoms.calc = FanCalculator(h=h, dx=1.0, dim=dim)
     atoms.get_forces()
-    rng = np.random.default_rng(2)
-
-    def warm():
-        delta = np.zeros((len(atoms), 3))
-        delta[:, :dim] = rng.uniform(-1e-3, 1e-3, (len(atoms), dim))
-        atoms.positions += delta
-        atoms.get_forces()
-
-    warm()
-    return best_of(warm)
+    move = Mover(atoms, dim, seed=2)
+    move()
+    move()
+    return move
 
 
-def time_lammps(atoms, dim, h, nthreads):
-    import tempfile
+class LammpsStep:
+    """A LAMMPS SPH run kept open; calling it times ``run 20`` and returns the time per step."""
 
-    import lammps_io
-    from lammps_io._library import new_lammps
-    from lammps_io.data_file import write_data
+    def __init__(self, n, dim, h, nthreads):
+        from lammps_io._library import new_lammps
+        from lammps_io.data_file import write_data
 
-    if not lammps_io.lammps_available():
-        return None
-    with tempfile.TemporaryDirectory() as tmp:
-        box = write_data(atoms, Path(tmp) / "sph.data", atom_style="sph", dim=dim, masses=1.0, rho=1.0, esph=1.0,
-                         cv=1.0)
-        lmp = new_lammps(nthreads=nthreads)
+        self.tmp = tempfile.TemporaryDirectory()
+        atoms = system(n, dim)
+        box = write_data(atoms, Path(self.tmp.name) / "sph.data", atom_style="sph", dim=dim, masses=1.0, rho=1.0,
+                         esph=1.0, cv=1.0)
+        self.lmp = new_lammps(nthreads=nthreads)
         cwd = os.getcwd()
-        os.chdir(tmp)
+        os.chdir(self.tmp.name)
         try:
-            lmp.commands_list([
+            self.lmp.commands_list([
                 "units lj", f"dimension {box.lammps_dimension}", "boundary p p p", "atom_style sph",
                 "atom_modify map array", "read_data sph.data",
                 "pair_style hybrid/overlay sph/rhosum 1 sph/idealgas",
                 f"pair_coeff * * sph/rhosum {h:.17g}", f"pair_coeff * * sph/idealgas 0.1 {h:.17g}",
                 f"neighbor {0.2 * h:.17g} bin", "neigh_modify every 1 delay 0 check yes", "fix s all sph",
                 "timestep 1e-4", "thermo 1000", "run 0"])
-            lmp.command("run 5 pre no post no")
-            runs = []
-            for _ in range(3):
-                t0 = time.perf_counter()
-                lmp.command("run 20 pre no post no")
-                runs.append((time.perf_counter() - t0) / 20)
-            lmp.close()
+            self.lmp.command("run 5 pre no post no")
         finally:
             os.chdir(cwd)
-    return min(runs)
+
+    def __call__(self):
+        self.lmp.command("run 20 pre no post no")
+
+    def close(self):
+        self.lmp.close()
+        self.tmp.cleanup()
+
+
+def lammps_available():
+    try:
+        import lammps_io
+
+        return lammps_io.lammps_available()
+    except ImportError:
+        return False
+
+
+def compare(n, dim, nthreads, rounds, repeats, with_lammps):
+    """Interleaved rounds of ALARIC, Fan and LAMMPS at one size, dimension and thread count."""
+    numba.set_num_threads(min(nthreads, numba.config.NUMBA_NUM_THREADS))
+    load_before = os.getloadavg()
+    alaric, calc = alaric_case(n, dim)
+    h_mean = float(np.mean(calc.h_p))
+    fan = fan_case(n, dim, h_mean)
+    lammps = LammpsStep(n, dim, h_mean, nthreads) if with_lammps else None
+    per_round = []
+    for _ in range(rounds):
+        entry = dict(alaric=median_of(alaric, repeats), fan=median_of(fan, repeats))
+        if lammps is not None:
+            wall, cpu = clocked(lammps)
+            entry["lammps"] = (wall / 20, cpu / 20)
+        per_round.append(entry)
+    if lammps is not None:
+        lammps.close()
+    row = dict(n=len(calc.h_p), dim=dim, threads=nthreads, h_mean=h_mean,
+               neighbours=float(np.mean(calc.state.neighbours_p)), h_passes=int(calc.state.iterations),
+               load_before=load_before, load_after=os.getloadavg(), rounds=per_round)
+    names = ["alaric", "fan"] + (["lammps"] if lammps is not None else [])
+    for k, clock in enumerate(("wall", "cpu")):
+        for name in names:
+            row[f"{name}_{clock}"] = statistics.median(r[name][k] for r in per_round)
+        row[f"alaric_over_fan_{clock}"] = statistics.median(r["alaric"][k] / r["fan"][k] for r in per_round)
+        if lammps is not None:
+            row[f"alaric_over_lammps_{clock}"] = statistics.median(r["alaric"][k] / r["lammps"][k]
+                                                                  for r in per_round)
+    return row
+
+
+# -- profile: the parts of one evaluation --------------------------------------------------------------------
+_PARTS = (("solve pass", sph, "_solve_sums"), ("H update", sph, "_smoothing_length_step"),
+          ("H solve", sph, "solve_smoothing_lengths"), ("force pass", sph, "pressure_forces"),
+          ("neighbour check", NeighborList, "update"))
+
+
+def profile(n, dim, rounds, repeats):
+    """CPU time per part of a warm evaluation on one thread (medians over rounds x repeats evaluations)."""
+    numba.set_num_threads(1)
+    move, calc = alaric_case(n, dim)
+    spent = {}
+    originals = []
+    for label, owner, name in _PARTS:
+        original = getattr(owner, name)
+        originals.append((owner, name, original))
+
+        def timed(*args, _original=original, _label=label, **kwargs):
+            c0 = time.process_time()
+            try:
+                return _original(*args, **kwargs)
+            finally:
+                spent[_label] = spent.get(_label, 0.0) + time.process_time() - c0
+
+        setattr(owner, name, functools.wraps(original)(timed))
+    samples = []
+    try:
+        for _ in range(rounds * repeats):
+            spent.clear()
+            _, cpu = clocked(move)
+            samples.append(dict(spent, total=cpu, passes=calc.state.iterations))
+    finally:
+        for owner, name, original in originals:
+            setattr(owner, name, original)
+    out = {key: statistics.median(s.get(key, 0.0) for s in samples) for key in samples[0]}
+    # the list is checked twice: by the calculator's prepare and in the H solve (counted in both)
+    out["H solve, other (list check, numpy)"] = out["H solve"] - out["solve pass"] - out["H update"]
+    out["rest (target, energies, ASE, Python)"] = out["total"] - out["H solve"] - out["force pass"]
+    return dict(n=len(calc.h_p), dim=dim, parts=out, load=os.getloadavg())
+
+
+def scaling(dim, sizes, rounds, repeats):
+    """CPU time per particle of a warm evaluation on one thread, the sizes interleaved in each round."""
+    numba.set_num_threads(1)
+    cases = [alaric_case(n, dim) for n in sizes]
+    per_round = [[median_of(move, repeats)[1] / len(calc.h_p) for move, calc in cases] for _ in range(rounds)]
+    per_particle = [statistics.median(r[k] for r in per_round) for k in range(len(sizes))]
+    return dict(dim=dim, n=[len(calc.h_p) for _, calc in cases], cpu_per_particle=per_particle,
+                relative_to_smallest=[p / per_particle[0] for p in per_particle], rounds=per_round)
 
 
 def memory_probe(n):
@@ -134,10 +250,10 @@ def memory_probe(n):
     code = f"""
 import resource, numpy as np, sys
 sys.path.insert(0, {str(Path(__file__).parent)!r})
-from bench_alaric import system, uniform
+from bench_alaric import system, uniform, no_gradient
 from ase_sphrelax import ALARICCalculator
 atoms = system({n}, 2)
-atoms.calc = ALARICCalculator(target_density=uniform, target_gradient=lambda x: np.zeros_like(x), dim=2, mass=1.0)
+atoms.calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=2, mass=1.0)
 atoms.get_forces(); atoms.positions[:, :2] += 1e-3; atoms.get_forces()
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
 """
@@ -145,55 +261,71 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def _sizes(text):
+    return [int(float(s)) for s in text.split(",") if s]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="1e5")
     parser.add_argument("--threads", default="1,2")
+    parser.add_argument("--dims", default="2,3")
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--profile", action="store_true", help="the parts of one evaluation (1 thread)")
+    parser.add_argument("--scaling-sizes", default="1e4,1e5,3e5")
     parser.add_argument("--no-scaling", action="store_true")
-    parser.add_argument("--no-memory", action="store_true")
+    parser.add_argument("--memory", action="store_true", help="peak RSS of a 1e6 2D evaluation (a subprocess)")
+    parser.add_argument("--no-lammps", action="store_true")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "bench_alaric.json"))
     args = parser.parse_args()
-    results = dict(load_before=os.getloadavg(), numba_threads_max=numba.config.NUMBA_NUM_THREADS, rows=[])
-    print(f"load average {os.getloadavg()}")
-    for n in [int(float(s)) for s in args.sizes.split(",")]:
-        for dim in (2, 3):
+    dims = [int(d) for d in args.dims.split(",")]
+    with_lammps = not args.no_lammps and lammps_available()
+    import ase_sphrelax
+
+    # version: this script's checkout; measured: the ase_sphrelax imported (PYTHONPATH may point at a baseline)
+    results = dict(version=git_version(), measured=str(Path(ase_sphrelax.__file__).parent), argv=sys.argv[1:],
+                   load_before=os.getloadavg(),
+                   numba_threads_max=numba.config.NUMBA_NUM_THREADS, rows=[])
+    print(f"{results['version']}, measuring {results['measured']}; load average {os.getloadavg()}", flush=True)
+    for n in _sizes(args.sizes):
+        for dim in dims:
             for nthreads in [int(t) for t in args.threads.split(",")]:
-                numba.set_num_threads(min(nthreads, numba.config.NUMBA_NUM_THREADS))
-                atoms = system(n, dim)
-                al = time_alaric(atoms, dim)
-                fan = time_fan(atoms, dim, al["h_mean"])
-                lmp = time_lammps(atoms, dim, al["h_mean"], nthreads)
-                row = dict(n=len(atoms), dim=dim, threads=nthreads, alaric_cold=al["cold"], alaric_warm=al["warm"],
-                           fan_warm=fan, lammps_step=lmp, h_mean=al["h_mean"], neighbours=al["neighbours"],
-                           h_iterations=al["h_iterations"],
-                           alaric_over_lammps=None if lmp is None else al["warm"] / lmp,
-                           alaric_over_fan=al["warm"] / fan)
+                row = compare(n, dim, nthreads, args.rounds, args.repeats, with_lammps)
                 results["rows"].append(row)
-                lmp_txt = "n/a" if lmp is None else f"{lmp:.4f}"
-                ratio_txt = "n/a" if lmp is None else f"{row['alaric_over_lammps']:.2f}"
-                print(f"N {len(atoms):8d} {dim}D {nthreads} thr: ALARIC cold {al['cold']:.3f} s warm {al['warm']:.4f} s "
-                      f"({al['neighbours']:.0f} neighbours, H iterations {al['h_iterations']}), "
-                      f"LAMMPS step {lmp_txt} s, Fan warm {fan:.4f} s; ALARIC/LAMMPS {ratio_txt}, "
-                      f"ALARIC/Fan {row['alaric_over_fan']:.2f}", flush=True)
+                clock = "cpu" if nthreads == 1 else "wall"
+                lmp = f", LAMMPS step {row['lammps_' + clock]:.4f} s" if with_lammps else ""
+                vs_lmp = f", ALARIC/LAMMPS {row['alaric_over_lammps_' + clock]:.2f}" if with_lammps else ""
+                print(f"N {row['n']:8d} {dim}D {nthreads} thr ({clock}): ALARIC {row['alaric_' + clock]:.4f} s "
+                      f"({row['neighbours']:.0f} neighbours, {row['h_passes']} H pass(es)), Fan "
+                      f"{row['fan_' + clock]:.4f} s{lmp}; ALARIC/Fan {row['alaric_over_fan_' + clock]:.2f}{vs_lmp}; "
+                      f"load {row['load_before'][0]:.1f} -> {row['load_after'][0]:.1f}", flush=True)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    if args.profile:
+        results["profile"] = []
+        for dim in dims:
+            prof = profile(_sizes(args.sizes)[0], dim, args.rounds, args.repeats)
+            results["profile"].append(prof)
+            print(f"profile {dim}D N {prof['n']} (1 thread, CPU ms, load {prof['load'][0]:.1f}):")
+            for key, value in prof["parts"].items():
+                print(f"    {key:40s} {value if key == 'passes' else 1e3 * value:8.2f}")
     if not args.no_scaling:
-        scaling = []
-        for n in (10_000, 100_000, 1_000_000):
-            al = time_alaric(system(n, 2), 2)
-            scaling.append(dict(n=n, warm=al["warm"], cold=al["cold"]))
-            print(f"scaling 2D N {n:8d}: warm {al['warm']:.4f} s cold {al['cold']:.3f} s", flush=True)
-        results["scaling_2d"] = scaling
-        results["ratio_per_decade"] = [scaling[k + 1]["warm"] / scaling[k]["warm"] for k in range(2)]
-        print(f"warm time ratio per decade: {results['ratio_per_decade']}")
-    if not args.no_memory:
+        results["scaling"] = []
+        for dim in dims:
+            sc = scaling(dim, _sizes(args.scaling_sizes), args.rounds, args.repeats)
+            results["scaling"].append(sc)
+            print(f"scaling {dim}D (1 thread, CPU per particle): " + ", ".join(
+                f"N {n}: {1e9 * t:.0f} ns" for n, t in zip(sc["n"], sc["cpu_per_particle"]))
+                + f"; relative {[round(x, 2) for x in sc['relative_to_smallest']]}", flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    if args.memory:
         rss = memory_probe(1_000_000)
         results["peak_rss_mb_1e6_2d"] = rss
         print(f"peak RSS, 1e6 2D particles, two ALARIC evaluations: {rss:.0f} MB")
     results["load_after"] = os.getloadavg()
     results["self_maxrss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(results, indent=2))
-    print(f"load average {os.getloadavg()}; wrote {args.out}")
+    print(f"load average {os.getloadavg()}")
+    write_json(args.out, results)
 
 
 if __name__ == "__main__":
