@@ -51,9 +51,10 @@ def _random_start_with_close_particles(dim, seed):
     return Atoms(numbers=np.zeros(n, int), positions=pos % 1.0, cell=cell, pbc=pbc)
 
 
-def _check_fd(atoms, dim, form, seed):
+def _check_fd(atoms, dim, form, seed, **options):
     density, gradient = _target(dim)
-    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form=form, h_tol=1e-14)
+    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form=form, h_tol=1e-14,
+                            **options)
     atoms.calc = calc
     f = atoms.get_forces()
     h_min = float(calc.results["smoothing_lengths"].min())
@@ -74,6 +75,16 @@ def _check_fd(atoms, dim, form, seed):
 def test_forces_are_the_negative_gradient_at_close_pairs_and_triples(dim, form, seed):
     calc = _check_fd(_random_start_with_close_particles(dim, seed), dim, form, seed % 1000)
     assert calc.results["omega"].min() > 0.0
+
+
+@settings(max_examples=8, deadline=None, database=None)
+@given(dim=st.sampled_from([1, 2, 3]), background=st.sampled_from([0.01, 0.1, 1.0]),
+       seed=st.integers(min_value=0, max_value=2**31 - 1))
+def test_squares_with_background_pressure_forces_are_the_negative_gradient(dim, background, seed):
+    """form="squares" with background > 0 (energy + beta sum m c_s^2 ln rho): FD-exact at close pairs and triples."""
+    calc = _check_fd(_random_start_with_close_particles(dim, seed), dim, "squares", seed % 1000,
+                     background=background)
+    assert calc.parameters.background == background
 
 
 def _issue_start(**calc_options):

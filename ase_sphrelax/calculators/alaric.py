@@ -53,6 +53,12 @@ class ALARICCalculator(SPHCalculator):
         ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
         non-conservative: forces only (``energy`` raises PropertyNotImplementedError); the log
         potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`).
+    background : float
+        ``form="squares"`` or ``"paper"``: a background pressure ``beta c_s^2 rho`` (``beta`` = ``background``)
+        added to the form's pressure, so that it stays positive near equilibrium (no tensile instability where
+        ``|rho - rho*| < beta rho``). In ``"squares"`` it is the energy ``beta sum_a m c_s^2 ln rho_a`` (exact
+        gradient: the isothermal pressure force, no body force), which shifts the minimum away from
+        ``rho_a = rho*(x_a)`` by an amount that vanishes with ``beta``. Default 0.
     omega_floor : float or None
         ``form="paper"`` only (it has no energy, so no gradient to keep): Omega (Eq. 13) is replaced by
         ``max(Omega, omega_floor)`` in its forces; default :data:`PAPER_OMEGA_FLOOR` (0.05), ``0`` for the
@@ -95,7 +101,7 @@ class ALARICCalculator(SPHCalculator):
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
-                              kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None, boundary="wall",
+                              kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None, boundary="wall", background=0.0,
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):
@@ -131,6 +137,11 @@ class ALARICCalculator(SPHCalculator):
         p.density_floor = check_positive("density_floor", p.density_floor, allow_none=True)
         if p.form not in model.FORMS:
             raise ValueError(f"form must be one of {model.FORMS}, got {p.form!r}")
+        if not (np.isfinite(p.background) and p.background >= 0.0):
+            raise ValueError(f"background must be a finite number >= 0, got {p.background!r}")
+        if p.background > 0.0 and p.form == "log":
+            raise ValueError("background is for form='squares' or 'paper' (the log form's pressure c_s^2 rho is "
+                             "positive already), got form='log'")
         if p.omega_floor is not None:
             if p.form != "paper":
                 raise ValueError(f"omega_floor is for form='paper' only (form={p.form!r} has an energy whose exact "
@@ -323,6 +334,8 @@ class ALARICCalculator(SPHCalculator):
             if self._rho_ref is None:
                 self._rho_ref = float(np.mean(target_p))
             energies_p = m * cs2 * (rho_p - target_p) ** 2 / (2.0 * self._rho_ref)
+            if p.background > 0.0:
+                energies_p += p.background * m * cs2 * np.log(rho_p)
         else:
             log_target = np.log(np.maximum(target_p, self._floor))
             energies_p = m * cs2 * (np.log(rho_p) - log_target)
@@ -374,6 +387,8 @@ class ALARICCalculator(SPHCalculator):
             pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
         else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
             pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
+        if p.background > 0.0:  # P += beta c_s^2 rho (squares: the gradient of beta sum m c_s^2 ln rho)
+            pr_p = pr_p + p.background * cs2 / (omega_p * rho_p)
         if p.boundary == "mirror":  # ghosts carry no energy: pr = 0; their share folds back through J^T
             y_pc, h_q = self._ghosts[2], self._ghosts[3]
             pr_q = np.concatenate([pr_p, np.zeros(len(y_pc) - len(r_pc))])
