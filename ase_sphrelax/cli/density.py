@@ -48,6 +48,10 @@ def add_arguments(parser):
                              "where the domain allows it, else wall")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
+    parser.add_argument("--finish", choices=("none", "squares"), default="none",
+                        help="squares: after the log potential stops by epsilon_dot, continue the dynamics on the "
+                             "least-squares potential (fixed point rho = rho*; it empties density wells, so "
+                             "check the well); none (default)")
     polish = parser.add_mutually_exclusive_group()
     polish.add_argument("--polish", dest="polish", action="store_true", default=None,
                         help="LBFGS polish on the least-squares potential after the dynamics (default in 1D only: "
@@ -149,6 +153,7 @@ def run(args):
         eps_teo = alaric_min_error(args.n, args.delta, dim)
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
                            origin=origin, form=args.form, polish=do_polish, boundary=args.boundary,
+                           finish=args.finish if args.form == "log" else "none",
                            polish_steps=args.polish_steps,
                            max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
                            eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
@@ -170,7 +175,8 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(result["trace"], indent=1))
     summary = dict(profile=args.profile, delta=args.delta if args.profile == "eq46" else None,
                    p=args.p if args.profile == "eq49" else None, dim=dim, n=len(atoms), splits=args.split,
-                   form=args.form, boundary=calc.parameters.boundary, polish=do_polish, epsilon=eps,
+                   form=args.form, boundary=calc.parameters.boundary, finish=args.finish, polish=do_polish,
+                   epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),
                    stop_reason=result["stop_reason"], converged=result["converged"],
