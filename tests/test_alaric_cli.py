@@ -48,6 +48,8 @@ def test_density_small_2d_run(tmp_path):
     (["--profile", "nothing"], "--profile must be"),
     (["--profile", "eq49", "--dim", "1"], "is 2D"),
     (["--profile", "math:pi"], "not callable"),
+    (["--boundary", "mirror"], "--boundary mirror is for --dim 2 or 3"),
+    (["--dim", "2", "--n", "400", "--domain", "box", "--boundary", "mirror"], "--boundary mirror needs a ball"),
 ])
 def test_density_usage_errors(tmp_path, args, message):
     proc = _run("density", *args, "--out", str(tmp_path / "x"))
