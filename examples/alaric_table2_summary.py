@@ -7,6 +7,8 @@ integral form of Eq. 45 on a fine grid, ``int (rho(x) - rho*(x))^2 dx / int rho*
 ``rho(x) = sum_b m W(|x - x_b|, H_b)`` (scatter form), which does see an empty well.
 
     python examples/alaric_table2_summary.py examples/results/alaric/table2_two_stage
+
+writes ``integral.md`` and ``integral.json`` into that folder.
 """
 from __future__ import annotations
 
@@ -55,14 +57,15 @@ def main():
                          min_gap_over_mean=float(gaps.min() / gaps.mean()),
                          epsilon_integral=integral_epsilon(atoms, s["delta"]), command=s.get("command"),
                          wall_s=s["wall_time_s"]))
-    (root / "results.json").write_text(json.dumps(rows, indent=1))
+    (root / "integral.json").write_text(json.dumps(rows, indent=1))
     lines = ["| Delta | steps | stop | eps_stag (Eq. 45, ours) | paper eps_stag | Eq. 48 | particle closest to r = 0 | "
              "integral eps (grid) | min gap / mean | wall s |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['delta']:g} | {r['steps']} | {r['stop']} | {r['epsilon']:.2e} | {r['paper']} | "
                      f"{r['epsilon_teo_min']:.2e} | {r['r_min']:.3g} | {r['epsilon_integral']:.2e} | "
                      f"{r['min_gap_over_mean']:.3f} | {r['wall_s']:.0f} |")
-    (root / "table.md").write_text("\n".join(lines) + "\n")
+    (root / "integral.md").write_text(f"Made by `python examples/alaric_table2_summary.py {root}` from the runs\u2019 "
+                                      f"summary.json and relaxed.extxyz.\n\n" + "\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
