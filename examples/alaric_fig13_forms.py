@@ -101,7 +101,8 @@ def main():
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     command = (f"python examples/alaric_fig13_forms.py --n {args.n} --steps {args.steps} --seed {args.seed} "
-               f"--forms {args.forms} --boundaries {args.boundaries}{' --no-wvt' if args.no_wvt else ''} --out {args.out}")
+               f"--forms {args.forms} --boundaries {args.boundaries}{' --no-wvt' if args.no_wvt else ''} "
+               f"--out {args.out}")
     # warm-up (numba compiles on first use): the timed runs below measure the steps, not the compilation
     wvt(200, 3, args.seed)
     for boundary in args.boundaries.split(","):
@@ -113,7 +114,7 @@ def main():
     for boundary in args.boundaries.split(","):
         for form in args.forms.split(","):
             rows.append(alaric(args.n, args.steps, form, args.seed, boundary))
-            print({k: v for k, v in rows[-1].items() if k != "trace"}, flush=True)
+            print({k: v for k, v in rows[-1].items() if k not in ("trace", "positions")}, flush=True)
     load = os.getloadavg()
     (out / "results.json").write_text(json.dumps(dict(command=command, load_average=load, runs=rows), indent=1))
     lines = [f"N = {args.n}, {args.steps} steps, seed {args.seed}. Command: `{command}`. Load average at the end "

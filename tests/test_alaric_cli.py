@@ -88,8 +88,8 @@ def test_density_fig13_like_default_run_has_no_pairing(tmp_path):
 
     edges = tmp_path / "circle.edges"
     t = 2 * np.pi * np.arange(65) / 64
-    edges.write_text("".join(f"{np.cos(t[i]):.17g} {np.sin(t[i]):.17g} {np.cos(t[i + 1]):.17g} {np.sin(t[i + 1]):.17g}\n"
-                             for i in range(64)))
+    x, y = np.cos(t), np.sin(t)
+    edges.write_text("".join(f"{x[i]:.17g} {y[i]:.17g} {x[i + 1]:.17g} {y[i + 1]:.17g}\n" for i in range(64)))
     out = tmp_path / "fig13"
     proc = _run("density", "--profile", "uniform", "--dim", "2", "--n", "200", "--split", "0", "--domain", str(edges),
                 "--seed", "1", "--max-steps", "300", "--out", str(out))

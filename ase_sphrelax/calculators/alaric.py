@@ -101,7 +101,8 @@ class ALARICCalculator(SPHCalculator):
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
-                              kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None, boundary="wall", background=0.0,
+                              kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None,
+                              boundary="wall", background=0.0,
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):

@@ -40,8 +40,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORMS", "BOUNDARIES", "mirror_map", "mirror_supported", "resolve_boundary", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics",
-           "convergence_verdict", "zero_region_mask"]
+__all__ = ["FORMS", "BOUNDARIES", "mirror_map", "mirror_supported", "resolve_boundary", "Target", "eq46", "eq49",
+           "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics", "convergence_verdict",
+           "zero_region_mask"]
 
 FORMS = ("log", "squares", "paper")
 BOUNDARIES = ("wall", "mirror")
