@@ -266,3 +266,29 @@ def test_mirror_refuses_a_domain_it_cannot_mirror():
         ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, boundary="mirror", domain=concave)
     with pytest.raises(ValueError, match="boundary must be"):
         ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, boundary="ghosts")
+
+
+def test_mirror_with_a_particle_at_the_centre():
+    """The radial mirror has no ray at the centre: a particle there gets no ghost (it is far from the boundary),
+    the forces stay FD-exact; a ghost band that reaches the centre is a one-line error."""
+    from ase_sphrelax.domains import Circle
+
+    rng = np.random.default_rng(0)
+
+    def disc(n):
+        x = rng.normal(size=(n, 2))
+        x *= (rng.uniform(0.0, 1.0, (n, 1)) ** 0.5) / np.linalg.norm(x, axis=1)[:, None]
+        x[0] = 0.0
+        pos = np.zeros((n, 3))
+        pos[:, :2] = x
+        atoms = Atoms(numbers=np.zeros(n, int), positions=pos, pbc=False)
+        atoms.calc = ALARICCalculator(target_density=lambda y: np.ones(len(y)), dim=2, domain=Circle((0, 0), 1.0),
+                                      boundary="mirror", h_tol=1e-14)
+        return atoms
+
+    atoms = disc(400)
+    f = atoms.get_forces()
+    fd = calculate_numerical_forces(atoms, eps=1e-6, iatoms=[0, 1, 2], icarts=[0, 1])
+    np.testing.assert_allclose(f[[0, 1, 2], :2], fd[:, :2], rtol=0, atol=1e-6 * np.abs(f).max())
+    with pytest.raises(ValueError, match="at the mirror's centre .* within the ghost band"):
+        disc(60).get_forces()

@@ -81,10 +81,7 @@ def _radial_hits(domain, s_gd):
     from ..domains.analytic import Ball
 
     if isinstance(domain, Ball):
-        r_g = np.sqrt(np.einsum("gd,gd->g", s_gd, s_gd))
-        if np.any(r_g <= 0.0):
-            raise ValueError("boundary='mirror': a particle at the ball's centre is within the ghost band (the band "
-                             "is wider than the radius: too few particles)")
+        r_g = np.sqrt(np.einsum("gd,gd->g", s_gd, s_gd))  # > 0: mirror_map leaves out the centre
         return domain.radius / r_g, s_gd / r_g[:, None]
     v = domain.loops[0]
     e = np.roll(v, -1, axis=0) - v
@@ -143,8 +140,13 @@ def mirror_map(domain, x_pd, band):
                          f"{domain!r}")
     d = x_pd.shape[1]
     depth_p = np.abs(np.asarray(domain.phi(x_pd), dtype=float))
-    near_q = np.nonzero(depth_p < 2.0 * band)[0]
     centre = _mirror_centre(domain)
+    at_centre_p = np.all(x_pd == centre, axis=1)  # no ray: its mirror is undefined
+    if np.any(at_centre_p & (depth_p < band)):
+        raise ValueError(f"boundary='mirror': a particle at the mirror's centre {centre.tolist()} is within the ghost "
+                         f"band {band:.3g} of the boundary (the domain is too small for the smoothing lengths: too "
+                         f"few particles)")
+    near_q = np.nonzero((depth_p < 2.0 * band) & ~at_centre_p)[0]
     s_qd = x_pd[near_q] - centre
     t_q, n_qd = _radial_hits(domain, s_qd)
     g_qd = centre + (2.0 * t_q - 1.0)[:, None] * s_qd
