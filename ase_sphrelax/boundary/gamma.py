@@ -398,6 +398,10 @@ class BoundaryIntegrals:
             corner = int(np.argmin(np.einsum("kc,kc->k", gap_c, gap_c)))
             if f > 2 and np.linalg.norm(gap_c[corner]) < 10.0 * NUDGE * self.h:
                 q, f = b.vertices_tkc[t, corner], corner
+            elif f == 6:
+                # near an edge, move from the edge along its pseudo-normal: along the face's normal the move
+                # leaves through the other face of an edge sharper than 90 degrees (a tetrahedron's: 70.5)
+                q, f = _edge_start(q, b.vertices_tkc[t], 10.0 * NUDGE * self.h)
             m = b.pseudo_normal_tfc[t, f]
             moved[i] = q + NUDGE * self.h * m / np.linalg.norm(m)
         nlist = NeighborList(self.h)
@@ -406,6 +410,19 @@ class BoundaryIntegrals:
         if np.any(out.chi_p != 1.0):
             raise FloatingPointError("a point moved inside the surface is not inside (degenerate mesh?)")
         return out.gamma_p + np.einsum("pc,pc->p", out.grad_gamma_pc, r_pc - moved)
+
+
+def _edge_start(q_c, v_kc, reach):
+    """``(q, 6)``, or the foot of ``q`` on the triangle's nearest edge and that edge's feature (3 ab, 4 ac,
+    5 bc, as :func:`~ase_sphrelax.domains.closest.closest_on_triangle`) when it is closer than ``reach``."""
+    best, out = reach, (q_c, 6)
+    for feature, (i, k) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
+        edge_c = v_kc[k] - v_kc[i]
+        foot_c = v_kc[i] + np.clip((q_c - v_kc[i]) @ edge_c / (edge_c @ edge_c), 0.0, 1.0) * edge_c
+        gap = np.linalg.norm(q_c - foot_c)
+        if gap < best:
+            best, out = gap, (foot_c, feature)
+    return out
 
 
 def _positions(r_pc, dim):
