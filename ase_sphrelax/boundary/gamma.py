@@ -18,7 +18,8 @@ interior or a face, the interior angle over ``2 pi`` at a vertex in 2D). In 3D t
 point closer than ``1e-7 h`` to the surface (edges and vertices included) is not resolved by the
 closest-point test, so ``gamma`` there is evaluated at a point ``q`` moved ``1e-7 h`` inside and
 carried back to first order, ``gamma(q) + grad gamma(q) . (x_a - q)`` (both exact at ``q``; the
-remainder is ``|x_a - q|^2 |grad^2 gamma| / 2``, about 1e-14). The triangles' shares of the solid
+remainder is ``|x_a - q|^2 |grad^2 gamma| / 2``, about 1e-14); within ``10 NUDGE h`` of a vertex or an
+edge ``q`` starts from that vertex or edge, so that the move stays inside at sharp corners and edges). The triangles' shares of the solid
 angle themselves are exact near edge lines and vertices
 (:func:`~ase_sphrelax.boundary.surface_integrals.triangle_terms`). For the others it
 is the inside test of the enclosed region, made when the neighbour list builds its bins (a
