@@ -134,14 +134,15 @@ def main(argv=None):
         if args.step_2a:
             w2a, c2a, n_sel, n_pack_2a = stage_times(atoms.copy(), calc, ("2a",), args.warm, args.iterations)
         else:
-            w2a = c2a = np.nan
+            w2a = c2a = None  # not timed (JSON null)
             n_sel = n_pack_2a = 0
         calc = BIPICalculator.from_paper(2.0, dx, seg)
         w2c, c2c, _, n_pack_2c = stage_times(atoms.copy(), calc, ("2b", "2c"), args.warm, args.iterations)
         row = dict(n_target=n, dx=dx, n=len(atoms), n_selected_2a=n_sel, n_packable_2a=n_pack_2a,
                    n_unfrozen_2c=n_pack_2c, wall_2a=w2a, cpu_2a=c2a, wall_2c=w2c, cpu_2c=c2c)
-        print(f"N={len(atoms):7d} dx={dx:.5f}  2a: {c2a * 1e3:8.2f} ms CPU ({w2a * 1e3:8.2f} wall, {n_sel} selected)  "
-              f"2c: {c2c * 1e3:8.2f} ms CPU ({w2c * 1e3:8.2f} wall)", flush=True)
+        stage_2a = (f"2a: {c2a * 1e3:8.2f} ms CPU ({w2a * 1e3:8.2f} wall, {n_sel} selected)  " if args.step_2a
+                    else "")
+        print(f"N={len(atoms):7d} dx={dx:.5f}  {stage_2a}2c: {c2c * 1e3:8.2f} ms CPU ({w2c * 1e3:8.2f} wall)", flush=True)
         rows.append(row)
     n = np.array([r["n"] for r in rows], float)
     out = dict(rows=rows, dim=args.dim, time="median CPU time per iteration (process_time), wall time beside it",

@@ -18,7 +18,8 @@ interior or a face, the interior angle over ``2 pi`` at a vertex in 2D). In 3D t
 point closer than ``1e-7 h`` to the surface (edges and vertices included) is not resolved by the
 closest-point test, so ``gamma`` there is evaluated at a point ``q`` moved ``1e-7 h`` inside and
 carried back to first order, ``gamma(q) + grad gamma(q) . (x_a - q)`` (both exact at ``q``; the
-remainder is ``|x_a - q|^2 |grad^2 gamma| / 2``, about 1e-14). The triangles' shares of the solid
+remainder is ``|x_a - q|^2 |grad^2 gamma| / 2``, about 1e-14); within ``10 NUDGE h`` of a vertex or an
+edge ``q`` starts from that vertex or edge, so that the move stays inside at sharp corners and edges). The triangles' shares of the solid
 angle themselves are exact near edge lines and vertices
 (:func:`~ase_sphrelax.boundary.surface_integrals.triangle_terms`). For the others it
 is the inside test of the enclosed region, made when the neighbour list builds its bins (a
@@ -398,6 +399,10 @@ class BoundaryIntegrals:
             corner = int(np.argmin(np.einsum("kc,kc->k", gap_c, gap_c)))
             if f > 2 and np.linalg.norm(gap_c[corner]) < 10.0 * NUDGE * self.h:
                 q, f = b.vertices_tkc[t, corner], corner
+            elif f == 6:
+                # near an edge, move from the edge along its pseudo-normal: along the face's normal the move
+                # leaves through the other face of an edge sharper than 90 degrees (a tetrahedron's: 70.5)
+                q, f = _edge_start(q, b.vertices_tkc[t], 10.0 * NUDGE * self.h)
             m = b.pseudo_normal_tfc[t, f]
             moved[i] = q + NUDGE * self.h * m / np.linalg.norm(m)
         nlist = NeighborList(self.h)
@@ -406,6 +411,19 @@ class BoundaryIntegrals:
         if np.any(out.chi_p != 1.0):
             raise FloatingPointError("a point moved inside the surface is not inside (degenerate mesh?)")
         return out.gamma_p + np.einsum("pc,pc->p", out.grad_gamma_pc, r_pc - moved)
+
+
+def _edge_start(q_c, v_kc, reach):
+    """``(q, 6)``, or the foot of ``q`` on the triangle's nearest edge and that edge's feature (3 ab, 4 ac,
+    5 bc, as :func:`~ase_sphrelax.domains.closest.closest_on_triangle`) when it is closer than ``reach``."""
+    best, out = reach, (q_c, 6)
+    for feature, (i, k) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
+        edge_c = v_kc[k] - v_kc[i]
+        foot_c = v_kc[i] + np.clip((q_c - v_kc[i]) @ edge_c / (edge_c @ edge_c), 0.0, 1.0) * edge_c
+        gap = np.linalg.norm(q_c - foot_c)
+        if gap < best:
+            best, out = gap, (foot_c, feature)
+    return out
 
 
 def _positions(r_pc, dim):

@@ -25,7 +25,7 @@ one slightly moved particle and cancels in the sum (exact near edges, their line
 
 Exact to rounding (no quadrature; issue 17 items 1 and 6): the closed form agrees with 64-node
 Gauss-Legendre on the same intervals to 5e-15 (where the former 8-node rule erred by up to 4e-8),
-and ``tests/test_gamma_3d_exact.py`` checks it against adaptive quadrature over the ball.
+and ``tests/test_gamma_3d_exact.py`` checks it against an adaptive quadrature over the faces.
 """
 from __future__ import annotations
 
@@ -45,27 +45,6 @@ def _laurent(row, r):
     for m in range(1, row.shape[0]):
         total += row[m] * rk
         rk *= r
-    return total
-
-
-@numba.njit(cache=True, inline="always")
-def _divided_difference(row, r, d):
-    """(L(r) - L(d)) / (r^2 - d^2) for the Laurent polynomial L of ``row``, without cancellation.
-
-    ``(r^q - d^q) / (r^2 - d^2) = S_q / (r + d)`` with ``S_q = sum_{i < q} r^i d^(q-1-i)``, built by
-    ``S_q = r S_(q-1) + d^(q-1)``; the ``1 / r`` column gives ``-1 / (r d (r + d))``.
-    """
-    total = 0.0
-    s_q = 1.0  # S_1
-    d_q = 1.0  # d^(q - 1)
-    for m in range(2, row.shape[0]):  # power q = m - 1 >= 1
-        if m > 2:
-            d_q *= d
-            s_q = r * s_q + d_q
-        total += row[m] * s_q
-    total /= r + d
-    if row[0] != 0.0:
-        total -= row[0] / (r * d * (r + d))
     return total
 
 

@@ -1,0 +1,190 @@
+"""3D gamma_a and grad gamma_a exact (1e-12) near triangle planes, edges and vertices (issue 17 items 1, 6).
+
+The 3D triangle integrals are closed forms (:mod:`ase_sphrelax.boundary.surface_integrals`). They are
+checked here against an independent adaptive quadrature written in this file (no code shared with
+ase_sphrelax.boundary), on convex polyhedra (a tetrahedron, a box, an icosahedron), at points drawn by
+hypothesis near faces, on and near edges and the lines through them beyond their vertices, and near
+vertices, at 1e-4 .. 0.5 h, inside and outside:
+
+* ``gamma(x) = chi(x) + sum_f int_f (M(min(h, r)) - M(h)) d_f / r^3 dA`` with ``M(r) = int_0^r W(s) s^2 ds``,
+  ``r = |y - x|`` and ``d_f = (x - y) . n_f`` (inward ``n_f``): along each ray from ``x`` the part inside the
+  polyhedron enters and leaves through faces, and ``d_f / r^3 dA`` is the solid angle the face element
+  subtends (signed: negative where the ray enters). ``grad gamma = sum_f n_f int_f W dA``.
+* Each face integral is split at the foot of ``x`` on the face's plane into three signed triangles
+  (foot, v_i, v_i+1), in polar coordinates about the foot: the radial integral, in ``r`` from ``|d|`` to
+  ``min(1, r_edge)``, of a polynomial over ``r^2`` is written out with numpy polynomials, and the angle is
+  integrated along the edge by scipy's adaptive ``quad`` (to 1e-15, split at the foot's projection).
+
+Identities: ``0 <= gamma <= 1``; gamma of the tetrahedron plus gamma of its complement (a large box with the
+tetrahedron as an inverted hole) = 1; ``grad gamma`` equal to the central difference of gamma.
+"""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from numpy.polynomial import polynomial as P
+
+from ase_sphrelax.boundary import BoundaryTriangles, gamma_and_gradient
+
+trimesh = pytest.importorskip("trimesh")
+quad = pytest.importorskip("scipy.integrate").quad
+
+pytestmark = pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarning")
+SETTINGS = dict(deadline=None, database=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+TOL = 1e-12  # gamma absolute; grad gamma times h
+H = 0.4
+
+# Wendland C2 in 3D in units of the support: W(q) = SIGMA f(q), f = (1 - q)^4 (1 + 4 q)
+F = P.polymul(P.polypow([1.0, -1.0], 4), [1.0, 4.0])
+SIGMA = 1.0 / (4.0 * math.pi * P.polyval(1.0, P.polyint(P.polymul(F, [0.0, 0.0, 1.0]))))
+M_POLY = SIGMA * P.polyint(P.polymul(F, [0.0, 0.0, 1.0]))  # M(q) = int_0^q W t^2 dt
+M_ONE = P.polyval(1.0, M_POLY)
+PHI = P.polyint(M_POLY[2:])  # int (M(r) - M(1)) / r^2 dr = PHI(r) + M(1) / r  (M ~ r^3 at 0)
+PSI = SIGMA * P.polyint(P.polymul(F, [0.0, 1.0]))  # int W r dr
+
+
+def shapes():
+    return {
+        "tetrahedron": trimesh.convex.convex_hull([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]]),
+        "box": trimesh.creation.box(extents=(1.6, 1.2, 2.0)),
+        "icosahedron": trimesh.creation.icosphere(subdivisions=0, radius=1.2),
+    }
+
+
+SHAPES = {name: BoundaryTriangles.from_trimesh(mesh) for name, mesh in shapes().items()}
+
+
+def _face_integrals(x, v_kc, n_c):
+    """(int_f (M(min(1, r)) - M(1)) d / r^3 dA, int_f W dA) over one triangle, lengths in units of h."""
+    d = float((x - v_kc[0]) @ n_c)
+    if abs(d) >= 1.0:
+        return np.zeros(2)
+    foot = x - d * n_c
+    lo = min(abs(d), 1.0)
+    out = np.zeros(2)
+    for i in range(3):
+        a, b = v_kc[i], v_kc[(i + 1) % 3]
+        signed_area2 = float(np.cross(a - foot, b - a) @ n_c)  # d theta = signed_area2 / rho^2 ds along the edge
+        if signed_area2 == 0.0:
+            continue
+
+        def radial(s, which, a=a, b=b):
+            rho2 = float(np.sum((a + s * (b - a) - foot) ** 2))
+            if rho2 == 0.0:  # the foot on this edge: a point of a degenerate angle, measure zero
+                return 0.0
+            hi = min(math.sqrt(d * d + rho2), 1.0)
+            if which == 0:
+                if d == 0.0:  # x in the face's plane: it subtends no solid angle
+                    return 0.0
+                value = d * (P.polyval(hi, PHI) - P.polyval(lo, PHI) + M_ONE * (1.0 / hi - 1.0 / lo))
+            else:
+                value = P.polyval(hi, PSI) - P.polyval(lo, PSI)
+            return value * signed_area2 / rho2
+
+        ab = b - a
+        s_foot = float((foot - a) @ ab / (ab @ ab))
+        points = [s_foot] if 0.0 < s_foot < 1.0 else None
+        for which in range(2):
+            # minus: the inward normal reverses the orientation of the outward-facing triangle
+            value, err = quad(radial, 0.0, 1.0, args=(which,), points=points, epsabs=1e-15, epsrel=1e-14, limit=500)
+            assert err < 1e-12, err
+            out[which] -= value
+    return out
+
+
+def reference(x, tri, chi):
+    """gamma and grad gamma (units 1 / h) at ``x`` (units of h) from the face quadrature (module docstring)."""
+    gamma = chi
+    grad = np.zeros(3)
+    for v_kc, n_c in zip(tri.vertices_tkc / H, tri.normal_tc):
+        lo, hi = v_kc.min(axis=0) - 1.0, v_kc.max(axis=0) + 1.0
+        if np.any(x < lo) or np.any(x > hi):
+            continue
+        solid, w = _face_integrals(x, v_kc, n_c)
+        gamma += solid
+        grad += w * n_c
+    return gamma, grad
+
+
+def _point(tri, feature, t, k, direction, offset):
+    """A point ``offset h`` along ``direction`` from a face point, an edge point, an edge's line beyond its
+    vertex, or a vertex of triangle k."""
+    k = k % len(tri.vertices_tkc)
+    v = tri.vertices_tkc[k]
+    if feature == "face":
+        s, q = t, (1.0 - t) * 0.7
+        base = v[0] + s * (v[1] - v[0]) + q * (v[2] - v[0]) * (1 - s)
+    elif feature == "edge":
+        base = v[0] + t * (v[1] - v[0])
+    elif feature == "edge line":
+        base = v[1] + (0.02 + 0.3 * t) * (v[1] - v[0])
+    else:
+        base = v[0]
+    direction = np.asarray(direction, dtype=float)
+    direction /= np.linalg.norm(direction)
+    return base + offset * H * direction
+
+
+POINTS = dict(shape=st.sampled_from(sorted(SHAPES)), feature=st.sampled_from(["face", "edge", "edge line", "vertex"]),
+              t=st.floats(0.05, 0.95), k=st.integers(0, 100),
+              direction=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda d: np.linalg.norm(d) > 0.1),
+              offset=st.sampled_from([1e-4, 1e-3, 1e-2, 0.1, 0.5]))
+
+
+@settings(max_examples=25, **SETTINGS)
+@given(**POINTS)
+def test_gamma_3d_against_face_quadrature(shape, feature, t, k, direction, offset):
+    tri = SHAPES[shape]
+    x = _point(tri, feature, t, k, direction, offset)
+    chi = float(tri.contains(x[None])[0])
+    gamma, grad = gamma_and_gradient(x[None], tri, H)
+    g_ref, d_ref = reference(x / H, tri, chi)
+    assert abs(gamma[0] - g_ref) < TOL, (shape, feature, x, gamma[0] - g_ref)
+    assert np.abs(grad[0] * H - d_ref).max() < TOL, (shape, feature, x, grad[0] * H - d_ref)
+
+
+@settings(max_examples=30, **SETTINGS)
+@given(**POINTS)
+def test_gamma_3d_in_unit_interval_and_gradient_is_central_difference(shape, feature, t, k, direction, offset):
+    tri = SHAPES[shape]
+    x = _point(tri, feature, t, k, direction, offset)
+    gamma, grad = gamma_and_gradient(x[None], tri, H)
+    assert -1e-14 <= gamma[0] <= 1.0 + 1e-14
+    eta = 1e-4 * H * min(offset, 1e-2)  # the step stays on the point's side of the surface
+    steps = np.eye(3) * eta
+    # fourth order: (8 (g(x + e) - g(x - e)) - (g(x + 2e) - g(x - 2e))) / (12 eta), error ~ eta^4 g^(5)
+    g = gamma_and_gradient(np.concatenate([x + steps, x - steps, x + 2 * steps, x - 2 * steps]), tri, H)[0]
+    fd = (8 * (g[:3] - g[3:6]) - (g[6:9] - g[9:])) / (12 * eta)
+    assert np.abs(grad[0] * H - fd * H).max() < 1e-6 * max(1.0, np.abs(grad[0] * H).max()), (x, grad[0], fd)
+
+
+@pytest.fixture(scope="module")
+def complement():
+    hole = shapes()["tetrahedron"]
+    hole.invert()
+    return BoundaryTriangles.from_trimesh(trimesh.util.concatenate([trimesh.creation.box(extents=(8, 8, 8)), hole]))
+
+
+@settings(max_examples=40, **SETTINGS)
+@given(feature=POINTS["feature"], t=POINTS["t"], k=POINTS["k"], direction=POINTS["direction"],
+       offset=st.sampled_from([0.0, 1e-12, 1e-9, 1e-6, 1e-3, 0.1, 0.5]))
+def test_gamma_3d_plus_complement_is_one(complement, feature, t, k, direction, offset):
+    tri = SHAPES["tetrahedron"]
+    x = _point(tri, feature, t, k, direction, offset)
+    gamma, grad = gamma_and_gradient(x[None], tri, H)
+    gamma_c, grad_c = gamma_and_gradient(x[None], complement, H)
+    assert abs(gamma[0] + gamma_c[0] - 1.0) < TOL, (x, gamma[0] + gamma_c[0] - 1.0)
+    assert np.abs((grad[0] + grad_c[0]) * H).max() < TOL
+
+
+def test_reference_quadrature_known_values():
+    """The reference itself: the half-space value at 0.3 h inside a box face, and 1 deep inside."""
+    tri = SHAPES["box"]
+    x = np.array([0.0, 0.0, 1.0 - 0.3 * H]) / H
+    marginal = 2 * math.pi * P.polysub([P.polyval(1.0, P.polyint(P.polymul(F, [0.0, 1.0])))],
+                                       P.polyint(P.polymul(F, [0.0, 1.0]))) * SIGMA
+    half = 0.5 + P.polyval(0.3, P.polyint(marginal))
+    assert abs(reference(x, tri, 1.0)[0] - half) < 1e-13
+    assert reference(np.zeros(3), tri, 1.0)[0] == 1.0
