@@ -31,6 +31,7 @@ def main():
     parser.add_argument("--seeds", nargs="+", type=int, default=[0])
     parser.add_argument("--m", type=int, default=500)
     parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--courant", type=float, default=None, help="default: the sampler's (0.5 global, 0.25 local)")
     args = parser.parse_args()
     rows = json.loads(OUT.read_text())["rows"] if OUT.exists() else []
     git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
@@ -43,13 +44,15 @@ def main():
             x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
             for mode in args.modes:
                 row = dict(target=tname, m=args.m, steps=args.steps, seed=seed, time_step=mode, iid_energy=iid,
+                           courant=None if args.courant is None else args.courant,
                            git=git, load=os.getloadavg()[0])
                 t0 = time.perf_counter()
                 try:
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
                         res = ParVISampler(target.log_density, target.score, dim=target.dim, n=args.m, x0=x0,
-                                           steps=args.steps, seed=seed, time_step=mode).run()
+                                           steps=args.steps, seed=seed, time_step=mode,
+                                           courant=args.courant).run()
                 except ParVIDivergence as exc:
                     row.update(error=str(exc)[:200], wall=time.perf_counter() - t0)
                 else:
@@ -57,7 +60,7 @@ def main():
                     row.update(energy=energy, ratio_to_iid=energy / iid, wall=time.perf_counter() - t0,
                                sim_time_median=float(res.trace["time"][-1]), dt_median=res.info["dt_median"],
                                dt_min=res.info["dt_min"], converged=res.info["converged"],
-                               friction=res.info["friction"])
+                               friction=res.info["friction"], courant=res.info["courant"])
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 OUT.write_text(json.dumps(dict(command="see module docstring", rows=rows), indent=1))
