@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ase_sphrelax.sampling import get_target, metrics
+from ase_sphrelax.sampling import get_target, metrics, sampler as sampler_module
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler
 
 OUT = Path(__file__).resolve().parent / "results.json"
@@ -32,7 +32,9 @@ def main():
     parser.add_argument("--m", type=int, default=500)
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--courant", type=float, default=None, help="default: the sampler's (0.5 global, 0.25 local)")
+    parser.add_argument("--growth", type=float, default=None, help="sampler.LOCAL_GROWTH (default None: off)")
     args = parser.parse_args()
+    sampler_module.LOCAL_GROWTH = args.growth
     rows = json.loads(OUT.read_text())["rows"] if OUT.exists() else []
     git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     for seed in args.seeds:
@@ -44,7 +46,7 @@ def main():
             x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
             for mode in args.modes:
                 row = dict(target=tname, m=args.m, steps=args.steps, seed=seed, time_step=mode, iid_energy=iid,
-                           courant=None if args.courant is None else args.courant,
+                           courant=args.courant, growth=args.growth,
                            git=git, load=os.getloadavg()[0])
                 t0 = time.perf_counter()
                 try:
@@ -60,7 +62,11 @@ def main():
                     row.update(energy=energy, ratio_to_iid=energy / iid, wall=time.perf_counter() - t0,
                                sim_time_median=float(res.trace["time"][-1]), dt_median=res.info["dt_median"],
                                dt_min=res.info["dt_min"], converged=res.info["converged"],
-                               friction=res.info["friction"], courant=res.info["courant"])
+                               friction=res.info["friction"], courant=res.info["courant"],
+                               kinetic_final=float(res.trace["kinetic"][-1]),
+                               kinetic_max_last_half=float(np.max(res.trace["kinetic"][len(res.trace["kinetic"]) // 2:])),
+                               kinetic_min_last_half=float(np.min(res.trace["kinetic"][len(res.trace["kinetic"]) // 2:])),
+                               cov_x1=float(np.var(res.samples[:, 1])))
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 OUT.write_text(json.dumps(dict(command="see module docstring", rows=rows), indent=1))
