@@ -69,6 +69,11 @@ kick-drift-kick leapfrog of
   The pairwise viscosity adds ``sum_a s_a v_a . f_vis,a``, dissipative where ``s`` is equal across a pair
   (the supports vary smoothly, so do the steps) and zero at rest: it does not move the resting states.
 
+L3 is a statement about the flow; the discrete map (leapfrog with steps that change per particle and per step)
+is not guaranteed to descend H: on the banana the kinetic energy of a local-step run stops decaying and bursts
+(``examples/results/parvi/steps/README.md``), a growth limit on the steps removes the bursts. L2, the resting
+states, holds for the discrete map whatever the steps.
+
 The path to rest differs from the fluid's (a particle with a large step moves further per step), which
 is what is wanted: a stiff particle (a small H or a large acceleration, the funnel's neck) no longer sets
 the step of all. Friction is applied per particle in its own time (``exp(-beta dt_a / 2)``), so the
