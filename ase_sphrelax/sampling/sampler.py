@@ -340,6 +340,7 @@ class ParVISampler:
         """
         t0 = time.perf_counter()
         model = self.model
+        self._dt_p = None  # the local steps of the previous step (LOCAL_GROWTH)
         probe = self._probe if self._probe is not None else self.look_at_target()
         r = self.initial_particles()
         r, jittered = self._separate_coincident(r)
