@@ -143,7 +143,8 @@ class ParVISampler:
         own CFL step (:meth:`ParVIModel.cfl_steps`, from its own H, acceleration and sound speed), all
         evaluated together at every step. The trajectory is no longer the fluid's, but the resting
         states are the same (``F_a = 0``, ``v = 0`` for every step field) and the damped flow still
-        descends the model's energy (theory.py, eqs. L1-L3): a stiff particle (the funnel's neck, a
+        descends the model's energy (theory.py, eqs. L1-L3; the discrete map need not: bursts of kinetic
+        energy were measured on the banana, examples/results/parvi/steps/): a stiff particle (the funnel's neck, a
         tail with a small H or a large score) no longer sets the step of the whole ensemble.
         ``trace["dt"]`` and ``trace["time"]`` are then the median particle's; ``info`` has
         ``dt_median`` and ``dt_min`` of the last step. Needs ``dt=None``; ``courant`` defaults to
