@@ -287,6 +287,8 @@ class ParVIEvaluation:
         Largest acceleration, for the CFL step.
     sound_speed : float
         Largest sound speed ``sqrt(dP/drho)``.
+    sound_speed_p : ndarray (M,)
+        Each particle's sound speed (for the per-particle steps of :meth:`ParVIModel.cfl_steps`).
     fallback : int
         Particles whose score was replaced by the zero-density pull (see ParVIModel).
     """
@@ -560,7 +562,7 @@ class ParVIModel:
         accel = np.sqrt(np.einsum("pc,pc->p", f_pc, f_pc)).max() / mass
         return ParVIEvaluation(forces=f_pc, rho=rho, rho_summation=rho_sum, h=h_p, pressure=pressure, log_p=log_p,
                                energy=energy, accel_max=float(accel), sound_speed=float(np.sqrt(cs2.max())),
-                               fallback=fallback, mass=mass)
+                               sound_speed_p=np.sqrt(cs2), fallback=fallback, mass=mass)
 
     def _pair_params(self, name, coefficient):
         """The parameters of the pair function ``name`` (:data:`_PAIRS`) by name."""
@@ -591,3 +593,15 @@ class ParVIModel:
         a = max(evaluation.accel_max, 1e-300)
         alpha_v = self.viscosity_alpha if self.viscosity == "linear" else 0.0
         return courant * min(0.25 * math.sqrt(h_s / a), 0.4 * h_s / (evaluation.sound_speed * (1.0 + 0.6 * alpha_v)))
+
+    def cfl_steps(self, evaluation, courant=1.0):
+        """Each particle's own step (M,): :meth:`cfl_step`'s Eq. 9 with the particle's smoothing length
+        ``h_s = H_a/2``, acceleration ``|f_a| / m`` and sound speed instead of the ensemble's extremes
+        (the local time steps of ``time_step="local"``; theory.py, eqs. L1-L3). Never below
+        :meth:`cfl_step` (which combines the smallest H with the largest acceleration)."""
+        h_s_p = 0.5 * np.asarray(evaluation.h, dtype=float)
+        accel_p = np.maximum(np.sqrt(np.einsum("pc,pc->p", evaluation.forces, evaluation.forces)) / evaluation.mass,
+                             1e-300)
+        alpha_v = self.viscosity_alpha if self.viscosity == "linear" else 0.0
+        sound_p = np.broadcast_to(evaluation.sound_speed_p, h_s_p.shape)
+        return courant * np.minimum(0.25 * np.sqrt(h_s_p / accel_p), 0.4 * h_s_p / (sound_p * (1.0 + 0.6 * alpha_v)))

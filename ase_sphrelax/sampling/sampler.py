@@ -55,6 +55,13 @@ __all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS"]
 DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", viscosity="linear",
                 viscosity_alpha=0.1, friction=None, steps=600, courant=0.5, rule="final")
 
+#: ``courant`` of ``time_step="local"`` (measured: 0.5 lets the funnel's mouth burst, 0.25 settles it).
+LOCAL_COURANT = 0.25
+#: ``time_step="local"``: None, or the factor by which a particle's step may grow per step (it may shrink at
+#: once). An experiment (examples/results/parvi/steps/): 1.05 removes the kinetic-energy bursts of the banana
+#: but did not lower the energy distances at 1000 steps; off by default.
+LOCAL_GROWTH = None
+
 
 class ParVIDivergence(FloatingPointError):
     """The integration blew up; the message names the step and the time step."""
@@ -91,6 +98,8 @@ class ParVISampler:
     steps : int
     dt : float or None
         Fixed time step; None: the CFL step (times ``courant``) at every step.
+    courant : float or None
+        Factor on the CFL step; None: 0.5 (``DEFAULTS``), or :data:`LOCAL_COURANT` with ``time_step="local"``.
     friction : float or None
         Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
         per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
@@ -127,6 +136,19 @@ class ParVISampler:
         Steps between renewals of the ``"covariance"`` map (default 50).
     whiten_until : float
         Fraction of ``steps`` after which the ``"covariance"`` map is frozen (default 0.5).
+    time_step : {"global", "local"}
+        ``"global"`` (default): one step for all particles, ``courant`` times the CFL step of the
+        smallest support and the largest acceleration (:meth:`ParVIModel.cfl_step`). ``"local"``:
+        local time stepping (steady-state CFD): every particle is kicked, drifted and damped with its
+        own CFL step (:meth:`ParVIModel.cfl_steps`, from its own H, acceleration and sound speed), all
+        evaluated together at every step. The trajectory is no longer the fluid's, but the resting
+        states are the same (``F_a = 0``, ``v = 0`` for every step field) and the damped flow still
+        descends the model's energy (theory.py, eqs. L1-L3; the discrete map need not: bursts of kinetic
+        energy were measured on the banana, examples/results/parvi/steps/): a stiff particle (the funnel's neck, a
+        tail with a small H or a large score) no longer sets the step of the whole ensemble.
+        ``trace["dt"]`` and ``trace["time"]`` are then the median particle's; ``info`` has
+        ``dt_median`` and ``dt_min`` of the last step. Needs ``dt=None``; ``courant`` defaults to
+        :data:`LOCAL_COURANT` (0.25) there, 0.5 for the global step.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -134,9 +156,9 @@ class ParVISampler:
                  h=DEFAULTS["h"], h_schedule="constant", h_end=None, n_neighbours=None,
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
-                 courant=DEFAULTS["courant"], friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
+                 courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5):
+                 whiten_every=50, whiten_until=0.5, time_step="global"):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -152,6 +174,10 @@ class ParVISampler:
         if friction is not None and (isinstance(friction, bool) or not isinstance(friction, numbers.Real)
                                      or not math.isfinite(friction) or friction < 0):
             raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        if time_step not in ("global", "local"):
+            raise ValueError(f"time_step must be 'global' or 'local', got {time_step!r}")
+        if time_step == "local" and dt is not None:
+            raise ValueError(f"time_step='local' takes each particle's CFL step: give dt=None, got dt={dt!r}")
         if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
                                       or max_steps < steps):
             raise ValueError(f"max_steps must be None or an integer >= steps ({steps}), got {max_steps!r}")
@@ -186,8 +212,10 @@ class ParVISampler:
         if h_schedule == "anneal" and self.h_end is None:
             self.h_end = self.h_start / 3.0
         self.dt = check_positive("dt", dt, allow_none=True)
-        self.courant = check_positive("courant", courant)
+        courant = check_positive("courant", courant, allow_none=True)
+        self.courant = courant if courant is not None else LOCAL_COURANT if time_step == "local" else DEFAULTS["courant"]
         self.friction = None if friction is None else float(friction)
+        self.time_step = time_step
         self.rule = rule
         self.init_scale = check_positive("init_scale", init_scale, allow_none=True)
         self.start = None  # (centre (d,), scale (d,)) of the initial proposal, from look_at_target()
@@ -209,11 +237,11 @@ class ParVISampler:
                                rho0=rho0, gamma=gamma, kernel=kernel, h=h, h_schedule=h_schedule, h_end=self.h_end,
                                n_neighbours=self.model.n_neighbours, viscosity=viscosity,
                                viscosity_alpha=viscosity_alpha, nu=nu, regularisation=regularisation, density=density,
-                               diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=courant,
+                               diffusion=diffusion, eps=eps, steps=self.steps, dt=dt, courant=self.courant,
                                friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
                                max_steps=self.max_steps, whiten=None if self.whiten is None else
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
-                               whiten_every=self.whiten_every, whiten_until=self.whiten_until)
+                               whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -280,6 +308,19 @@ class ParVISampler:
                     + " ")
         return hint + "use a smaller dt or courant, or more friction"
 
+    def _step(self, ev):
+        """The next time step: ``dt``, or the CFL step (a number), or each particle's (``time_step="local"``, (M,))."""
+        if self.dt is not None:
+            return self.dt
+        if self.time_step == "local":
+            dt_p = self.model.cfl_steps(ev, self.courant)
+            previous = getattr(self, "_dt_p", None)
+            if LOCAL_GROWTH is not None and previous is not None and previous.shape == dt_p.shape:
+                dt_p = np.minimum(dt_p, LOCAL_GROWTH * previous)
+            self._dt_p = dt_p
+            return dt_p
+        return self.courant * self.model.cfl_step(ev)
+
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
@@ -300,6 +341,7 @@ class ParVISampler:
         """
         t0 = time.perf_counter()
         model = self.model
+        self._dt_p = None  # the local steps of the previous step (LOCAL_GROWTH)
         probe = self._probe if self._probe is not None else self.look_at_target()
         r = self.initial_particles()
         r, jittered = self._separate_coincident(r)
@@ -326,14 +368,14 @@ class ParVISampler:
         moments = []  # ensemble mean and covariance of every recorded state (the convergence diagnostics)
         fallback = 0
         sim_time = 0.0
-        dt = self.dt or self.courant * model.cfl_step(ev)
+        dt = self._step(ev)
         bar = _progress(self.steps, self.progress, "SPH-ParVI")
 
         def record(step, dt_now):
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
             trace["step"].append(step)
             trace["time"].append(sim_time)
-            trace["dt"].append(dt_now)
+            trace["dt"].append(float(np.median(dt_now)))
             trace["mean_density"].append(float(np.mean(ev.rho)))
             trace["kinetic"].append(kinetic)
             trace["energy"].append(np.nan if ev.energy is None else ev.energy + kinetic)
@@ -350,31 +392,32 @@ class ParVISampler:
         verdict = None
         while step < limit:
             step += 1
-            decay = math.exp(-0.5 * self.friction * dt)
-            v = v * decay + (0.5 * dt / m) * ev.forces
+            dt_p1 = dt if np.isscalar(dt) else dt[:, None]  # (M, 1) local steps or one number
+            decay = math.exp(-0.5 * self.friction * dt) if np.isscalar(dt) else np.exp(-0.5 * self.friction * dt_p1)
+            v = v * decay + (0.5 * dt_p1 / m) * ev.forces
             if rho is not None:
-                rho = rho + dt * model.density_rate(r, v, rho)
-            r = r + dt * v
+                rho = rho + np.ravel(dt_p1) * model.density_rate(r, v, rho)
+            r = r + dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
             ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
-            v = (v + (0.5 * dt / m) * ev.forces) * decay
+            v = (v + (0.5 * dt_p1 / m) * ev.forces) * decay
             fallback += ev.fallback
-            sim_time += dt
+            sim_time += float(np.median(dt))
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(v))) or kinetic > 1e6 * scale:
-                raise ParVIDivergence(f"SPH-ParVI diverged at step {step} (dt = {dt:.3g}, kinetic energy "
+                raise ParVIDivergence(f"SPH-ParVI diverged at step {step} (dt = {np.min(dt):.3g}, kinetic energy "
                                       f"{kinetic:.3g}): {self._divergence_hint(r0)}")
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
-                                      f"(dt = {dt:.3g}); use a smaller dt or summation densities")
+                                      f"(dt = {np.min(dt):.3g}); use a smaller dt or summation densities")
             if renewing and step % self.whiten_every == 0 and step <= self.whiten_until * self.steps \
                     and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
                 r, v, rho = self.map.renew(r, v, rho)
                 ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
             if step % self.record_every == 0 or step == limit:
                 record(step, dt)
-            dt = self.dt or self.courant * model.cfl_step(ev)
+            dt = self._step(ev)
             if bar is not None:
                 bar.update(1)
             if step == limit:
@@ -402,6 +445,7 @@ class ParVISampler:
             verdict["reason"] += f"; {returned}"
         info = dict(self.parameters, steps=step, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
                     optimal_step=best["step"], final_h_median=float(np.median(ev.h)),
+                    dt_median=float(np.median(dt)), dt_min=float(np.min(dt)),
                     converged=verdict["converged"], convergence_reason=verdict["reason"],
                     convergence=verdict, start_centre=self.start[0].tolist() if self.x0 is None else None,
                     start_scale=self.start[1].tolist() if self.x0 is None else None,
@@ -424,5 +468,8 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     * ``whiten="covariance"`` — the fluid in coordinates whitened by the particles' mean and
       covariance, renewed every ``whiten_every`` steps until ``whiten_until * steps``, then fixed
       (exact for the fixed map: theory.py, eqs. W1-W3); ``whiten=L`` fixes ``x = L y`` from the start.
+    * ``time_step="local"`` — every particle advanced with its own CFL step (local time stepping), so
+      that a stiff particle does not set the step of all; the resting states, hence the stationary
+      density, are those of the default ``"global"`` step (theory.py, eqs. L1-L3).
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()

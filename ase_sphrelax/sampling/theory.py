@@ -51,6 +51,34 @@ itself in the default configuration, and the particles mapped back by ``x = c + 
   then holds the map fixed, so the final state is that of the fixed-map fluid (W3); the convergence
   verdict covers the last half of the run, which lies after the last renewal for ``whiten_until <= 0.5``.
 
+Local time steps (``time_step="local"``). Every particle a is kicked, drifted and damped with its own
+CFL step ``dt_a`` (:meth:`~ase_sphrelax.models.parvi.ParVIModel.cfl_steps`), the local time stepping of
+steady-state CFD. With a common fictitious step ``dtau`` and ``s_a = dt_a / dtau > 0`` it is the
+kick-drift-kick leapfrog of
+
+* (L1) ``dr_a/dtau = s_a v_a``, ``dv_a/dtau = s_a (F_a / m - beta v_a)``;
+
+* (L2) its resting states are ``v_a = 0`` and ``F_a = 0`` for every a, whatever the positive ``s_a``: the
+  same states as with one global step (the fixed points of the discrete map too: a kick by ``F_a = 0``
+  and a drift by ``v_a = 0`` change nothing, and a state the map leaves unchanged needs a zero
+  half-step velocity, hence ``F_a = 0``). So the stationary density is exactly the one derived above
+  (``rho ∝ p^(alpha / c0^2)``, p itself by default), with the same discretisation errors;
+* (L3) the flow still descends ``H = E + K``, ``K = sum_a m |v_a|^2 / 2``:
+  ``dH/dtau = sum_a (-F_a) . s_a v_a + sum_a m v_a . s_a (F_a / m - beta v_a) = -beta sum_a s_a m |v_a|^2 <= 0``
+  for any ``s_a(tau) > 0`` (no derivative of s appears, so steps renewed at every step are allowed).
+  The pairwise viscosity adds ``sum_a s_a v_a . f_vis,a``, dissipative where ``s`` is equal across a pair
+  (the supports vary smoothly, so do the steps) and zero at rest: it does not move the resting states.
+
+L3 is a statement about the flow; the discrete map (leapfrog with steps that change per particle and per step)
+is not guaranteed to descend H: on the banana the kinetic energy of a local-step run stops decaying and bursts
+(``examples/results/parvi/steps/README.md``), a growth limit on the steps removes the bursts. L2, the resting
+states, holds for the discrete map whatever the steps.
+
+The path to rest differs from the fluid's (a particle with a large step moves further per step), which
+is what is wanted: a stiff particle (a small H or a large acceleration, the funnel's neck) no longer sets
+the step of all. Friction is applied per particle in its own time (``exp(-beta dt_a / 2)``), so the
+number of steps a particle needs to be damped scales with its own step, not the smallest one.
+
 The functions here solve these relations for isotropic targets ``log p = -r^2 / (2 sigma^2)``
 in d dimensions (radial quadrature, the constant from the mass) and return the profile's
 moments, to compare with the particles.
