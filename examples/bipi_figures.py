@@ -42,10 +42,16 @@ def boundary_of(geometry="TrapezoidalTank"):
 
 def make_packer(boundary, dx, ratio=2.0, n2a=5000, n2c=1000, window=10, tol=0.01, pressure=True, band_rule="ball",
                 J=None):
-    """Step 1 and a BIPIPacker with the given knobs (``window=NEVER``: fixed iteration counts)."""
+    """Step 1 and a BIPIPacker with the given knobs (``window=NEVER``: fixed iteration counts).
+
+    ``band_rule="centroid"`` (Eq. 21 as written) refines the segments to dx/10 first (BIPI2D's
+    ``edge_to_dx_ratio``), as the rule is meant for; the other rules do not depend on the segmentation.
+    """
     from ase_sphrelax.calculators.bipi import BIPICalculator
     from ase_sphrelax.drivers.bipi_packer import BIPIPacker, initial_fill
 
+    if band_rule == "centroid":
+        boundary = boundary.refine(dx=dx)
     atoms = initial_fill(boundary, dx)
     calc = BIPICalculator.from_paper(ratio, dx, boundary, band_rule=band_rule, **({} if J is None else dict(J=J)))
     packer = BIPIPacker(atoms, calc, max_steps_2a=n2a, max_steps_2c=n2c, window=window, tol=tol, pressure=pressure)
@@ -226,7 +232,12 @@ FIG9_VARIANTS = {
     "window100": ("as baseline with window 100", lambda r: dict(window=100)),
     "same_D": ("as baseline with J = 0.5 (2 / (h_B/dx))^2: the same D = J h_B^2 as at h_B/dx = 2",
                lambda r: dict(J=0.5 * (2.0 / r) ** 2)),
-    "band_centroid": ("as baseline with band_rule 'centroid'", lambda r: dict(band_rule="centroid")),
+    "band_centroid": ("as baseline with band_rule 'centroid' (segments refined to dx/10)",
+                      lambda r: dict(band_rule="centroid")),
+    "rule2a_fixed2c": ("baseline Step 2a (1 % rule, window 10), then a fixed 1000 iterations of 2c",
+                       lambda r: dict(fixed_2c=True)),
+    "rule2a_fixed2c_5000": ("baseline Step 2a, then a fixed 5000 iterations of 2c (h_B/dx 1.2, 1.7, 2)",
+                            lambda r: dict(fixed_2c=True, n2c=5000), (1.2, 1.7, 2.0)),
     "fixed": ("fixed 5000 + 1000 iterations (no stopping rule)", lambda r: dict(window=NEVER)),
     "fixed_same_D": ("fixed 5000 + 1000 iterations, J scaled to the same D", lambda r: dict(window=NEVER,
                                                                                           J=0.5 * (2.0 / r) ** 2)),
@@ -255,6 +266,15 @@ def settling(x, fraction):
     return int(hit[0]) + 1 if len(hit) else None
 
 
+def thin_history(series, every=10, full=200):
+    """Each series at iterations 1..full, then every ``every``-th (4 significant digits); ``at`` lists them."""
+    out = {}
+    for name, x in series.items():
+        keep = [i for i in range(1, len(x) + 1) if i <= full or i % every == 0]
+        out[name] = dict(at=keep, value=[float(f"{x[i - 1]:.4g}") for i in keep])
+    return out
+
+
 def fig9(out, budget, variants=None):
     """Each variant over h_B/dx = 1.2 ... 3 (dx 0.02, trapezoid); one ingredient changed at a time."""
     warnings.simplefilter("ignore")
@@ -262,31 +282,35 @@ def fig9(out, budget, variants=None):
     boundary = boundary_of()
     path = out / "fig9_experiments.json"
     result = json.loads(path.read_text()) if path.exists() else {}
-    for name, (description, knobs) in FIG9_VARIANTS.items():
+    for name, (description, knobs, *ratios) in FIG9_VARIANTS.items():
         if variants and name not in variants:
             continue
         rows = {}
-        for r in HB_SERIES:
+        for r in (ratios[0] if ratios else HB_SERIES):
             if time.time() > deadline:
                 break
-            atoms, packer = make_packer(boundary, 0.02, ratio=r, **knobs(r))
-            packer.run()
+            kw = knobs(r)
+            fixed_2c = kw.pop("fixed_2c", False)
+            atoms, packer = make_packer(boundary, 0.02, ratio=r, **kw)
+            for _ in packer.irun():
+                if fixed_2c and packer.stage == "2c":
+                    packer.window = NEVER
             row = final_numbers(atoms, packer)
             tpd = [h["tpd_avg"] for h in packer.history if h["stage"] == "2a"]
             grad2c = [h["gradc_avg"] for h in packer.history if h["stage"] == "2c"]
             row.update(D_over_dx2=packer.model.diffusion / 0.02**2, J=packer.model.J,
                        first_step_tpd_over_dx=tpd[0] / 0.02 if tpd else None,
                        tpd_end_2a_over_dx=tpd[-1] / 0.02 if tpd else None)
-            if name.startswith("fixed"):
+            if True:  # rule-free measures of the same series
                 row.update(
                     tpd_90pc_at=settling(tpd, 0.9), tpd_99pc_at=settling(tpd, 0.99),
                     rule_2a={f"window{w}": stop_iteration(tpd, w) for w in (1, 10, 100)},
                     rule_2a_relative_to_start={f"window{w}": stop_iteration(tpd, w, relative_to="start")
                                                for w in (10, 100)},
                     rule_2c={f"window{w}": stop_iteration(grad2c, w) for w in (1, 10, 100)},
-                    gradc_2c_at={str(k): grad2c[k - 1] for k in (10, 50, 100, 500, 1000) if k <= len(grad2c)},
-                    history=dict(tpd_2a=[float(f"{v:.4g}") for v in tpd],
-                                 gradc_2c=[float(f"{v:.4g}") for v in grad2c]))
+                    gradc_2c_at={str(k): grad2c[k - 1] for k in (10, 50, 100, 500, 1000, 2000, 5000)
+                                 if k <= len(grad2c)},
+                    history=thin_history(dict(tpd_2a=tpd, gradc_2c=grad2c)))
             rows[f"{r:g}"] = row
             print(f"fig9 {name} h_B/dx={r:g}: 2a {row['it_2a']} 2c {row['it_2c']} drop {row['drop_orders']:.2f} "
                   f"layer {row['layer_mean']:.3f} {row['wall_s']:.1f}s", flush=True)
@@ -330,39 +354,53 @@ def write_fig9_table(out, result):
 
 
 # -- the guide's numbers ---------------------------------------------------------------------
-def backing(out, budget):
-    """Band rules (400 + 400 fixed), window 1 against 10, the bunny at 5000 + 1000 fixed caps."""
+def pressure_to_gradient(atoms, packer):
+    """Median of |(1 / (2 gamma_a)) sum_near grad gamma_as| / |grad C_a| over the particles that feel the pressure."""
+    atoms.calc = packer.calc
+    near = packer.calc.get_property("wall_gradient", atoms)
+    gamma = packer.calc.get_property("gamma", atoms)
+    grad_c = packer.calc.get_concentration_gradient(atoms)
+    pressure = np.linalg.norm(0.5 * near / gamma[:, None], axis=1)
+    feel = pressure > 0
+    ratio = pressure[feel] / np.maximum(np.linalg.norm(grad_c[feel], axis=1), 1e-300)
+    return dict(n_feel_pressure=int(feel.sum()),
+                median_pressure_over_gradc=float(np.median(ratio)) if feel.any() else None)
+
+
+def backing(out, budget, parts=None):
+    """The guide's numbers: band rules (400 + 400 fixed), window 1 against 10, the bunny with 1000 iterations of 2c."""
     warnings.simplefilter("ignore")
     deadline = time.time() + budget
     path = out / "guide_numbers.json"
     result = json.loads(path.read_text()) if path.exists() else {}
+    parts = parts or ["band", "window", "bunny"]
     trapezoid = boundary_of()
-    for rule in ("normal", "centroid", "ball"):
+    for rule in ("normal", "centroid", "ball") if "band" in parts else ():
         atoms, packer = make_packer(trapezoid, 0.02, n2a=400, n2c=400, window=NEVER, band_rule=rule)
         t = time.perf_counter()
         packer.run()
         row = final_numbers(atoms, packer)
         row["run_s"] = time.perf_counter() - t
-        layer2c = [layer_numbers(atoms, packer)]
+        row["uptime"] = open("/proc/loadavg").read().split()[:3]
         row["gradc_2c_last"] = packer.history[-1]["gradc_avg"]
+        row["gradc_2c_last_10"] = [h["gradc_avg"] for h in packer.history[-10:]]
+        row.update(pressure_to_gradient(atoms, packer))
         result[f"band_{rule}_400+400"] = row
         print(f"band {rule}: {row}", flush=True)
-        del layer2c
-    for w in (1, 10):
+        path.write_text(json.dumps(result, indent=1))
+    for w in (1, 10) if "window" in parts else ():
         atoms, packer = make_packer(trapezoid, 0.02, window=w)
         packer.run()
         result[f"trapezoid_window{w}"] = final_numbers(atoms, packer)
         print(f"window {w}: {result[f'trapezoid_window{w}']}", flush=True)
-    bunny = boundary_of("Standford2DBunny")
-    for n2c, label in ((1000, "bunny_1pc2a_fixed1000_2c"),):
-        if time.time() > deadline:
-            break
-        atoms, packer = make_packer(bunny, 1.0, n2c=n2c, window=10)
+        path.write_text(json.dumps(result, indent=1))
+    if "bunny" in parts and time.time() < deadline:
+        atoms, packer = make_packer(boundary_of("Standford2DBunny"), 1.0, n2c=1000, window=10)
         for _ in packer.irun():
             if packer.stage == "2c":
                 packer.window = NEVER
-        result[label] = final_numbers(atoms, packer)
-        print(f"{label}: {result[label]}", flush=True)
+        result["bunny_1pc2a_fixed1000_2c"] = final_numbers(atoms, packer)
+        print(f"bunny: {result['bunny_1pc2a_fixed1000_2c']}", flush=True)
     path.write_text(json.dumps(result, indent=1))
 
 
@@ -376,6 +414,17 @@ def _plt():
     return plt
 
 
+def _save(fig, path, dpi=90):
+    """Write the figure as a 256-colour PNG (a third of the size) and close it."""
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    with Image.open(path) as image:
+        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+
+
 def plot_fig6(out):
     path = out / "fig6_eq12_vs_eq15.json"
     if not path.exists():
@@ -383,8 +432,6 @@ def plot_fig6(out):
     result = json.loads(path.read_text())
     data = np.load(out / "fig6_positions.npz")
     plt = _plt()
-    boundary = boundary_of()
-    v = boundary.vertices if hasattr(boundary, "vertices") else None
     snaps = result["snapshots"]
     fig, axes = plt.subplots(3, 4, figsize=(15, 11.5), constrained_layout=True,
                              gridspec_kw=dict(height_ratios=[1, 1, 0.8]))
@@ -406,7 +453,8 @@ def plot_fig6(out):
                 snap = run["snapshots"][str(it)]
                 label = "Eq. 12 (no boundary pressure)" if eq == "eq12" else "Eq. 15 (step pressure)"
                 ax.set_title(f"{label}\n{corner}, iteration {it} ({'2a' if it <= result['step_2a'] else '2c'})\n"
-                             f"layer {snap['layer_mean']:.2f} dx, min {snap['layer_min']:.2f} dx", fontsize=8)
+                             f"whole tank: layer mean {snap['layer_mean']:.2f} dx, min {snap['layer_min']:.2f} dx",
+                             fontsize=8)
     fig.colorbar(sc, ax=axes[:2, :], shrink=0.6, label=r"log$_{10}$(h |$\nabla C_a$|)")
     for j, it in enumerate(snaps):
         ax = axes[2, j]
@@ -422,11 +470,9 @@ def plot_fig6(out):
         ax.legend(fontsize=8)
     for eq, colour in (("eq12", "tab:red"), ("eq15", "tab:blue")):
         hist = result["runs"][eq]["history"]
-        it = np.arange(1, len(hist["stage"]) + 1)
         x = np.array(hist["iteration"]) + np.where(np.array(hist["stage"]) == "2c", result["step_2a"], 0)
         axes[2, 2].plot(x, hist["tpd_avg"], color=colour, lw=1, label=eq.replace("eq", "Eq. "))
         axes[2, 3].semilogy(x, hist["gradc_avg"], color=colour, lw=1, label=eq.replace("eq", "Eq. "))
-        del it
     for ax in axes[2, 2:]:
         ax.axvline(result["step_2a"], color="k", lw=0.5, ls=":")
         ax.set_xlabel("iteration (2a, then 2c after the dotted line)")
@@ -435,8 +481,7 @@ def plot_fig6(out):
     axes[2, 3].set_ylabel(r"$|\nabla C|_{avg}$ (packable)")
     fig.suptitle(f"Fig. 6: trapezoid dx = {result['dx']}, h_B/dx = 2; Step 2a for {result['step_2a']} iterations, "
                  "then 2c", fontsize=11)
-    fig.savefig(out / "fig6_eq12_vs_eq15.png", dpi=90)
-    plt.close(fig)
+    _save(fig, out / "fig6_eq12_vs_eq15.png")
 
 
 def _draw_trapezoid(ax):
@@ -450,7 +495,8 @@ def _read_history(path):
         rows = list(csv.DictReader(fh))
     stage = np.array([r["stage"] for r in rows])
     return dict(stage=stage, iteration=np.array([int(r["iteration"]) for r in rows]),
-                tpd=np.array([float(r["tpd_avg"]) for r in rows]), gradc=np.array([float(r["gradc_avg"]) for r in rows]),
+                tpd=np.array([float(r["tpd_avg"]) for r in rows]),
+                gradc=np.array([float(r["gradc_avg"]) for r in rows]),
                 gradc_min=np.array([float(r["gradc_min"]) for r in rows]),
                 gradc_max=np.array([float(r["gradc_max"]) for r in rows]))
 
@@ -470,14 +516,15 @@ def plot_fig7(out):
         n2a = st["iterations"].get("2a", 0)
         done = f"{n2a} + {st['iterations'].get('2c', 0)}"
         target = "20000 + 40000" if mode == "fixed" else "(1 % rule) + 40000"
-        stopped = "" if st.get("finished") else f" (stopped at {done} of {target}: {st.get('reason')})"
+        stopped = "" if st.get("finished") else f" (stopped at {done} of {target}: {st.get('reason', 'still running')})"
         notes.append(f"{name}: {done}{stopped}")
         if len(h["stage"]) == 0:
             continue
         x = h["iteration"] + np.where(h["stage"] == "2c", n2a, 0)
         for stage, ls in (("2a", "-"), ("2c", ":")):
             m = h["stage"] == stage
-            label = f"dx = {dx:g}, {stage}: {done.split(' + ')[0 if stage == '2a' else 1]} it.{stopped if stage == '2c' else ''}"
+            count = done.split(" + ")[0 if stage == "2a" else 1]
+            label = f"dx = {dx:g}, {stage}: {count} it.{stopped if stage == '2c' else ''}"
             axes[row, 0].plot(x[m], h["tpd"][m], ls=ls, color=colours[dx], lw=1, label=label)
             axes[row, 1].fill_between(x[m], h["gradc_min"][m], h["gradc_max"][m], color=colours[dx], alpha=0.15, lw=0)
             axes[row, 1].semilogy(x[m], h["gradc"][m], ls=ls, color=colours[dx], lw=1, label=label)
@@ -489,8 +536,7 @@ def plot_fig7(out):
         axes[row, 0].legend(fontsize=7)
         axes[row, 1].legend(fontsize=7)
     fig.suptitle("Fig. 7: trapezoid, h_B/dx = 2 (solid: Step 2a, dotted: Step 2c)\n" + "; ".join(notes), fontsize=8)
-    fig.savefig(out / "fig7_fixed_iterations.png", dpi=90)
-    plt.close(fig)
+    _save(fig, out / "fig7_fixed_iterations.png")
 
 
 def plot_fig9(out):
@@ -510,14 +556,14 @@ def plot_fig9(out):
     fixed = result.get("fixed", {}).get("rows", {})
     if fixed:
         r = np.array([float(k) for k in fixed])
-        axes[0].plot(r, [fixed[k]["tpd_99pc_at"] for k in fixed], "k--", label="fixed: TPD reaches 99 %")
+        axes[0].plot(r, [fixed[k]["tpd_90pc_at"] for k in fixed], "k:", label="fixed: TPD$_{avg}$ reaches 90 %")
+        axes[0].plot(r, [fixed[k]["tpd_99pc_at"] for k in fixed], "k--", label="fixed: TPD$_{avg}$ reaches 99 %")
     axes[0].set(xlabel="h_B / dx", ylabel="iterations of Step 2a", yscale="log")
     axes[1].set(xlabel="h_B / dx", ylabel="iterations of Step 2c", yscale="log")
     axes[2].set(xlabel="h_B / dx", ylabel=r"drop of $|\nabla C|_{avg}$ in 2c (orders)")
     axes[0].legend(fontsize=7)
     fig.suptitle("Fig. 9 re-run (trapezoid, dx = 0.02): one ingredient changed at a time (fig9_experiments.md)")
-    fig.savefig(out / "fig9_experiments.png", dpi=100)
-    plt.close(fig)
+    _save(fig, out / "fig9_experiments.png", dpi=100)
 
 
 def main(argv=None):
@@ -525,7 +571,8 @@ def main(argv=None):
     parser.add_argument("what", choices=["fig6", "fig7", "fig9", "backing", "plot"])
     parser.add_argument("--out", default="examples/results/bipi")
     parser.add_argument("--budget", type=float, default=3600.0, help="wall-time budget in seconds")
-    parser.add_argument("--only", nargs="*", help="fig7: run names (fixed_dx0.02 ...); fig9: variant names")
+    parser.add_argument("--only", nargs="*",
+                        help="fig7: run names (fixed_dx0.02 ...); fig9: variant names; backing: band, window, bunny")
     args = parser.parse_args(argv)
     if not GEOMETRIES.is_dir():
         sys.exit(f"{GEOMETRIES} not found: the geometries live in ../shared/geometries beside the checkout")
@@ -538,7 +585,7 @@ def main(argv=None):
     elif args.what == "fig9":
         fig9(out, args.budget, args.only)
     elif args.what == "backing":
-        backing(out, args.budget)
+        backing(out, args.budget, args.only)
     else:
         plot_fig6(out)
         plot_fig7(out)
