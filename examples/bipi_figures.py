@@ -528,14 +528,15 @@ def plot_fig7(out):
             axes[row, 0].plot(x[m], h["tpd"][m], ls=ls, color=colours[dx], lw=1, label=label)
             axes[row, 1].fill_between(x[m], h["gradc_min"][m], h["gradc_max"][m], color=colours[dx], alpha=0.15, lw=0)
             axes[row, 1].semilogy(x[m], h["gradc"][m], ls=ls, color=colours[dx], lw=1, label=label)
-    for row, title in enumerate(("(a, b) 20 000 iterations of Step 2a, then 40 000 of 2c",
-                                 "(c, d) Step 2a to its 1 % TPD rule (window 10), then 40 000 of 2c")):
+    for row, title in enumerate(("(a, b) 20 000 of Step 2a, then 40 000 of 2c",
+                                 "(c, d) 2a to its 1 % TPD rule, then 40 000 of 2c")):
         axes[row, 0].set(xlabel="iteration", ylabel="TPD$_{avg}$", title=title)
-        axes[row, 1].set(xlabel="iteration", ylabel=r"$|\nabla C|_{avg}$ (packable; line: mean of 10, band: min-max)",
+        axes[row, 1].set(xlabel="iteration", ylabel=r"$|\nabla C|_{avg}$ (packable; mean of 10, band min-max)",
                          title=title)
         axes[row, 0].legend(fontsize=7)
         axes[row, 1].legend(fontsize=7)
-    fig.suptitle("Fig. 7: trapezoid, h_B/dx = 2 (solid: Step 2a, dotted: Step 2c)\n" + "; ".join(notes), fontsize=8)
+    notes = ["; ".join(notes[k:k + 3]) for k in range(0, len(notes), 3)]
+    fig.suptitle("Fig. 7: trapezoid, h_B/dx = 2 (solid: Step 2a, dotted: Step 2c)\n" + "\n".join(notes), fontsize=8)
     _save(fig, out / "fig7_fixed_iterations.png")
 
 
