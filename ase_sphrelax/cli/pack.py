@@ -104,6 +104,8 @@ def add_arguments(parser):
     parser.add_argument("--walls", type=positive(int), nargs="?", const=0, default=None, metavar="K",
                         help="also write wall particles: K layers (default ceil(h/dx)) of the Step-1 grid outside the "
                              "boundary; packed.extxyz then carries a 'type' column (1 fluid, 2 wall)")
+    parser.add_argument("--wall-mode", choices=("grid", "packed"), default="grid",
+                        help="--walls on the Step-1 grid (default) or BIPI-packed in the band, in layers along the walls")
     parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
@@ -121,6 +123,8 @@ def run(args):
         if not path.is_file():
             raise UsageError(f"--boundary {args.boundary!r}: no such file")
         boundary = as_boundary(path)
+        if args.walls is not None and args.wall_mode == "packed" and boundary.dim != 2:
+            raise UsageError(f"--wall-mode packed: needs a 2D boundary (edge file), got a {boundary.dim}D one")
         ratio = args.h if args.h is not None else (2.0 * args.h_paper if args.h_paper is not None else 4.0)
         if args.h_paper is not None:
             label = f"--h-paper {args.h_paper:g} (= --h {ratio:g}, the support in units of dx)"
@@ -161,9 +165,12 @@ def run(args):
     export.set_constraint()
     if args.walls is not None:
         from ..drivers.bipi_packer import add_walls
+        from ..drivers.bipi_walls import add_packed_walls
 
-        export = add_walls(export, boundary, args.dx, layers=args.walls or None, h=h)
-        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers (type 2; fluid type 1)")
+        export = (add_packed_walls if args.wall_mode == "packed" else add_walls)(export, boundary, args.dx,
+                                                                                 layers=args.walls or None, h=h)
+        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers, {args.wall_mode} "
+              "(type 2; fluid type 1)")
     write(out / "packed.extxyz", export, format="extxyz")
     plot_concentration_gradient(atoms, packer.calc, out / "packed.png",
                                 title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
@@ -171,7 +178,8 @@ def run(args):
     plot_packing_history(packer.history, out / "history.png", title=path.name)
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
                    wall_time_s=wall, n_wall=int(export.info.get("n_wall", 0)),
-                   wall_layers=export.info.get("wall_layers"))
+                   wall_layers=export.info.get("wall_layers"),
+                   wall_mode=args.wall_mode if args.walls is not None else None)
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),
                                                       history=packer.history, converged=converged,
                                                       convergence_reason=reason, **provenance(args, COMMAND)),
