@@ -20,6 +20,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from ase import Atoms
 
 from ..checks import check_positive
 from .bipi_packer import WALL, add_walls, wall_layers
@@ -101,16 +102,11 @@ def packed_wall_particles(boundary, dx, layers=None, h=None, clip=None, pack_h=N
     with warnings.catch_warnings():
         if quiet:
             warnings.simplefilter("ignore")
-        walls, packer, _ = pack(band, dx, h=support, **packer_kwargs)
+        packed, packer, _ = pack(band, dx, h=support, **packer_kwargs)
     converged, reason = packer.verdict()
     summary = packer.summary()
-    walls.set_constraint()
-    walls.calc = None
-    for name in list(walls.arrays):
-        if name not in ("numbers", "positions"):
-            del walls.arrays[name]
+    walls = Atoms(positions=packed.positions, pbc=False)
     walls.arrays["type"] = np.full(len(walls), WALL, dtype=int)
-    walls.info.clear()
     walls.info.update(dx=dx, wall_layers=layers, wall_mode="packed", wall_converged=bool(converged),
                       wall_reason=reason, wall_iterations_2a=summary["iterations_2a"],
                       wall_iterations_2c=summary["iterations_2c"], wall_pack_h=float(support))
