@@ -114,7 +114,7 @@ def make_start(name, boundary, dx, h, fill):
         converged, reason = packer.verdict()
         s = packer.summary()
         info = dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"], converged=converged,
-                    reason=reason)
+                    reason=reason, gradc_avg_final=float(packer.final_gradc_avg()))
     elif name == "fan":
         atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain)
         opt = make_optimizer("fan", atoms)
