@@ -317,8 +317,12 @@ def plot_drop(results, path):
 def plot_particles(starts, boundary, path, zoom, title):
     """The starts side by side around ``zoom`` = (x0, x1, y0, y1): fluid dots, wall crosses, the boundary."""
     plt = pyplot()
-    fig, axes = plt.subplots(1, len(starts), figsize=(3.6 * len(starts), 3.4), squeeze=False)
-    for ax, (name, atoms) in zip(axes[0], starts.items()):
+    cols = min(3, len(starts))
+    rows = -(-len(starts) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
+    for ax in axes.ravel()[len(starts):]:
+        ax.set_axis_off()
+    for ax, (name, atoms) in zip(axes.ravel(), starts.items()):
         t = atoms.arrays["type"]
         r = atoms.positions
         for v in boundary.loops:
