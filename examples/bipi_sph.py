@@ -1,7 +1,9 @@
-"""BIPI's downstream test in LAMMPS (issue 17 item 4 a): a hydrostatic tank with a wedge from three starts.
+"""BIPI's downstream tests in LAMMPS (issue 17 item 4): hydrostatic tanks (a wedge, a coral) and the elliptic drop.
 
     python examples/bipi_sph.py --case wedge --out examples/results/bipi_sph/ [--dx 0.02]
+    python examples/bipi_sph.py --case coral --out examples/results/bipi_sph/ [--dx 0.02] [--walls packed]
     python examples/bipi_sph.py --case drop --out examples/results/bipi_sph/ [--dx 0.02]
+    python examples/bipi_sph.py --case wedge ... --fixed 10_10 100_100 [--walls packed]
 
 Geometry (Boregowda & Liu, Sec. 4.2.1, after Ferrand et al. 2013): a tank 2.05 m wide, water 0.5 m
 deep, a wedge of height sqrt(2)/8 m on the floor. The paper gives no more; we take a symmetric
@@ -27,6 +29,15 @@ is ``--t-end``; by default it is chosen from a measured short run so that one ca
 
 Writes ``wedge_dx{dx}.json`` (per start: packing metrics, KE(t), pressure against depth, the
 pressure error) and ``wedge_dx{dx}.png`` (KE(t) on a log scale; p against depth with rho0 g d).
+
+``--fixed N2A_N2C ...`` adds BIPI starts with exactly N2A Step-2a and N2C Step-2c iterations (the
+paper's Fig. 18 study; the 1 % rules off). ``--walls packed`` replaces the grid walls by one BIPI
+packing of the wall band (:mod:`ase_sphrelax.drivers.bipi_walls`), the same for every start.
+
+``--case coral`` (item 4 b, our own complex tank, like the paper's coral): a trapezoidal tank
+(floor 1.4 m, sides leaning out to 1.9 m at the surface, water 0.5 m deep) with a branching obstacle
+on its floor whose branches are 2.5 dx thick with round tips of radius 1.25 dx (:func:`coral_tank`);
+the same starts, walls and run as the wedge. Both tanks also write ``{tag}_particles.png``.
 
 ``--case drop`` (item 4 c, the paper's Fig. 22): the circle of ../shared/geometries/EllipticDrop.edges
 (R = 0.5 m, 3142 edges), v = (A0 x, -A0 y) with A0 = 100 1/s, run to A0 t = 2 by
@@ -371,7 +382,7 @@ def main(argv=None):
     parser.add_argument("--sph-h", type=float, default=None,
                         help="wedge: support of the LAMMPS run in units of dx (default the packing's 4)")
     parser.add_argument("--alpha", type=float, default=None,
-                        help="Monaghan's artificial viscosity (default 0.5 for the wedge, 0.02 for the drop)")
+                        help="Monaghan's artificial viscosity (default 0.5 for the tanks, 0.02 for the drop)")
     parser.add_argument("--fixed", nargs="*", default=[], metavar="N2A_N2C",
                         help="tanks: also BIPI starts with exactly N2A Step-2a and N2C Step-2c iterations (Fig. 18), "
                              "e.g. 10_10 100_50")
@@ -385,7 +396,7 @@ def main(argv=None):
     if not (args.dx > 0):
         parser.error(f"--dx must be positive, got {args.dx}")
     if args.alpha is None:
-        args.alpha = 0.5 if args.case == "wedge" else 0.02
+        args.alpha = 0.02 if args.case == "drop" else 0.5
     if args.case == "drop" and not GEOMETRIES.is_dir():
         sys.exit(f"{GEOMETRIES} not found")
     for spec in args.fixed:

@@ -273,3 +273,26 @@ def test_cli_pack_packed_walls(geometries, tmp_path):
     assert np.all(phi[t == WALL] > 0) and phi[t == WALL].max() <= 2 * 0.05 + 1e-9 and np.all(phi[t == FLUID] < 0)
     grid = sorted(map(tuple, np.round(atoms.positions[t == WALL, :2] / 0.05 - 0.5, 6)))
     assert any(abs(c - round(c)) > 1e-3 for xy in grid for c in xy)  # not the grid's cell centres
+
+
+def test_coral_tank_example_geometry():
+    """examples/bipi_sph.py's case (b): one loop; the coral's trunk and tips are solid; its band covers the thin branches."""
+    import importlib.util
+    from pathlib import Path
+
+    import shapely
+
+    from ase_sphrelax.drivers.bipi_walls import wall_band
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "bipi_sph.py"
+    spec = importlib.util.spec_from_file_location("bipi_sph", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    dx = 0.02
+    boundary = example.coral_tank(dx)
+    tank_area = 0.5 * (1.4 + 1.9) * example.CORAL_DEPTH
+    assert len(boundary.loops) == 1 and 0.9 * tank_area < boundary.area < tank_area
+    solid = np.array([[1.0, 0.05], [0.86, 0.24], [1.24, 0.33]])  # trunk, a fork, a tip
+    assert np.all(boundary.domain.phi(solid) > 0)
+    band = wall_band(boundary, dx, layers=4, clip=shapely.box(-1, -1, 3, example.CORAL_DEPTH))
+    assert np.all(band.contains(solid))  # branches 2.5 dx thick lie wholly in the 4 dx band
