@@ -273,6 +273,11 @@ def test_cli_pack_packed_walls(geometries, tmp_path):
     assert np.all(phi[t == WALL] > 0) and phi[t == WALL].max() <= 2 * 0.05 + 1e-9 and np.all(phi[t == FLUID] < 0)
     grid = sorted(map(tuple, np.round(atoms.positions[t == WALL, :2] / 0.05 - 0.5, 6)))
     assert any(abs(c - round(c)) > 1e-3 for xy in grid for c in xy)  # not the grid's cell centres
+    # and on through `sphrelax export` to a LAMMPS data file: the kinds are its atom types
+    assert main(["export", str(out / "packed.extxyz"), str(tmp_path / "p.data"), "--format", "lammps",
+                 "--atom-style", "atomic"]) == 0
+    data = read(tmp_path / "p.data", format="lammps-data", atom_style="atomic", units="metal")
+    assert np.array_equal(np.asarray(data.arrays["type"]), t)
 
 
 def test_coral_tank_example_geometry():
