@@ -1,7 +1,7 @@
 """Packed wall particles: BIPI on the solid side of the walls (issue 17 item 3).
 
-The paper packs the solid of its airfoil with the same method as the fluid (Boregowda & Liu 2025,
-Sec. 4.1); here the solid is the band of the walls that an SPH engine with wall particles needs:
+The paper packs the solid of its airfoil with the same method as the fluid (Boregowda & Liu 2025);
+here the solid is the band of the walls that an SPH engine with wall particles needs:
 
     band = (fluid offset outward by ``layers dx``) minus fluid  [intersected with ``clip``]
 
