@@ -1,7 +1,9 @@
-"""BIPI's downstream test in LAMMPS (issue 17 item 4 a): a hydrostatic tank with a wedge from three starts.
+"""BIPI's downstream tests in LAMMPS (issue 17 item 4): hydrostatic tanks (a wedge, a coral) and the elliptic drop.
 
     python examples/bipi_sph.py --case wedge --out examples/results/bipi_sph/ [--dx 0.02]
+    python examples/bipi_sph.py --case coral --out examples/results/bipi_sph/ [--dx 0.02] [--walls packed]
     python examples/bipi_sph.py --case drop --out examples/results/bipi_sph/ [--dx 0.02]
+    python examples/bipi_sph.py --case wedge ... --fixed 10_10 100_100 [--walls packed]
 
 Geometry (Boregowda & Liu, Sec. 4.2.1, after Ferrand et al. 2013): a tank 2.05 m wide, water 0.5 m
 deep, a wedge of height sqrt(2)/8 m on the floor. The paper gives no more; we take a symmetric
@@ -28,6 +30,15 @@ is ``--t-end``; by default it is chosen from a measured short run so that one ca
 Writes ``wedge_dx{dx}.json`` (per start: packing metrics, KE(t), pressure against depth, the
 pressure error) and ``wedge_dx{dx}.png`` (KE(t) on a log scale; p against depth with rho0 g d).
 
+``--fixed N2A_N2C ...`` adds BIPI starts with exactly N2A Step-2a and N2C Step-2c iterations (the
+paper's Fig. 18 study; the 1 % rules off). ``--walls packed`` replaces the grid walls by one BIPI
+packing of the wall band (:mod:`ase_sphrelax.drivers.bipi_walls`), the same for every start.
+
+``--case coral`` (item 4 b, our own complex tank, like the paper's coral): a trapezoidal tank
+(floor 1.4 m, sides leaning out to 1.9 m at the surface, water 0.5 m deep) with a branching obstacle
+on its floor whose branches are 2.5 dx thick with round tips of radius 1.25 dx (:func:`coral_tank`);
+the same starts, walls and run as the wedge. Both tanks also write ``{tag}_particles.png``.
+
 ``--case drop`` (item 4 c, the paper's Fig. 22): the circle of ../shared/geometries/EllipticDrop.edges
 (R = 0.5 m, 3142 edges), v = (A0 x, -A0 y) with A0 = 100 1/s, run to A0 t = 2 by
 :func:`lammps_io.elliptic_drop` (continuity densities, alpha = 0.02, c0 = 14 A0 R, no walls) from
@@ -52,6 +63,8 @@ WIDTH, DEPTH, WEDGE_HEIGHT = 2.05, 0.5, math.sqrt(2.0) / 8.0
 RHO0, G = 1000.0, 9.81
 H_OVER_DX = 4.0  # support; the paper's h_B / dx_r = 2
 STARTS = ("cartesian", "bipi", "fan")
+CORAL_DEPTH, CORAL_RADIUS_DX = 0.5, 1.25
+ZOOM = dict(wedge=(0.75, 1.3, -0.1, 0.3), coral=(0.6, 1.35, -0.1, 0.45))  # particle figures
 T_PAPER = 20.0
 GEOMETRIES = Path(__file__).resolve().parents[2] / "shared" / "geometries"
 
@@ -66,8 +79,33 @@ def wedge_tank(width=WIDTH, depth=DEPTH, wedge_height=WEDGE_HEIGHT):
     return BoundarySegments.from_polygon(Polygon([loop]))
 
 
+def coral_tank(dx=0.02):
+    """Case (b): a trapezoidal tank with a branching obstacle ("coral") on its floor, as BoundarySegments.
+
+    Tank: floor 1.4 m (x from 0.3 to 1.7), sides leaning out to x = 0.05 and 1.95 at the water
+    surface y = 0.5 m. Coral: the union of round-capped branches (shapely ``buffer`` of a tree of
+    line segments) of radius 1.25 dx, so its tips have curvature radius 1.25 dx and the forks
+    concave corners; its trunk is rooted in the floor. The water is tank minus coral.
+    """
+    import shapely
+
+    from ase_sphrelax.boundary import BoundarySegments
+
+    tank = shapely.Polygon([(0.3, 0.0), (1.7, 0.0), (1.95, CORAL_DEPTH), (0.05, CORAL_DEPTH)])
+    r = CORAL_RADIUS_DX * dx
+    branches = [[(1.0, -0.1), (1.0, 0.12)], [(1.0, 0.12), (0.86, 0.24)], [(1.0, 0.12), (1.13, 0.27)],
+                [(0.86, 0.24), (0.78, 0.31)], [(0.86, 0.24), (0.90, 0.34)], [(1.13, 0.27), (1.10, 0.37)],
+                [(1.13, 0.27), (1.24, 0.33)], [(1.0, 0.05), (1.12, 0.10)], [(0.78, 0.31), (0.70, 0.30)]]
+    coral = shapely.union_all([shapely.LineString(b).buffer(r, quad_segs=8) for b in branches])
+    water = tank.difference(coral)
+    return BoundarySegments.from_shapely(water, name="coral tank")
+
+
 def make_start(name, boundary, dx, h, fill):
-    """The fluid particles of one start and what it cost."""
+    """The fluid particles of one start and what it cost.
+
+    ``name``: ``cartesian``, ``bipi``, ``fan`` or ``bipi_fixed_N2A_N2C`` (BIPI with exactly N2A
+    Step-2a and N2C Step-2c iterations: the 1 % rules switched off by ``tol = 1e-12``; Fig. 18)."""
     from ase_sphrelax import BIPICalculator, FanCalculator
     from ase_sphrelax.drivers import make_optimizer
     from ase_sphrelax.drivers.bipi_packer import BIPIPacker
@@ -75,15 +113,19 @@ def make_start(name, boundary, dx, h, fill):
     atoms = fill.copy()
     t = time.perf_counter()
     info = {}
-    if name == "bipi":
-        packer = BIPIPacker(atoms, BIPICalculator(h=h, dx=dx, boundary=boundary))
+    if name == "bipi" or name.startswith("bipi_fixed_"):
+        fixed = {}
+        if name != "bipi":
+            n2a, n2c = (int(v) for v in name.split("_")[2:4])
+            fixed = dict(max_steps_2a=n2a, max_steps_2c=n2c, tol=1e-12)
+        packer = BIPIPacker(atoms, BIPICalculator(h=h, dx=dx, boundary=boundary), **fixed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             packer.run()
         converged, reason = packer.verdict()
         s = packer.summary()
         info = dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"], converged=converged,
-                    reason=reason)
+                    reason=reason, gradc_avg_final=float(packer.final_gradc_avg()))
     elif name == "fan":
         atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain)
         opt = make_optimizer("fan", atoms)
@@ -97,10 +139,49 @@ def make_start(name, boundary, dx, h, fill):
     return atoms, info
 
 
-def with_walls(atoms, boundary, dx, h, depth):
+def with_walls(atoms, boundary, dx, h, depth, walls=None):
+    """Fluid + wall particles below the surface: the Step-1 grid's (default) or the given ``walls``."""
     from ase_sphrelax.drivers.bipi_packer import add_walls
 
-    return add_walls(atoms, boundary, dx, h=h, keep=lambda r: r[:, 1] < depth)
+    return add_walls(atoms, boundary, dx, h=h, keep=lambda r: r[:, 1] < depth, walls=walls)
+
+
+def packed_walls(boundary, dx, h, depth):
+    """One BIPI packing of the wall band below the surface (drivers/bipi_walls.py) and its layer offsets."""
+    import shapely
+
+    from ase_sphrelax.drivers.bipi_walls import packed_wall_particles
+
+    t = time.perf_counter()
+    walls = packed_wall_particles(boundary, dx, h=h, clip=shapely.box(-1e3, -1e3, 1e3, depth))
+    r = walls.positions[:, :2]
+    phi, n = boundary.domain.phi_and_normal(r)
+    foot = r - phi[:, None] * n[:, :2]
+    corners = np.concatenate(boundary.loops)
+    k = walls.info["wall_layers"]
+    straight = np.linalg.norm(foot[:, None, :] - corners[None, :, :], axis=2).min(axis=1) > (k + 1) * dx
+    off = phi[straight] / dx
+    layer = np.clip(np.floor(off).astype(int), 0, k - 1)
+    info = dict(mode="packed", n=len(walls), layers=k, wall_time_s=time.perf_counter() - t,
+                converged=walls.info["wall_converged"], reason=walls.info["wall_reason"],
+                iterations_2a=walls.info["wall_iterations_2a"], iterations_2c=walls.info["wall_iterations_2c"],
+                phi_min_dx=float(phi.min() / dx), phi_max_dx=float(phi.max() / dx),
+                layer_mean_dx=[float(off[layer == j].mean()) for j in range(k)],
+                layer_std_dx=[float(off[layer == j].std()) for j in range(k)],
+                layer_count=[int((layer == j).sum()) for j in range(k)],
+                note="layers: wall particles whose closest wall point is over (k + 1) dx from every vertex")
+    return walls, info
+
+
+def wall_summary(both, boundary, dx):
+    t = both.arrays["type"]
+    phi = boundary.domain.phi(both.positions[t == 2, :2])
+    return dict(mode="grid", n=int((t == 2).sum()), layers=both.info["wall_layers"], phi_min_dx=float(phi.min() / dx),
+                phi_max_dx=float(phi.max() / dx))
+
+
+def start_names(args):
+    return list(args.starts) + [f"bipi_fixed_{n}" for n in args.fixed]
 
 
 def run_case(args):
@@ -110,18 +191,27 @@ def run_case(args):
     dx = args.dx
     h = H_OVER_DX * dx
     h_sph = (args.sph_h or H_OVER_DX) * dx
-    boundary = wedge_tank()
+    case = args.case
+    boundary, depth = (wedge_tank(), DEPTH) if case == "wedge" else (coral_tank(dx), CORAL_DEPTH)
     fill = initial_fill(boundary, dx)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    tag = f"wedge_dx{dx:g}_alpha{args.alpha:g}" + ("" if args.sph_h is None else f"_sphh{args.sph_h:g}")
-    print(f"wedge tank: dx = {dx:g} m, h = {H_OVER_DX:g} dx = {h:g} m (support) for the packing, "
-          f"{h_sph / dx:g} dx in LAMMPS, {len(fill)} fluid particles", flush=True)
+    tag = (f"{case}_dx{dx:g}_alpha{args.alpha:g}" + ("" if args.sph_h is None else f"_sphh{args.sph_h:g}")
+           + ("_packedwalls" if args.walls == "packed" else "") + ("_fig18" if args.fixed else "") + args.tag)
+    print(f"{case} tank: dx = {dx:g} m, h = {H_OVER_DX:g} dx = {h:g} m (support) for the packing, "
+          f"{h_sph / dx:g} dx in LAMMPS, {len(fill)} fluid particles, {args.walls} walls", flush=True)
+    walls, walls_info = (packed_walls(boundary, dx, h, depth) if args.walls == "packed" else (None, None))
+    if walls_info:
+        print(f"  packed walls: {walls_info}", flush=True)
     starts = {}
-    for name in args.starts:
+    for name in start_names(args):
         atoms, info = make_start(name, boundary, dx, h, fill)
-        starts[name] = (with_walls(atoms, boundary, dx, h, DEPTH), info)
+        starts[name] = (with_walls(atoms, boundary, dx, h, depth, walls=walls), info)
         print(f"  start {name}: {info}", flush=True)
+    if walls_info is None:
+        walls_info = wall_summary(next(iter(starts.values()))[0], boundary, dx)
+    plot_particles({n: a for n, (a, _) in starts.items()}, boundary, out / f"{tag}_particles.png",
+                   zoom=ZOOM[case], title=f"{case} tank, dx = {dx:g} m, {args.walls} walls")
     first = next(iter(starts.values()))[0]
     run_kw = dict(rho0=RHO0, g=G, alpha=args.alpha, samples=args.samples, nthreads=args.threads, progress=True)
     if args.t_end is None:
@@ -135,10 +225,11 @@ def run_case(args):
     else:
         t_end, how = args.t_end, "given by --t-end"
     print(f"physical time per case: {t_end:g} s ({how})", flush=True)
-    results = dict(case="wedge", dx=dx, h=h, h_over_dx=H_OVER_DX, h_sph=h_sph, width=WIDTH, depth=DEPTH,
-                   wedge_height=WEDGE_HEIGHT,
+    geometry = (dict(width=WIDTH, wedge_height=WEDGE_HEIGHT) if case == "wedge" else
+                dict(coral_radius_dx=CORAL_RADIUS_DX, n_segments=len(boundary), area=boundary.area))
+    results = dict(case=case, dx=dx, h=h, h_over_dx=H_OVER_DX, h_sph=h_sph, depth=depth, **geometry,
                    rho0=RHO0, g=G, alpha=args.alpha, t_end=t_end, t_end_how=how, paper_t_end=T_PAPER,
-                   command=" ".join([Path(sys.argv[0]).as_posix()] + sys.argv[1:]), starts={})
+                   walls=walls_info, command=" ".join([Path(sys.argv[0]).as_posix()] + sys.argv[1:]), starts={})
     for name, (atoms, info) in starts.items():
         t = time.perf_counter()
         r = hydrostatic_tank(atoms, h_sph, dx, t_end=t_end, **run_kw)
@@ -234,6 +325,30 @@ def plot_drop(results, path):
     plt.close(fig)
 
 
+def plot_particles(starts, boundary, path, zoom, title):
+    """The starts side by side around ``zoom`` = (x0, x1, y0, y1): fluid dots, wall crosses, the boundary."""
+    plt = pyplot()
+    cols = min(3, len(starts))
+    rows = -(-len(starts) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
+    for ax in axes.ravel()[len(starts):]:
+        ax.set_axis_off()
+    for ax, (name, atoms) in zip(axes.ravel(), starts.items()):
+        t = atoms.arrays["type"]
+        r = atoms.positions
+        for v in boundary.loops:
+            w = np.vstack([v, v[:1]])
+            ax.plot(w[:, 0], w[:, 1], "k-", lw=0.6)
+        ax.plot(r[t == 1, 0], r[t == 1, 1], ".", ms=2.5, color="C0")
+        ax.plot(r[t == 2, 0], r[t == 2, 1], "x", ms=2.5, color="C3")
+        ax.set(xlim=zoom[:2], ylim=zoom[2:], aspect="equal", title=name)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
 def plot(results, path):
     plt = pyplot()
     fig, (ax_ke, ax_p) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -241,16 +356,16 @@ def plot(results, path):
         ke = np.array(row["ke_history"])
         ax_ke.semilogy(ke[1:, 0], ke[1:, 1], label=name)
         p = np.array(row["pressure_profile"])
-        ax_p.plot(p[:, 1] / 1e3, p[:, 0], "o-", ms=3, label=f"{name} ({100 * row['pressure_error']:.1f} %)")
+        ax_p.plot(p[:, 1] / 1e3, p[:, 0], "o-", ms=3, label=f"{name} ({100 * row['pressure_error']:.2f} %)")
     d = np.linspace(0, results["depth"], 20)
     ax_p.plot(results["rho0"] * results["g"] * d / 1e3, d, "k--", label=r"$\rho_0 g d$")
     ax_p.invert_yaxis()
     ax_ke.set(xlabel="t (s)", ylabel="kinetic energy (J per m)",
-              title=f"wedge tank, dx = {results['dx']:g} m, SPH support "
+              title=f"{results['case']} tank, {results['walls']['mode']} walls, dx = {results['dx']:g} m, SPH support "
                     f"{results.get('h_sph', results['h']) / results['dx']:g} dx")
     ax_p.set(xlabel="p (kPa)", ylabel="depth d (m)", title=f"pressure at t = {results['t_end']:g} s")
-    ax_ke.legend()
-    ax_p.legend(fontsize=8)
+    ax_ke.legend(fontsize=7)
+    ax_p.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -258,7 +373,7 @@ def plot(results, path):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case", choices=("wedge", "drop"), default="wedge")
+    parser.add_argument("--case", choices=("wedge", "coral", "drop"), default="wedge")
     parser.add_argument("--out", default="examples/results/bipi_sph")
     parser.add_argument("--dx", type=float, default=0.02)
     parser.add_argument("--starts", nargs="*", default=list(STARTS), choices=STARTS)
@@ -267,17 +382,28 @@ def main(argv=None):
     parser.add_argument("--sph-h", type=float, default=None,
                         help="wedge: support of the LAMMPS run in units of dx (default the packing's 4)")
     parser.add_argument("--alpha", type=float, default=None,
-                        help="Monaghan's artificial viscosity (default 0.5 for the wedge, 0.02 for the drop)")
+                        help="Monaghan's artificial viscosity (default 0.5 for the tanks, 0.02 for the drop)")
+    parser.add_argument("--fixed", nargs="*", default=[], metavar="N2A_N2C",
+                        help="tanks: also BIPI starts with exactly N2A Step-2a and N2C Step-2c iterations (Fig. 18), "
+                             "e.g. 10_10 100_50")
+    parser.add_argument("--walls", choices=("grid", "packed"), default="grid",
+                        help="tanks: wall particles on the Step-1 grid (default) or BIPI-packed in the wall band "
+                             "(one packing for every start)")
+    parser.add_argument("--tag", default="", help="suffix of the output names")
     parser.add_argument("--samples", type=int, default=200, help="KE samples")
     parser.add_argument("--threads", type=int, default=1, help="OpenMP threads of LAMMPS")
     args = parser.parse_args(argv)
     if not (args.dx > 0):
         parser.error(f"--dx must be positive, got {args.dx}")
     if args.alpha is None:
-        args.alpha = 0.5 if args.case == "wedge" else 0.02
+        args.alpha = 0.02 if args.case == "drop" else 0.5
     if args.case == "drop" and not GEOMETRIES.is_dir():
         sys.exit(f"{GEOMETRIES} not found")
-    (run_case if args.case == "wedge" else run_drop)(args)
+    for spec in args.fixed:
+        parts = spec.split("_")
+        if len(parts) != 2 or not all(p.isdigit() and int(p) >= 1 for p in parts):
+            parser.error(f"--fixed: give N2A_N2C with integers >= 1 (e.g. 100_50), got {spec!r}")
+    (run_drop if args.case == "drop" else run_case)(args)
 
 
 if __name__ == "__main__":

@@ -86,3 +86,29 @@ def test_the_drop_has_no_walls():
     atoms = tank(width=0.04, depth=0.02)
     with pytest.raises(ValueError, match="all fluid"):
         flows.elliptic_drop(atoms, h=0.026, dx=0.01, progress=False)
+
+
+def test_tank_with_packed_walls_keeps_the_hydrostatic_pressure():
+    """BIPI-packed wall particles (drivers/bipi_walls.py, 3 rows along floor and sides) hold the water as the grid's do."""
+    import shapely
+
+    from ase_sphrelax.boundary import BoundarySegments
+    from ase_sphrelax.drivers.bipi_walls import add_packed_walls
+
+    dx, width, depth = 0.01, 0.2, 0.1
+    boundary = BoundarySegments.from_vertices([[0.0, 0.0], [width, 0.0], [width, depth], [0.0, depth]])
+    fluid = tank(width, depth, dx, layers=0)
+    atoms = add_packed_walls(fluid, boundary, dx, h=0.026, clip=shapely.box(-1, -1, 1, depth), max_steps_2a=300,
+                             max_steps_2c=100)
+    atoms.info["dim"] = 2
+    wall = atoms.arrays["type"] == flows.WALL
+    assert atoms.info["wall_layers"] == 3 and wall.sum() > 0
+    grid_like = np.abs(atoms.positions[wall, :2] / dx - 0.5 - np.round(atoms.positions[wall, :2] / dx - 0.5))
+    assert grid_like.max() > 0.05  # packed, not the grid's cell centres
+    out = flows.hydrostatic_tank(atoms, h=0.026, dx=dx, t_end=0.3, samples=30, progress=False)
+    assert out["n_fluid"] == len(fluid) and out["n_wall"] == wall.sum()
+    assert np.allclose(out["positions"][wall], atoms.positions[wall])  # walls stay
+    assert out["positions"][~wall, 1].min() > 0.0  # no fluid particle through the floor
+    for d, p, p_hydro in out["pressure_profile"]:
+        assert abs(p - p_hydro) < 0.1 * 1000 * 9.81 * out["depth"], (d, p, p_hydro)
+    assert out["ke_history"][0] == (0.0, 0.0) and len(out["ke_history"]) >= 30

@@ -117,6 +117,8 @@ def add_arguments(parser):
     parser.add_argument("--cell", nargs="+", default=None, metavar="L",
                         help="with --periodic: the cell lengths along x, y (and z in 3D), one per axis of the boundary; "
                              "0 takes the boundary's extent")
+    parser.add_argument("--wall-mode", choices=("grid", "packed"), default="grid",
+                        help="--walls on the Step-1 grid (default) or BIPI-packed in the band, in layers along the walls")
     parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
@@ -188,6 +190,11 @@ def run(args):
         if not path.is_file():
             raise UsageError(f"--boundary {args.boundary!r}: no such file")
         boundary = periodic_boundary(as_boundary(path), args.periodic, args.cell)
+        if args.walls is not None and args.wall_mode == "packed" and boundary.dim != 2:
+            raise UsageError(f"--wall-mode packed: needs a 2D boundary (edge file), got a {boundary.dim}D one")
+        if args.walls is not None and args.wall_mode == "packed" and args.periodic:
+            raise UsageError("--wall-mode packed: not with --periodic (use --wall-mode grid, which keeps one period "
+                             "of walls)")
         ratio = args.h if args.h is not None else (2.0 * args.h_paper if args.h_paper is not None else 4.0)
         if args.h_paper is not None:
             label = f"--h-paper {args.h_paper:g} (= --h {ratio:g}, the support in units of dx)"
@@ -229,9 +236,12 @@ def run(args):
     export.set_constraint()
     if args.walls is not None:
         from ..drivers.bipi_packer import add_walls
+        from ..drivers.bipi_walls import add_packed_walls
 
-        export = add_walls(export, boundary, args.dx, layers=args.walls or None, h=h)
-        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers (type 2; fluid type 1)")
+        export = (add_packed_walls if args.wall_mode == "packed" else add_walls)(export, boundary, args.dx,
+                                                                                 layers=args.walls or None, h=h)
+        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers, {args.wall_mode} "
+              "(type 2; fluid type 1)")
     write(out / "packed.extxyz", export, format="extxyz")
     plot_concentration_gradient(atoms, packer.calc, out / "packed.png",
                                 title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
@@ -240,7 +250,8 @@ def run(args):
     summary.update(boundary=str(path), method=args.method, h_over_dx=ratio, quality_before=before,
                    periodic=[bool(p) for p in atoms.pbc[:boundary.dim]], cell=atoms.cell.array.tolist(),
                    wall_time_s=wall, n_wall=int(export.info.get("n_wall", 0)),
-                   wall_layers=export.info.get("wall_layers"))
+                   wall_layers=export.info.get("wall_layers"),
+                   wall_mode=args.wall_mode if args.walls is not None else None)
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),
                                                       history=packer.history, converged=converged,
                                                       convergence_reason=reason, **provenance(args, COMMAND)),

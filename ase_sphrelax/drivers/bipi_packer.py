@@ -195,13 +195,15 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
     return walls
 
 
-def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None):
+def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, walls=None):
     """``atoms`` (fluid, ``type`` FLUID) followed by :func:`wall_particles` (``type`` WALL).
 
     Returns a new Atoms with ``atoms``' cell, pbc and info, without constraints or calculator;
-    ``info["n_fluid"]`` and ``info["n_wall"]`` count the kinds.
+    ``info["n_fluid"]`` and ``info["n_wall"]`` count the kinds. ``walls``: wall particles made
+    elsewhere (:mod:`~ase_sphrelax.drivers.bipi_walls`), used instead of the grid ones.
     """
-    walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep)
+    if walls is None:
+        walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep)
     out = atoms.copy()
     out.set_constraint()
     out.calc = None
