@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import polynomial as P
 
@@ -205,6 +205,8 @@ def _segments(loops):
 # ----------------------------------------------------------------- properties
 @settings(max_examples=60, **SETTINGS)
 @given(cases(), st.sampled_from(["wendland_c2", "wendland_c2", "wendland_c4", "cubic_spline"]))
+@example(("sliver", [np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.001]])], 0.05, np.array([[2.16080428e-305, 5e-14]])),
+         "wendland_c2")  # test_sliver_point_on_its_sharp_vertex_regression
 def test_gamma_and_gradient_exact_near_edge_lines(case, kernel):
     kind, loops, h, r = case
     gamma, grad = gamma_and_gradient(r, _segments(loops), h, kernel=kernel)
@@ -397,7 +399,7 @@ def test_sliver_point_on_its_sharp_vertex_regression():
 
 
 @pytest.mark.parametrize("shape", ["sliver", "wedge10"])
-@pytest.mark.parametrize("offset", [1e-310, 1e-300, 1e-14])
+@pytest.mark.parametrize("offset", [5e-324, 1e-310, 1e-300, 1e-14])
 def test_gamma_next_to_sharp_vertices(shape, offset):
     """Points at subnormal, 1e-300 and 1e-14 distances from each vertex of a sliver and a 10 degree wedge, in
     48 directions and along both edges' normals (inside and outside, above the edges of the sharp vertex as in

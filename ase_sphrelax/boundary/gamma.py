@@ -35,7 +35,7 @@ import numpy as np
 from ..checks import check_positive
 from ..domains.closest import closest_on_triangle
 from ..parallel import run_chunks
-from .line_integrals import line_offset, segment_terms
+from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
 from .segments import BoundarySegments
@@ -65,7 +65,9 @@ def _chi_segment(px, py, seg, e, next_s, prev_s, inv_h):
     ``e``, its neighbour there and ``v`` itself, from ``p - v`` (exact near ``v``) and the signed line
     offsets ``delta`` exactly as :func:`~ase_sphrelax.boundary.line_integrals.segment_terms` computes
     them: ``chi`` must have the sign of the ``delta`` whose subtended angle (about ``+-pi``) it cancels.
+    Within ``VERTEX_SNAP`` (1e-200) of an end point the particle is on it, as in ``segment_terms``.
     """
+    px, py = at_vertex(px, py, seg, e)  # as segment_terms
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     t = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) * seg[e, 7]
     if px == bx and py == by:
