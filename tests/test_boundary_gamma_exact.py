@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from numpy.polynomial import polynomial as P
 
@@ -205,6 +205,8 @@ def _segments(loops):
 # ----------------------------------------------------------------- properties
 @settings(max_examples=60, **SETTINGS)
 @given(cases(), st.sampled_from(["wendland_c2", "wendland_c2", "wendland_c4", "cubic_spline"]))
+@example(("sliver", [np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.001]])], 0.05, np.array([[2.16080428e-305, 5e-14]])),
+         "wendland_c2")  # test_sliver_point_on_its_sharp_vertex_regression
 def test_gamma_and_gradient_exact_near_edge_lines(case, kernel):
     kind, loops, h, r = case
     gamma, grad = gamma_and_gradient(r, _segments(loops), h, kernel=kernel)
@@ -380,3 +382,48 @@ def test_gamma_at_vertices_of_rotated_wedges():
         v = base @ np.array([[c, s], [-s, c]])
         gamma, _ = gamma_and_gradient(v, BoundarySegments.from_vertices(v), 0.05)
         np.testing.assert_allclose(gamma, expected, rtol=0, atol=TOL_GAMMA)
+
+
+def test_sliver_point_on_its_sharp_vertex_regression():
+    """A hypothesis find: 5e-14 above the 0.1 degree vertex of a sliver, just outside it (the upper edge is at
+    4e-308 there), was classified inside (gamma = 1 + 3.18e-4). The query's nearest segment was the lower
+    edge: its distance rounds with eps |b - a| (measured from the far end), here 1e3 times the 1e-19 by which
+    the upper edge is nearer."""
+    loops = [np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.001]])]
+    r = np.array([[2.16080428e-305, 5.0e-14]])
+    gamma, grad = gamma_and_gradient(r, _segments(loops), 0.05)
+    g_ref, d_ref = reference_2d(r[0], loops, 0.05, RADIAL["wendland_c2"])
+    assert abs(gamma[0] - g_ref) < TOL_GAMMA, (gamma[0], g_ref)
+    assert abs(g_ref - 0.0003183094617716302) < 1e-15
+    assert np.abs(grad[0, :2] - d_ref).max() * 0.05 < TOL_GRAD
+
+
+@pytest.mark.parametrize("shape", ["sliver", "wedge10"])
+@pytest.mark.parametrize("offset", [5e-324, 1e-310, 1e-300, 1e-14])
+def test_gamma_next_to_sharp_vertices(shape, offset):
+    """Points at subnormal, 1e-300 and 1e-14 distances from each vertex of a sliver and a 10 degree wedge, in
+    48 directions and along both edges' normals (inside and outside, above the edges of the sharp vertex as in
+    the regression above). Each vertex in turn sits at the origin so that the offsets are representable.
+    Below 1e-300 gamma is the reference's value on the vertex (they differ by |grad gamma| 1e-300)."""
+    h = 0.05
+    t = math.radians(10.0)
+    base = (np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.001]]) if shape == "sliver"
+            else np.array([[0.0, 0.0], [1.0, 0.0], [math.cos(t), math.sin(t)]]))
+    angles = list(np.linspace(0.0, 2 * np.pi, 48, endpoint=False)) + [0.5 * np.pi, 0.5 * np.pi + 1e-6]
+    for i in range(3):
+        loop = base - base[i]
+        for k in (i, i - 1):  # the normals of both edges at the vertex, both ways, and slightly tilted
+            e = loop[(k + 1) % 3] - loop[k]
+            angles += [math.atan2(e[0], -e[1]) + s * np.pi + tilt for s in (0, 1) for tilt in (0.0, 1e-7, -1e-7)]
+        r = offset * np.column_stack([np.cos(angles), np.sin(angles)])
+        r = r[np.any(r != 0.0, axis=1)] if offset < 1e-300 else r  # a subnormal times cos may round to 0
+        gamma, grad = gamma_and_gradient(r, _segments([loop]), h)
+        expected, _ = reference_2d(np.zeros(2), [loop], h, RADIAL["wendland_c2"])
+        if offset <= 1e-300:
+            for x, g in zip(r, gamma):
+                assert abs(g - expected) < TOL_GAMMA, (shape, i, x, g, expected)
+        else:
+            for x, g, d in zip(r, gamma, grad):
+                g_ref, d_ref = reference_2d(x, [loop], h, RADIAL["wendland_c2"])
+                assert abs(g - g_ref) < TOL_GAMMA, (shape, i, x, g, g_ref)
+                assert np.abs(d[:2] - d_ref).max() * h < TOL_GRAD, (shape, i, x, d, d_ref)

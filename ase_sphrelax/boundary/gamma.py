@@ -36,7 +36,7 @@ import numpy as np
 from ..checks import check_positive
 from ..domains.closest import closest_on_triangle
 from ..parallel import run_chunks, thread_count
-from .line_integrals import line_offset, segment_terms
+from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
 from .segments import BoundarySegments
@@ -53,41 +53,55 @@ BAND_RULES = ("normal", "centroid", "ball")
 
 
 @numba.njit(cache=True, inline="always")
-def _chi_segment(px, py, seg, e, next_s, prev_s):
-    """Point term of a particle whose nearest segment is e (see the module docstring)."""
+def _chi_segment(px, py, seg, e, next_s, prev_s, inv_h):
+    """Point term of a particle whose nearest segment is e (see the module docstring).
+
+    The query's nearest segment ``e`` is only nearest up to the rounding of its distance, which is
+    measured from the segment's start (``eps |b - a|``, not ``eps`` times the distance) and whose square
+    underflows below 1e-154. Near a vertex ``v`` of ``e`` that can pick ``e`` over its neighbour at
+    ``v`` (e.g. a point 5e-14 above the sharp vertex of a sliver, 2e-6 relatively nearer the other
+    edge). So the decision is remade locally at the end ``v`` of ``e`` nearer the particle, between
+    ``e``, its neighbour there and ``v`` itself, from ``p - v`` (exact near ``v``) and the signed line
+    offsets ``delta`` exactly as :func:`~ase_sphrelax.boundary.line_integrals.segment_terms` computes
+    them: ``chi`` must have the sign of the ``delta`` whose subtended angle (about ``+-pi``) it cancels.
+    Within ``VERTEX_SNAP`` (1e-200) of an end point the particle is on it, as in ``segment_terms``.
+    """
+    px, py = at_vertex(px, py, seg, e)  # as segment_terms
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     t = ((px - ax) * (bx - ax) + (py - ay) * (by - ay)) * seg[e, 7]
     if px == bx and py == by:
         t = 1.0  # on the end vertex: |b - a|^2 / |b - a|^2 may round below 1
     elif px == ax and py == ay:
         t = 0.0
-    if 0.0 < t < 1.0:
-        side = line_offset(px, py, seg, e)  # as in segment_terms: the same sign as its delta
-        return 1.0 if side > 0.0 else (0.0 if side < 0.0 else 0.5)
-    if t <= 0.0:
+    if t < 0.5:
         vx, vy, s_in, s_out = ax, ay, prev_s[e], e
     else:
         vx, vy, s_in, s_out = bx, by, e, next_s[e]
     dx = px - vx
     dy = py - vy
-    if dx == 0.0 and dy == 0.0:
-        # on the vertex: interior angle / 2 pi, the domain on the left of the turn
-        tix, tiy = seg[s_in, 5], -seg[s_in, 4]
-        tox, toy = seg[s_out, 5], -seg[s_out, 4]
-        turn = math.atan2(tix * toy - tiy * tox, tix * tox + tiy * toy)
-        return (math.pi - turn) / (2.0 * math.pi)
-    # the nearest point is the vertex: inside iff p - v points into the interior wedge (from the outgoing edge
-    # counter-clockwise to the reversed incoming one), i.e. on the left of both edge directions at a convex
-    # vertex, of either at a reflex one. Sign-exact where the bisector (pseudo-normal) test is not: a point
-    # within rounding of an edge's line, e.g. below 1e-308 where the squared distances underflow and tie.
     tix, tiy = seg[s_in, 5], -seg[s_in, 4]
     tox, toy = seg[s_out, 5], -seg[s_out, 4]
-    cross_out = tox * dy - toy * dx
-    cross_in = tix * dy - tiy * dx
-    if (cross_out == 0.0 and tox * dx + toy * dy > 0.0) or (cross_in == 0.0 and tix * dx + tiy * dy < 0.0):
-        return 0.5  # on one of the two edges (their distances tied, e.g. both underflowed)
-    left_out = cross_out > 0.0
-    left_in = cross_in > 0.0
+    # signed offsets to the two lines, the values segment_terms uses (positive on the domain side)
+    d_out = line_offset(px, py, seg, s_out) * inv_h
+    d_in = line_offset(px, py, seg, s_in) * inv_h
+    if (dx == 0.0 and dy == 0.0) or (d_out == 0.0 and d_in == 0.0):
+        # on the vertex (or within underflow of both lines): interior angle / 2 pi, the domain on the left
+        turn = math.atan2(tix * toy - tiy * tox, tix * tox + tiy * toy)
+        return (math.pi - turn) / (2.0 * math.pi)
+    # where the feet of p on the two edges lie: beyond v along the edge (0 < along < length) or not
+    along_out = tox * dx + toy * dy
+    along_in = -(tix * dx + tiy * dy)
+    foot_out = 0.0 < along_out < seg[s_out, 6]
+    foot_in = 0.0 < along_in < seg[s_in, 6]
+    if foot_out and (not foot_in or abs(d_out) < abs(d_in)):
+        return 1.0 if d_out > 0.0 else (0.0 if d_out < 0.0 else 0.5)
+    if foot_in and (not foot_out or abs(d_in) < abs(d_out)):
+        return 1.0 if d_in > 0.0 else (0.0 if d_in < 0.0 else 0.5)
+    # the nearest point is the vertex (or a tie between the edges): inside iff p - v points into the
+    # interior wedge (from the outgoing edge counter-clockwise to the reversed incoming one), i.e. on the left
+    # of both edge lines at a convex vertex, of either at a reflex one
+    left_out = d_out > 0.0
+    left_in = d_in > 0.0
     if tix * toy - tiy * tox >= 0.0:
         return 1.0 if (left_out and left_in) else 0.0
     return 1.0 if (left_out or left_in) else 0.0
@@ -175,7 +189,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             continue
         s = point_k[k_best]
         if kind == 0:
-            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s)
+            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
         else:
             chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, nrm, pseudo, elem_k[k_best], close2)
 

@@ -18,7 +18,12 @@ import math
 
 import numba
 
-__all__ = ["segment_terms", "line_offset"]
+__all__ = ["segment_terms", "line_offset", "at_vertex", "VERTEX_SNAP"]
+
+# A particle closer than this (per coordinate) to a segment's end point is evaluated at the end point: below it
+# the products of p - v with the edge directions are subnormal and lose the direction of p - v, on which the
+# subtended angles of both edges at v depend. gamma and grad gamma move by |grad gamma| 1e-200, far below an ulp.
+VERTEX_SNAP = 1e-200
 
 
 @numba.njit(cache=True, inline="always")
@@ -57,6 +62,16 @@ def _interval(delta, t0, t1, fc, gc, a, j, degree, gam, jw):
 
 
 @numba.njit(cache=True, inline="always")
+def at_vertex(px, py, seg, e):
+    """(px, py), or the end point of segment ``e`` within :data:`VERTEX_SNAP` of it."""
+    if abs(px - seg[e, 0]) < VERTEX_SNAP and abs(py - seg[e, 1]) < VERTEX_SNAP:
+        return seg[e, 0], seg[e, 1]
+    if abs(px - seg[e, 2]) < VERTEX_SNAP and abs(py - seg[e, 3]) < VERTEX_SNAP:
+        return seg[e, 2], seg[e, 3]
+    return px, py
+
+
+@numba.njit(cache=True, inline="always")
 def line_offset(px, py, seg, e):
     """The offset ``(x_a - x_s)·n_s`` from the end point nearer to the particle (rounding ~ its distance)."""
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
@@ -82,6 +97,7 @@ def segment_terms(px, py, seg, e, inv_h, breaks, fc, gc, a, sigma, q_max):
     delta : float
         Signed distance to the segment's line in units of ``h`` (positive on the domain side).
     """
+    px, py = at_vertex(px, py, seg, e)
     ax, ay, bx, by = seg[e, 0], seg[e, 1], seg[e, 2], seg[e, 3]
     nx, ny = seg[e, 4], seg[e, 5]
     tx, ty = ny, -nx  # direction: the inward normal is the direction turned left
