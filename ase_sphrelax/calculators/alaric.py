@@ -22,8 +22,9 @@ __all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR"]
 
 PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
-# default Verlet skin, relative to the mean H at the first evaluation: Fan's 0.1 (its h); 0.2 held 1.1x (2D) /
-# 1.15x (3D) the pairs without fewer rebuilds in ALARICDynamics (benchmarks/results/alaric_skin_rebuilds.json)
+# default Verlet skin, relative to the mean H at the first evaluation, as Fan's 0.1 h: 0.2 listed 1.17x (2D) / 1.29x
+# (3D) the pairs at 1e5; ALARICDynamics on Fig. 13 rebuilds at nearly every step with either (0.2: 89 %, 0.1: 100 %
+# of the steps; benchmarks/results/alaric_skin_rebuilds.json, benchmarks/README.md "ALARIC speed")
 SKIN_FACTOR = 0.1
 
 
