@@ -7,6 +7,7 @@ splitting are the dynamics' (:class:`~ase_sphrelax.drivers.ALARICDynamics`).
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 from ase.calculators.calculator import PropertyNotImplementedError
 
@@ -21,6 +22,27 @@ __all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR"]
 
 PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
+# default Verlet skin, relative to the mean H at the first evaluation, as Fan's 0.1 h: 0.2 listed 1.17x (2D) / 1.29x
+# (3D) the pairs at 1e5; ALARICDynamics on Fig. 13 rebuilds at nearly every step with either (0.2: 89 %, 0.1: 100 %
+# of the steps; benchmarks/results/alaric_skin_rebuilds.json, benchmarks/README.md "ALARIC speed")
+SKIN_FACTOR = 0.1
+
+
+@numba.njit(cache=True)
+def _wrapped_points(r_pc, inverse_cc, cell_cc, periodic_c, origin_c, d):
+    """``origin + x`` with x the first ``d`` Cartesian components of ``r_pc`` (N, 3), wrapped into the cell along
+    the periodic axes: fractional coordinates ``s = r @ inverse``, ``s mod 1`` where periodic, back by ``s @ cell``
+    (the sums in the order of the numpy expressions this replaces, so the results are the same bit for bit)."""
+    n = r_pc.shape[0]
+    out = np.empty((n, d))
+    frac = np.empty(3)
+    for p in range(n):
+        for c in range(3):
+            s = r_pc[p, 0] * inverse_cc[0, c] + r_pc[p, 1] * inverse_cc[1, c] + r_pc[p, 2] * inverse_cc[2, c]
+            frac[c] = s % 1.0 if (c < d and periodic_c[c]) else s
+        for c in range(d):
+            out[p, c] = frac[0] * cell_cc[0, c] + frac[1] * cell_cc[1, c] + frac[2] * cell_cc[2, c] + origin_c[c]
+    return out
 
 
 class ALARICCalculator(SPHCalculator):
@@ -84,7 +106,7 @@ class ALARICCalculator(SPHCalculator):
     h_tol : float
         Relative tolerance of the smoothing-length iteration.
     skin : float or None
-        Verlet skin (default ``0.2`` times the mean H at the first evaluation).
+        Verlet skin (default ``SKIN_FACTOR = 0.1`` times the mean H at the first evaluation, as Fan's).
     fd_step : float
         Step of the target's finite-difference gradient.
     origin : sequence of dim floats or None
@@ -251,7 +273,7 @@ class ALARICCalculator(SPHCalculator):
             self._skin = None
         if self._skin is None:  # fixed from the first evaluation: a skin that follows H would rebuild every step
             p = self.parameters
-            self._skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
+            self._skin = p.skin if p.skin is not None else SKIN_FACTOR * float(np.mean(self.h_p))
 
     def cutoff(self, atoms, dim):
         if self.parameters.boundary == "mirror":
@@ -289,19 +311,11 @@ class ALARICCalculator(SPHCalculator):
         """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""
         d = self.dim if atoms is self.atoms else self.use_dim(atoms)  # in evaluate: resolved already
         if np.any(atoms.pbc[:d]):
-            # elementwise products, not a BLAS solve or matmul: those cost 30 ms at 1e5 particles
-            # on a loaded 2-core machine (BLAS threads), 30 times more than this
-            cell = atoms.cell.complete()
-            inverse = np.linalg.inv(cell)
-            frac = [r_pc[:, 0] * inverse[0, c] + r_pc[:, 1] * inverse[1, c] + r_pc[:, 2] * inverse[2, c]
-                    for c in range(3)]
-            for c in range(d):
-                if atoms.pbc[c]:
-                    frac[c] = frac[c] % 1.0
-            out = np.empty((len(r_pc), d))
-            for c in range(d):
-                out[:, c] = frac[0] * cell[0, c] + frac[1] * cell[1, c] + frac[2] * cell[2, c] + self.origin[c]
-            return out
+            # one compiled pass, not a BLAS solve or matmul (those cost 30 ms at 1e5 particles on a loaded 2-core
+            # machine, BLAS threads) nor numpy temporaries per column (4 ms at 1e5 in 2D)
+            cell = np.ascontiguousarray(atoms.cell.complete().array, dtype=float)
+            return _wrapped_points(np.ascontiguousarray(r_pc, dtype=float), np.linalg.inv(cell), cell,
+                                   np.asarray(atoms.pbc, dtype=np.bool_), np.asarray(self.origin, dtype=float), d)
         return np.ascontiguousarray(r_pc[:, :d] + self.origin)
 
     def evaluate(self, st, properties):
@@ -398,20 +412,22 @@ class ALARICCalculator(SPHCalculator):
         else:
             f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel,
                                                want_virial=want_virial)
-        f_ext_pc = np.zeros_like(f_pc)
+        # the position-dependent part: its own array only for the virial (stress); else added to f_pc in place
+        f_ext_pc = np.zeros_like(f_pc) if want_virial else f_pc
         if p.form == "log":
             above = target_p > self._floor
             if np.any(above):
                 sel = slice(None) if np.all(above) else above  # the usual case, all above: views, no masked copies
-                f_ext_pc[sel, : self.dim] = (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
+                f_ext_pc[sel, : self.dim] += (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
         elif p.form == "squares":
             grad_pd = self.target.gradients(x_pd)
-            f_ext_pc[:, : self.dim] = (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
+            f_ext_pc[:, : self.dim] += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
             phi_p, normal_pc = wall_p
             outside = phi_p > 0.0
             f_ext_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
-        f_pc += f_ext_pc
+        if f_ext_pc is not f_pc:
+            f_pc += f_ext_pc
         f_pc[:, self.dim:] = 0.0
         f_ext_pc[:, self.dim:] = 0.0
         return f_pc, f_ext_pc, virial
