@@ -15,6 +15,8 @@ the last half of the checks (noise), the fraction of particles with P_eff = c_s^
 end, the smallest gap over the mean gap, and the wall time.
 
     python examples/alaric_paper_form_experiments.py --n 101 --steps 3000 --out examples/results/alaric/paper_form
+
+``--set background``: the least-squares form and Eq. 29 with a background pressure ``beta c_s^2 rho`` instead.
 """
 from __future__ import annotations
 
@@ -37,6 +39,15 @@ VARIANTS = {
     "paper, no viscosity": dict(form="paper", viscosity=False),
     "log (P >= 0: no tensile instability)": dict(form="log"),
 }
+# a background pressure beta c_s^2 rho (keeps P > 0 near equilibrium): in Eq. 29 (non-conservative) and in the
+# conservative least-squares form (energy + beta sum m c_s^2 ln rho), one beta at a time
+BACKGROUND = {"squares (least-squares potential, beta = 0)": dict(form="squares")}
+for _beta in (0.003, 0.01, 0.03, 0.1):
+    BACKGROUND[f"squares, background {_beta}"] = dict(form="squares", background=_beta)
+for _beta in (0.01, 0.1):
+    BACKGROUND[f"paper, background {_beta}"] = dict(form="paper", background=_beta)
+BACKGROUND["log (reference)"] = dict(form="log")
+SETS = {"paper": VARIANTS, "background": BACKGROUND}
 
 
 def line(n):
@@ -47,7 +58,7 @@ def line(n):
 
 def run(n, steps, delta, variant):
     density, gradient = model.eq46(delta)
-    calc_opts = {k: variant[k] for k in ("form", "omega_floor") if k in variant}
+    calc_opts = {k: variant[k] for k in ("form", "omega_floor", "background") if k in variant}
     dyn_opts = {k: variant[k] for k in ("cfl", "viscosity") if k in variant}
     atoms = line(n)
     atoms.calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=1, origin=[-1.0], **calc_opts)
@@ -78,15 +89,17 @@ def main():
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--delta", type=float, default=0.1)
     ap.add_argument("--out", default="examples/results/alaric/paper_form")
+    ap.add_argument("--set", choices=tuple(SETS), default="paper",
+                    help="paper: the Eq. 29 ingredients one at a time; background: a background pressure")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = {}
-    for name, variant in VARIANTS.items():
+    for name, variant in SETS[args.set].items():
         rows[name] = run(args.n, args.steps, args.delta, variant)
         print(name, rows[name], flush=True)
     command = (f"python examples/alaric_paper_form_experiments.py --n {args.n} --steps {args.steps} "
-               f"--delta {args.delta} --out {args.out}")
+               f"--delta {args.delta} --set {args.set} --out {args.out}")
     (out / "results.json").write_text(json.dumps(dict(command=command, n=args.n, steps=args.steps, delta=args.delta,
                                                       runs=rows), indent=1))
     lines = [f"Eq. 46, Delta = {args.delta}, N = {args.n}, at most {args.steps} steps. Command: `{command}`", "",

@@ -9,6 +9,8 @@ writes under ``--out``: ``table1.md`` (a), ``table2.md`` (b), ``fig6.png`` (c), 
 (a) Table 1: 1D Eq. 46, 300 particles, Delta = 0, the eight combinations of S, F, V, for the log
     potential (default) and the paper's Eq. 29 form; steps to converge (eps, eps_dot < 1e-8, cap
     10000), CPU time, residual eps.
+(a2) Table 1 with the log potential followed by the least-squares potential (``--finish squares``), with the
+    smallest gap (pairing): ``table1_forms/``.
 (b) Table 2: eps_stag for Delta in {0, 0.01, 0.05, 0.1, 0.5, 1}, 101 particles split once to 303,
     against eps_teo.min of Eq. 48; the dynamics (log potential) and after the least-squares polish.
 (c) Fig. 6: 909 particles, 0, 1 and 2 splitting stages, eps traces.
@@ -106,6 +108,66 @@ def table1(quick):
         for form in ("log", "paper"):
             r = rows[f"{form}:{name}"]
             cells += [str(r["steps"]), f"{r['cpu_s']:.1f}", f"{r['epsilon']:.2e}", r["stop"]]
+        lines.append("| " + " | ".join(cells) + " |")
+    return rows, "\n".join(lines) + "\n"
+
+
+def _min_gap_over_mean(atoms):
+    x = np.sort(np.mod(atoms.positions[:, 0], 2.0))
+    gaps = np.diff(np.concatenate([x, [x[0] + 2.0]]))
+    return float(gaps.min() / gaps.mean())
+
+
+def _table1_run(form, combo, cap):
+    """One Table 1 run: ``form`` "log", "paper" (Eq. 29) or "log+squares" (the log potential until its
+    epsilon_dot stop, then the least-squares potential with the same ingredients, within the same cap)."""
+    s, f, v = combo
+    options = dict(velocity_stop=s, friction=2.0 if f else 0.0, viscosity=v)
+    atoms = line_atoms(300, 0.0, "paper" if form == "paper" else "log")
+    dyn = ALARICDynamics(atoms, **options)
+    t0 = time.process_time()
+    stop, steps, trace = None, 0, []
+    try:
+        dyn.run(cap)
+        stop, steps = dyn.stop_reason, dyn.nsteps
+        trace = [(e["step"], e["epsilon"]) for e in dyn.trace]
+        if form == "log+squares" and stop == "epsilon_dot" and steps < cap:
+            atoms.calc.set(form="squares")
+            second = ALARICDynamics(atoms, **options)
+            second.run(cap - steps)
+            stop = f"log: epsilon_dot at {steps}, squares: {second.stop_reason}"
+            trace += [(steps + e["step"], e["epsilon"]) for e in second.trace]
+            steps += second.nsteps
+    except (FloatingPointError, ValueError) as exc:  # an unstable run is a result, reported as such
+        stop = f"failed at step {dyn.nsteps}: {type(exc).__name__}"
+    cpu = time.process_time() - t0
+    return dict(form=form, steps=steps, cpu_s=cpu, stop=stop, epsilon=trace[-1][1] if trace else None,
+                min_gap_over_mean=_min_gap_over_mean(atoms), trace=trace)
+
+
+def table1_forms(quick, forms=("log+squares",)):
+    """(a2) Table 1 with the log potential followed by the least-squares potential: steps, CPU, eps, pairing (the
+    log and Eq. 29 columns: part (a), ``table1.md``)."""
+    cap = 2000 if quick else 10000
+    rows = {}
+    for form in forms:
+        for name, combo in COMBOS.items():
+            rows[f"{form}:{name}"] = r = _table1_run(form, combo, cap)
+            print(f"(a2) {form:11s} {name:9s} steps {r['steps']:6d} cpu {r['cpu_s']:6.1f} s eps {r['epsilon']:.2e} "
+                  f"gap {r['min_gap_over_mean']:.3f} ({r['stop']})", flush=True)
+    head = " | ".join(f"{f}: steps | {f}: CPU [s] | {f}: eps | {f}: min gap/mean | {f}: stop" for f in forms)
+    lines = ["# Table 1: 1D Eq. 46, 300 particles, Delta = 0", "",
+             f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps "
+             "in all (log+squares: both stages together). CPU: process time, on a shared 2-core machine.", "",
+             f"| run | paper steps | paper CPU [s] | paper eps | {head} |",
+             "|---|---|---|---|" + "---|" * (5 * len(forms))]
+    for name in COMBOS:
+        p = PAPER_TABLE1[name]
+        cells = [name, str(p[0]), str(p[1]), f"{p[2]:.4f}"]
+        for form in forms:
+            r = rows[f"{form}:{name}"]
+            cells += [str(r["steps"]), f"{r['cpu_s']:.1f}", f"{r['epsilon']:.2e}", f"{r['min_gap_over_mean']:.3f}",
+                      str(r["stop"])]
         lines.append("| " + " | ".join(cells) + " |")
     return rows, "\n".join(lines) + "\n"
 
@@ -491,6 +553,15 @@ def main():
             rows, md = table1(args.quick)
             (out / "table1.md").write_text(md)
             save("table1", rows)
+        elif part == "a2":
+            rows, md = table1_forms(args.quick)
+            folder = out / "table1_forms"
+            folder.mkdir(exist_ok=True)
+            command = f"python examples/alaric_reproduce.py --only a2{' --quick' if args.quick else ''} --out {args.out}"
+            (folder / "table.md").write_text(md + f"\nCommand: `{command}`; load average at the end "
+                                             f"{os.getloadavg()[0]:.1f}.\n")
+            (folder / "results.json").write_text(json.dumps(dict(command=command, load_average=os.getloadavg(),
+                                                                 runs=rows), indent=1, default=float))
         elif part == "b":
             rows, md = table2(args.quick)
             (out / "table2.md").write_text(md)

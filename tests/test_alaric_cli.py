@@ -48,6 +48,8 @@ def test_density_small_2d_run(tmp_path):
     (["--profile", "nothing"], "--profile must be"),
     (["--profile", "eq49", "--dim", "1"], "is 2D"),
     (["--profile", "math:pi"], "not callable"),
+    (["--boundary", "mirror"], "--boundary mirror is for --dim 2 or 3"),
+    (["--dim", "2", "--n", "400", "--domain", "box", "--boundary", "mirror"], "--boundary mirror needs a ball"),
 ])
 def test_density_usage_errors(tmp_path, args, message):
     proc = _run("density", *args, "--out", str(tmp_path / "x"))
@@ -76,3 +78,25 @@ def test_export_keeps_each_particles_mass_and_density(tmp_path):
     start = lines.index("Atoms # sph") + 2
     rho = [float(line.split()[2]) for line in lines[start:start + n]]
     np.testing.assert_allclose(rho, np.linspace(0.5, 1.5, n), rtol=1e-8)
+
+
+def test_density_fig13_like_default_run_has_no_pairing(tmp_path):
+    """The issue's Fig. 13-like command with every other option at its default (a convex edge file: mirror ghosts):
+    epsilon falls well below the truncated-kernel floor (about 1e-2) and no two particles pair (smallest
+    nearest-neighbour distance at least half the mean)."""
+    from scipy.spatial import cKDTree
+
+    edges = tmp_path / "circle.edges"
+    t = 2 * np.pi * np.arange(65) / 64
+    x, y = np.cos(t), np.sin(t)
+    edges.write_text("".join(f"{x[i]:.17g} {y[i]:.17g} {x[i + 1]:.17g} {y[i + 1]:.17g}\n" for i in range(64)))
+    out = tmp_path / "fig13"
+    proc = _run("density", "--profile", "uniform", "--dim", "2", "--n", "200", "--split", "0", "--domain", str(edges),
+                "--seed", "1", "--max-steps", "300", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["boundary"] == "mirror"
+    assert summary["epsilon"] < 1e-3
+    x = read(out / "relaxed.extxyz").positions[:, :2]
+    gap = cKDTree(x).query(x, k=2)[0][:, 1]
+    assert gap.min() >= 0.5 * gap.mean()

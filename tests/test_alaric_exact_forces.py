@@ -51,9 +51,10 @@ def _random_start_with_close_particles(dim, seed):
     return Atoms(numbers=np.zeros(n, int), positions=pos % 1.0, cell=cell, pbc=pbc)
 
 
-def _check_fd(atoms, dim, form, seed):
+def _check_fd(atoms, dim, form, seed, **options):
     density, gradient = _target(dim)
-    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form=form, h_tol=1e-14)
+    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=dim, form=form, h_tol=1e-14,
+                            **options)
     atoms.calc = calc
     f = atoms.get_forces()
     h_min = float(calc.results["smoothing_lengths"].min())
@@ -74,6 +75,16 @@ def _check_fd(atoms, dim, form, seed):
 def test_forces_are_the_negative_gradient_at_close_pairs_and_triples(dim, form, seed):
     calc = _check_fd(_random_start_with_close_particles(dim, seed), dim, form, seed % 1000)
     assert calc.results["omega"].min() > 0.0
+
+
+@settings(max_examples=8, deadline=None, database=None)
+@given(dim=st.sampled_from([1, 2, 3]), background=st.sampled_from([0.01, 0.1, 1.0]),
+       seed=st.integers(min_value=0, max_value=2**31 - 1))
+def test_squares_with_background_pressure_forces_are_the_negative_gradient(dim, background, seed):
+    """form="squares" with background > 0 (energy + beta sum m c_s^2 ln rho): FD-exact at close pairs and triples."""
+    calc = _check_fd(_random_start_with_close_particles(dim, seed), dim, "squares", seed % 1000,
+                     background=background)
+    assert calc.parameters.background == background
 
 
 def _issue_start(**calc_options):
@@ -147,3 +158,137 @@ def test_dynamics_resolves_the_stiff_force_of_a_close_pair():
     xs = np.sort(np.mod(atoms.positions[:, 0], 2.0))
     assert np.diff(np.concatenate([xs, [xs[0] + 2.0]])).min() > 100 * 1e-4
     assert atoms.calc.results["epsilon"] < 1e-2 * eps0
+
+
+# -- mirror ghosts at the domain's boundary (boundary="mirror") -----------------------------------------------------
+def _ball_start_with_close_particles(dim, seed):
+    """Uniformly random particles in the unit disc/ball, a pair 1e-4 H apart next to the boundary (both get ghosts,
+    and each sees the other's ghost) and a triple within 0.01 H."""
+    n = {2: 120, 3: 260}[dim]
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, dim))
+    x *= (rng.uniform(0.0, 1.0, (n, 1)) ** (1.0 / dim)) / np.linalg.norm(x, axis=1)[:, None]
+    h = 3.0 * (np.pi / n) ** (1.0 / dim)
+
+    def direction():
+        u = rng.normal(size=dim)
+        return u / np.linalg.norm(u)
+
+    x[0] *= rng.uniform(0.9, 0.99) / np.linalg.norm(x[0])
+    x[1] = x[0] + 1e-4 * h * direction()
+    for k in (3, 4):
+        x[k] = x[2] + 0.01 * h * rng.uniform(0.2, 1.0) * direction()
+    pos = np.zeros((n, 3))
+    pos[:, :dim] = x
+    return Atoms(numbers=np.zeros(n, int), positions=pos, pbc=False)
+
+
+def _mirror_domain(dim, kind):
+    from ase_sphrelax.domains import Circle, Sphere
+
+    if dim == 3:
+        return Sphere((0.0, 0.0, 0.0), 1.0)
+    return Circle((0.0, 0.0), 1.0) if kind == "ball" else Circle((0.0, 0.0), 1.0).to_polygon(48)
+
+
+@settings(max_examples=8, deadline=None, database=None)
+@given(dim=st.sampled_from([2, 3]), kind=st.sampled_from(["ball", "polygon"]), form=st.sampled_from(CONSERVATIVE_FORMS),
+       seed=st.integers(min_value=0, max_value=2**31 - 1))
+def test_mirror_forces_are_the_negative_gradient(dim, kind, form, seed):
+    """boundary="mirror": the ghosts' share of the force comes back through the mirror's Jacobian; FD-exact at the
+    close pair (next to the boundary), the triple and the particles closest to the boundary."""
+    atoms = _ball_start_with_close_particles(dim, seed)
+    domain = _mirror_domain(dim, kind)
+    calc = ALARICCalculator(target_density=lambda x: 1.0 + 0.3 * x[:, 0], dim=dim, form=form, domain=domain,
+                            target_gradient=lambda x: np.eye(dim)[0] * 0.3 + 0 * x, boundary="mirror", h_tol=1e-14)
+    atoms.calc = calc
+    f = atoms.get_forces()
+    assert len(calc._ghosts[0]) > 0
+    radius = np.linalg.norm(atoms.positions[:, :dim], axis=1)
+    idx = np.unique(np.concatenate([np.arange(5), np.argsort(-radius)[:4]]))
+    pair = float(np.linalg.norm(atoms.positions[1] - atoms.positions[0]))
+    fd = calculate_numerical_forces(atoms, eps=1e-3 * pair, iatoms=idx, icarts=list(range(dim)))
+    np.testing.assert_allclose(f[idx][:, :dim], fd[:, :dim], rtol=0, atol=2e-5 * np.abs(f[idx]).max())
+
+
+def test_mirror_energy_does_not_depend_on_the_ghost_band():
+    """Ghosts of particles deeper than the largest H add nothing: a wider band gives the same energy and forces
+    (so the energy is continuous as particles enter or leave the band)."""
+    from ase_sphrelax.domains import Circle
+
+    atoms = _ball_start_with_close_particles(2, 3)
+    calc = ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, domain=Circle((0.0, 0.0), 1.0),
+                            boundary="mirror", h_tol=1e-14)
+    atoms.calc = calc
+    e1, f1, g1 = atoms.get_potential_energy(), atoms.get_forces(), len(calc._ghosts[0])
+    calc._band *= 2.0
+    calc.results.clear()
+    e2, f2, g2 = atoms.get_potential_energy(), atoms.get_forces(), len(calc._ghosts[0])
+    assert g2 > g1
+    assert abs(e2 - e1) <= 1e-12 * abs(e1)
+    np.testing.assert_allclose(f2, f1, rtol=0, atol=1e-10 * np.abs(f1).max())
+
+
+@pytest.mark.parametrize("kind", ["ball", "polygon"])
+def test_mirror_map_jacobian_is_the_derivative_of_the_map(kind):
+    from ase_sphrelax.models.alaric import mirror_map
+
+    domain = _mirror_domain(2, kind)
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-1.0, 1.0, (400, 2))
+    x = x[np.abs(np.linalg.norm(x, axis=1) - 0.95) < 0.1]
+    owner, g, jac, _ = mirror_map(domain, x, 0.2)
+    assert len(owner) == len(x)
+    step = 1e-6
+    for c in range(2):
+        xp, xm = x.copy(), x.copy()
+        xp[:, c] += step
+        xm[:, c] -= step
+        fd = (mirror_map(domain, xp, 0.2)[1] - mirror_map(domain, xm, 0.2)[1]) / (2 * step)
+        np.testing.assert_allclose(jac[:, :, c], fd, atol=1e-6)
+    # radial: the boundary point half-way between particle and ghost, on the ray from the centre
+    mid = 0.5 * (g + x)
+    np.testing.assert_allclose(domain.phi(mid), 0.0, atol=1e-12)
+    cross = x[owner][:, 0] * g[:, 1] - x[owner][:, 1] * g[:, 0]
+    np.testing.assert_allclose(cross, 0.0, atol=1e-12)
+    if kind == "ball":  # the reflection through the closest point: as far outside as inside
+        np.testing.assert_allclose(domain.phi(g), -domain.phi(x), atol=1e-12)
+
+
+def test_mirror_refuses_a_domain_it_cannot_mirror():
+    from ase_sphrelax.domains import Box, Polygon
+
+    with pytest.raises(ValueError, match="boundary='mirror' needs"):
+        ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, boundary="mirror",
+                         domain=Box((0.0, 0.0), (1.0, 1.0)))
+    concave = Polygon([np.array([[0, 0], [2, 0], [2, 2], [1, 1], [0, 2]], float)])
+    with pytest.raises(ValueError, match="convex"):
+        ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, boundary="mirror", domain=concave)
+    with pytest.raises(ValueError, match="boundary must be"):
+        ALARICCalculator(target_density=lambda x: np.ones(len(x)), dim=2, boundary="ghosts")
+
+
+def test_mirror_with_a_particle_at_the_centre():
+    """The radial mirror has no ray at the centre: a particle there gets no ghost (it is far from the boundary),
+    the forces stay FD-exact; a ghost band that reaches the centre is a one-line error."""
+    from ase_sphrelax.domains import Circle
+
+    rng = np.random.default_rng(0)
+
+    def disc(n):
+        x = rng.normal(size=(n, 2))
+        x *= (rng.uniform(0.0, 1.0, (n, 1)) ** 0.5) / np.linalg.norm(x, axis=1)[:, None]
+        x[0] = 0.0
+        pos = np.zeros((n, 3))
+        pos[:, :2] = x
+        atoms = Atoms(numbers=np.zeros(n, int), positions=pos, pbc=False)
+        atoms.calc = ALARICCalculator(target_density=lambda y: np.ones(len(y)), dim=2, domain=Circle((0, 0), 1.0),
+                                      boundary="mirror", h_tol=1e-14)
+        return atoms
+
+    atoms = disc(400)
+    f = atoms.get_forces()
+    fd = calculate_numerical_forces(atoms, eps=1e-6, iatoms=[0, 1, 2], icarts=[0, 1])
+    np.testing.assert_allclose(f[[0, 1, 2], :2], fd[:, :2], rtol=0, atol=1e-6 * np.abs(f).max())
+    with pytest.raises(ValueError, match="at the mirror's centre .* within the ghost band"):
+        disc(60).get_forces()

@@ -155,3 +155,15 @@ def test_density_exit_status_says_whether_the_run_converged(tmp_path):
     fixed = _cli("--n", "2", "--split", "0", "--max-steps", "50", "--out", str(tmp_path / "fixed"))
     assert fixed.returncode == 0, fixed.stderr
     assert "warning: not converged" in fixed.stderr
+
+
+def test_background_and_finish_are_checked():
+    density, _ = model.eq46(0.3)
+    with pytest.raises(ValueError, match="background must be a finite number >= 0"):
+        ALARICCalculator(target_density=density, dim=1, form="squares", background=-1.0)
+    with pytest.raises(ValueError, match="background is for form='squares' or 'paper'"):
+        ALARICCalculator(target_density=density, dim=1, background=0.1)
+    from ase_sphrelax.drivers.alaric_dynamics import relax_density
+
+    with pytest.raises(ValueError, match="finish must be 'squares' or 'none'"):
+        relax_density(_periodic_line(), density, 1, finish="log", origin=[-1.0])

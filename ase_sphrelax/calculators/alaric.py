@@ -14,6 +14,7 @@ from .. import sph
 from ..checks import check_positive
 from ..kernels import get_kernel
 from ..models import alaric as model
+from ..neighbors import NeighborList
 from .base import SPHCalculator
 
 __all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR"]
@@ -52,6 +53,12 @@ class ALARICCalculator(SPHCalculator):
         ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
         non-conservative: forces only (``energy`` raises PropertyNotImplementedError); the log
         potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`).
+    background : float
+        ``form="squares"`` or ``"paper"``: a background pressure ``beta c_s^2 rho`` (``beta`` = ``background``)
+        added to the form's pressure, so that it stays positive near equilibrium (no tensile instability where
+        ``|rho - rho*| < beta rho``). In ``"squares"`` it is the energy ``beta sum_a m c_s^2 ln rho_a`` (exact
+        gradient: the isothermal pressure force, no body force), which shifts the minimum away from
+        ``rho_a = rho*(x_a)`` by an amount that vanishes with ``beta``. Default 0.
     omega_floor : float or None
         ``form="paper"`` only (it has no energy, so no gradient to keep): Omega (Eq. 13) is replaced by
         ``max(Omega, omega_floor)`` in its forces; default :data:`PAPER_OMEGA_FLOOR` (0.05), ``0`` for the
@@ -59,6 +66,14 @@ class ALARICCalculator(SPHCalculator):
         from -grad U by 35x at a pair 1e-4 H apart), and refuse ``omega_floor``.
     domain : Domain or None
         Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
+    boundary : {"wall", "mirror"}
+        What the kernels see at the domain's edge. ``"wall"``: nothing (truncated kernels: an edge particle's
+        SPH density is about half the interior's). ``"mirror"``: every particle within the largest ``H`` of the
+        boundary has a mirror image (:func:`ase_sphrelax.models.alaric.mirror_map`) of the same mass that
+        counts in the densities ``rho_a`` of the real particles (ghosts carry no energy of their own); the
+        energy is then a function of the real positions only and the forces its exact gradient (the ghosts'
+        share mapped back through the mirror's Jacobian). Needs a Ball/Circle/Sphere or a convex 2D Polygon
+        domain and no periodic axes. The wall stays (it pulls back a particle that left the domain).
     wall_length : float or None
         Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
         (stiff enough to beat the outward pressure on a particle alone outside).
@@ -87,6 +102,7 @@ class ALARICCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None,
+                              boundary="wall", background=0.0,
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):
@@ -97,6 +113,8 @@ class ALARICCalculator(SPHCalculator):
         self._floor = None
         self._wall = None
         self._rho_ref = None
+        self._ghosts = None
+        self._band = None
         super().__init__(target_density=target_density, dim=dim, **kwargs)
 
     @property
@@ -120,12 +138,22 @@ class ALARICCalculator(SPHCalculator):
         p.density_floor = check_positive("density_floor", p.density_floor, allow_none=True)
         if p.form not in model.FORMS:
             raise ValueError(f"form must be one of {model.FORMS}, got {p.form!r}")
+        if not (np.isfinite(p.background) and p.background >= 0.0):
+            raise ValueError(f"background must be a finite number >= 0, got {p.background!r}")
+        if p.background > 0.0 and p.form == "log":
+            raise ValueError("background is for form='squares' or 'paper' (the log form's pressure c_s^2 rho is "
+                             "positive already), got form='log'")
         if p.omega_floor is not None:
             if p.form != "paper":
                 raise ValueError(f"omega_floor is for form='paper' only (form={p.form!r} has an energy whose exact "
                                  f"gradient needs the exact Omega), got omega_floor={p.omega_floor!r}")
             if not (np.isfinite(p.omega_floor) and 0.0 <= p.omega_floor < 1.0):
                 raise ValueError(f"omega_floor must be a number in [0, 1) or None, got {p.omega_floor!r}")
+        if p.boundary not in model.BOUNDARIES:
+            raise ValueError(f"boundary must be one of {model.BOUNDARIES}, got {p.boundary!r}")
+        if p.boundary == "mirror" and (p.domain is None or not model.mirror_supported(p.domain)):
+            raise ValueError(f"boundary='mirror' needs a Ball (Circle, Sphere) or a 2D Polygon of one convex loop "
+                             f"as domain, got domain={p.domain!r}")
         if p.skin is not None and (not np.isfinite(p.skin) or p.skin < 0):
             raise ValueError(f"skin must be a finite number >= 0 or None, got {p.skin!r}")
         if p.domain is not None:
@@ -143,6 +171,8 @@ class ALARICCalculator(SPHCalculator):
         self._floor = p.density_floor
         self._wall = p.wall_length
         self._rho_ref = None
+        self._ghosts = None
+        self._band = None
         if p.dim is not None:
             self.configure(p.dim)
             self.dim = p.dim
@@ -173,6 +203,7 @@ class ALARICCalculator(SPHCalculator):
         self.h_p = h_p
         self.mass = self.parameters.mass
         self._skin = None
+        self._band = None
         self.forget_neighbours()
 
     def viscous_forces(self, v_pc, alpha_p, v_sig):
@@ -183,8 +214,27 @@ class ALARICCalculator(SPHCalculator):
         res = self.results
         if "smoothing_lengths" not in res:
             raise RuntimeError("viscous_forces: evaluate the forces first (atoms.get_forces())")
-        return sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
-                                    res["density"], alpha_p, v_sig, self.kernel)
+        if self._ghosts is None:
+            return sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
+                                        res["density"], alpha_p, v_sig, self.kernel)
+        # with mirror ghosts: a ghost moves as J v of its owner; its share goes back through J^T
+        owner_g, jac_gdd, y_pc, h_q = self._ghosts
+        d, n = self.dim, len(v_pc)
+        v_qc = np.zeros((len(y_pc), 3))
+        v_qc[:n] = v_pc
+        v_qc[n:, :d] = np.einsum("gij,gj->gi", jac_gdd, np.asarray(v_pc)[owner_g, :d])
+        rho_q = np.concatenate([res["density"], res["density"][owner_g]])
+        alpha_q = np.concatenate([np.asarray(alpha_p, dtype=float), np.asarray(alpha_p, dtype=float)[owner_g]])
+        f_qc, div_q = sph.viscosity_forces(self.nlist, y_pc, v_qc, self.mass, h_q, rho_q, alpha_q, v_sig, self.kernel)
+        return self._fold_ghosts(f_qc, n), div_q[:n]
+
+    def _fold_ghosts(self, f_qc, n):
+        """Real particles' forces from those on the real and ghost points: ``F_a + sum_g J_g^T F_g``."""
+        owner_g, jac_gdd = self._ghosts[:2]
+        d = self.dim
+        out = np.array(f_qc[:n], dtype=float)
+        np.add.at(out[:, :d], owner_g, np.einsum("gji,gj->gi", jac_gdd, f_qc[n:, :d]))
+        return out
 
     # -- the contract's hooks ---------------------------------------------------------------------------
     def check_atoms(self, atoms, dim, properties):
@@ -204,7 +254,36 @@ class ALARICCalculator(SPHCalculator):
             self._skin = p.skin if p.skin is not None else 0.2 * float(np.mean(self.h_p))
 
     def cutoff(self, atoms, dim):
+        if self.parameters.boundary == "mirror":
+            return None  # its own list over the particles and their mirror ghosts (_solve_with_ghosts)
         return self.h_p, self._skin
+
+    def _solve_with_ghosts(self, st, x_pd):
+        """The smoothing lengths with mirror ghosts: ghosts for every particle within ``band`` of the boundary,
+        ``band`` at least the largest real ``H`` (widened and solved again when H outgrew it)."""
+        p = self.parameters
+        n, d = len(st.r_pc), st.dim
+        if np.any(st.pbc[:d]):
+            raise ValueError("boundary='mirror' is for open systems (no periodic axis), got pbc="
+                             f"{st.atoms.pbc.tolist()}")
+        if self._band is None:
+            self._band = 1.5 * float(self.h_p.max())
+        while True:
+            owner_g, g_gd, jac_gdd, next_gap = model.mirror_map(p.domain, x_pd, self._band)
+            y_pc = np.zeros((n + len(owner_g), 3))
+            y_pc[:n] = st.r_pc
+            y_pc[n:, :d] = g_gd - self.origin
+            h0_q = np.concatenate([self.h_p, self.h_p[owner_g]])
+            if self.nlist is None:
+                self.nlist = NeighborList(h0_q, skin=self._skin)
+            state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
+                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1)
+            h_max = float(state.h_p[:n].max())
+            if h_max <= self._band and next_gap >= h_max:  # the ghosts left out are beyond every particle's reach
+                break
+            self._band = 1.5 * max(h_max, self._band)
+        self._ghosts = (owner_g, jac_gdd, y_pc, state.h_p)
+        return state
 
     def points(self, r_pc, atoms):
         """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""
@@ -237,8 +316,14 @@ class ALARICCalculator(SPHCalculator):
             if top <= 0.0:
                 raise ValueError("target_density is zero at every particle")
             self._floor = FLOOR * top
-        state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                            h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1)
+        if p.boundary == "mirror":
+            full = self._solve_with_ghosts(st, x_pd)
+            state = sph.DensitySums(full.h_p[:n], full.rho_p[:n], full.n_p[:n], full.omega_p[:n],
+                                    full.neighbours_p[:n], full.iterations)
+        else:
+            full = state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel,
+                                                       eta=self.eta, h0=self.h_p, tol=p.h_tol,
+                                                       store=self._evaluations > 1)
         self.h_p = state.h_p
         n_p = state.n_p  # unit masses: rho = n
         if self.mass is None:
@@ -250,6 +335,8 @@ class ALARICCalculator(SPHCalculator):
             if self._rho_ref is None:
                 self._rho_ref = float(np.mean(target_p))
             energies_p = m * cs2 * (rho_p - target_p) ** 2 / (2.0 * self._rho_ref)
+            if p.background > 0.0:
+                energies_p += p.background * m * cs2 * np.log(rho_p)
         else:
             log_target = np.log(np.maximum(target_p, self._floor))
             energies_p = m * cs2 * (np.log(rho_p) - log_target)
@@ -269,7 +356,7 @@ class ALARICCalculator(SPHCalculator):
             out["monitor"] = float(energies_p.sum())  # the log potential, a monitor of the paper's form
         self.state = state
         if "forces" in properties or want_stress:
-            f_pc, f_ext_pc, virial = self._forces(st.r_pc, x_pd, state, target_p, wall_p, want_stress)
+            f_pc, f_ext_pc, virial = self._forces(st.r_pc, x_pd, state, target_p, wall_p, want_stress, full)
             out["forces"] = f_pc
             if want_stress:
                 # dU/d(strain): the pair virial plus -sum F_ext (x) x for the position-dependent terms, with x
@@ -282,8 +369,9 @@ class ALARICCalculator(SPHCalculator):
                 out["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
         return out
 
-    def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False):
-        """(forces, the position-dependent (target and wall) part of them, pair virial)."""
+    def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False, full=None):
+        """(forces, the position-dependent (target and wall) part of them, pair virial); ``full`` the SPH state
+        of the particles and their mirror ghosts (boundary="mirror")."""
         p = self.parameters
         m, cs2 = self.mass, p.cs2
         rho_p = m * state.n_p
@@ -300,7 +388,16 @@ class ALARICCalculator(SPHCalculator):
             pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
         else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
             pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
-        f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel, want_virial=want_virial)
+        if p.background > 0.0:  # P += beta c_s^2 rho (squares: the gradient of beta sum m c_s^2 ln rho)
+            pr_p = pr_p + p.background * cs2 / (omega_p * rho_p)
+        if p.boundary == "mirror":  # ghosts carry no energy: pr = 0; their share folds back through J^T
+            y_pc, h_q = self._ghosts[2], self._ghosts[3]
+            pr_q = np.concatenate([pr_p, np.zeros(len(y_pc) - len(r_pc))])
+            f_qc, virial = sph.pressure_forces(self.nlist, y_pc, m, h_q, pr_q, self.kernel)
+            f_pc = self._fold_ghosts(f_qc, len(r_pc))
+        else:
+            f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel,
+                                               want_virial=want_virial)
         f_ext_pc = np.zeros_like(f_pc)
         if p.form == "log":
             above = target_p > self._floor

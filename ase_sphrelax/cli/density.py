@@ -42,8 +42,16 @@ def add_arguments(parser):
     parser.add_argument("--domain", default="ball",
                         help="2D/3D only: ball (the unit disc or ball, default) or a sphrelax relax domain "
                              "(circle, box, sphere, an edge file, an .stl mesh)")
+    parser.add_argument("--boundary", choices=("auto", "wall", "mirror"), default="auto",
+                        help="edge treatment in 2D/3D: mirror ghosts that complete the kernels at a ball's or a "
+                             "convex polygon's boundary, or wall (truncated kernels); auto (default): mirror "
+                             "where the domain allows it, else wall")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
+    parser.add_argument("--finish", choices=("none", "squares"), default="none",
+                        help="squares: after the log potential stops by epsilon_dot, continue the dynamics on the "
+                             "least-squares potential (fixed point rho = rho*; it empties density wells, so "
+                             "check the well); none (default)")
     polish = parser.add_mutually_exclusive_group()
     polish.add_argument("--polish", dest="polish", action="store_true", default=None,
                         help="LBFGS polish on the least-squares potential after the dynamics (default in 1D only: "
@@ -104,6 +112,8 @@ def run(args):
         if n0 * p**args.split != args.n:
             raise UsageError(f"--n {args.n} is not divisible by p^K = {p}^{args.split} (p = {p} in {dim}D)")
         domain = None
+        if dim == 1 and args.boundary == "mirror":
+            raise UsageError("--boundary mirror is for --dim 2 or 3 (1D runs on a periodic interval, no boundary)")
         if dim == 1 and args.domain != "ball":
             raise UsageError(f"--domain is for --dim 2 or 3 (1D runs on the periodic interval [-1, 1)), "
                              f"got --domain {args.domain!r} with --dim 1")
@@ -113,6 +123,11 @@ def run(args):
             domain = make_scene(args.domain, dim=dim).domain
             if domain is None:
                 raise UsageError("--domain periodic is not supported by sphrelax density")
+            from ..models.alaric import mirror_supported
+
+            if args.boundary == "mirror" and not mirror_supported(domain):
+                raise UsageError(f"--boundary mirror needs a ball or a convex polygon domain (one loop), got "
+                                 f"--domain {args.domain!r}; use --boundary wall")
         atoms, origin, domain = start_atoms(n0, dim, domain=domain, seed=args.seed)
         # check the target on the start before any step (bad output shapes, NaN, negative values)
         from ..models.alaric import Target
@@ -130,13 +145,15 @@ def run(args):
     do_polish = (dim == 1 if args.polish is None else args.polish) and args.polish_steps > 0
     print(f"ALARIC: profile {args.profile} ({dim}D), {len(atoms)} particles x {p}^{args.split} -> {args.n}, "
           f"form {args.form}{' + least-squares polish' if do_polish else ''}")
+
     eps_teo = None
     if eq48:
         from ..analysis.alaric import alaric_min_error
 
         eps_teo = alaric_min_error(args.n, args.delta, dim)
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
-                           origin=origin, form=args.form, polish=do_polish,
+                           origin=origin, form=args.form, polish=do_polish, boundary=args.boundary,
+                           finish=args.finish if args.form == "log" else "none",
                            polish_steps=args.polish_steps,
                            max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
                            eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
@@ -158,7 +175,8 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(result["trace"], indent=1))
     summary = dict(profile=args.profile, delta=args.delta if args.profile == "eq46" else None,
                    p=args.p if args.profile == "eq49" else None, dim=dim, n=len(atoms), splits=args.split,
-                   form=args.form, polish=do_polish, epsilon=eps,
+                   form=args.form, boundary=calc.parameters.boundary, finish=args.finish, polish=do_polish,
+                   epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),
                    stop_reason=result["stop_reason"], converged=result["converged"],

@@ -367,7 +367,7 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
 
 def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
                   form="log", polish=None, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
-                  progress=False, seed=0, epsilon_min=None, **dynamics):
+                  progress=False, seed=0, epsilon_min=None, boundary="auto", finish="none", **dynamics):
     """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
     least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
 
@@ -381,6 +381,18 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     ``epsilon_min``: the lowest attainable epsilon when known (Eq. 48 for Eq. 46's profile); a result
     below it is reported as degenerate.
 
+    ``finish``: ``"squares"`` continues the dynamics (the same friction, viscosity, velocity stops and Eq. 44 mass
+    reset) on the least-squares potential once the log potential has stopped by its epsilon_dot criterion: its
+    minimum is the paper's fixed point ``rho_a = rho*(x_a)`` (Eq. 29, 43). On a uniform target in a disc with
+    mirror ghosts it lowers epsilon from about 1e-5 to about 1e-8 without pairing; on Eq. 46's well it lowers
+    Eq. 45 below Eq. 48 by moving the particles off the bottom of the well, while the integral error grows
+    (``examples/results/alaric/table2_two_stage``): so it is opt-in. ``"none"`` (default): the log potential alone.
+
+    ``boundary``: the calculator's edge treatment; ``"auto"`` (default) mirrors through a ball's or a convex
+    polygon's boundary (:func:`~ase_sphrelax.models.alaric.resolve_boundary`): with truncated kernels the
+    edge particles' density is about half the target and dominates epsilon (Fig. 13:
+    ``examples/results/alaric/fig13_mirror``).
+
     Returns
     -------
     dict
@@ -392,13 +404,15 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         (:func:`~ase_sphrelax.models.alaric.density_diagnostics`: max ``|rho/rho* - 1|`` and epsilon per region).
     """
     from ..calculators.alaric import ALARICCalculator
-    from ..models.alaric import reset_mass
+    from ..models.alaric import reset_mass, resolve_boundary
 
     t0 = time.perf_counter()
     if polish is None:
         polish = dim == 1
+    boundary = resolve_boundary(boundary, domain)
+    finish = _resolve_finish(finish, dim)
     calc = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim, form=form,
-                            domain=domain, origin=origin)
+                            domain=domain, origin=origin, boundary=boundary)
     atoms.calc = calc
     bar = None
     if progress:
@@ -410,6 +424,16 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
                          **dynamics)
     dyn.run(max_steps)
     trace = [dict(e, phase="dynamics") for e in dyn.trace]
+    if finish == "squares" and dyn.stop_reason == "epsilon_dot" and dyn.nsteps < max_steps:
+        first = dyn
+        calc.set(form="squares")  # a fresh state: H solved again, the Eq. 44 mass at the first evaluation
+        atoms.calc = calc
+        dynamics.pop("stage_steps", None)
+        dyn = ALARICDynamics(atoms, eps_min=eps_min, eps_dot_min=eps_dot_min, seed=seed, progress=bar, **dynamics)
+        dyn.run(max_steps - first.nsteps)
+        trace += [dict(e, step=first.nsteps + e["step"], phase="finish (squares)") for e in dyn.trace]
+        dyn.nsteps += first.nsteps
+        dyn.force_calls += first.force_calls
     res = calc.results
     eps_dyn = float(res["epsilon"])
     force_calls = dyn.force_calls
@@ -418,7 +442,7 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         eps_final, polish_trace, calls = polish_least_squares(
             atoms, target_density, dim, reset_mass(res["target"], res["number_density"]), target_gradient,
             domain=domain, origin=origin, steps=polish_steps, eps_min=eps_min, spacing=float(np.mean(
-                res["smoothing_lengths"])) / calc.eta, bar=bar)
+                res["smoothing_lengths"])) / calc.eta, bar=bar, boundary=boundary)
         force_calls += calls
         trace += [dict(e, step=dyn.nsteps + e["step"], stage=dyn.stage, wall=time.perf_counter() - t0)
                   for e in polish_trace]
@@ -445,13 +469,19 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
                 diagnostics=diagnostics)
 
 
+def _resolve_finish(finish, dim):
+    if finish not in ("squares", "none"):
+        raise ValueError(f"finish must be 'squares' or 'none', got {finish!r}")
+    return finish
+
+
 def _target_and_n(calc, atoms):
     atoms.get_forces()
     return calc.results["target"], calc.results["number_density"]
 
 
 def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None, domain=None, origin=None, steps=4000,
-                         eps_min=0.0, spacing=None, bar=None, chunk=250):
+                         eps_min=0.0, spacing=None, bar=None, chunk=250, boundary="wall"):
     """LBFGS on the least-squares potential (``form="squares"``) from the current positions; keeps the best.
 
     Returns ``(epsilon, trace, force_calls)``; ``epsilon`` (Eq. 45 with the Eq. 44 mass) of the best
@@ -463,7 +493,7 @@ def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None,
     from ..models.alaric import epsilon as eq45, reset_mass
 
     squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
-                               form="squares", domain=domain, origin=origin, mass=mass)
+                               form="squares", domain=domain, origin=origin, mass=mass, boundary=boundary)
     squares.silence_scale_hint()  # LBFGS below is scaled to the potential (alpha, maxstep)
     atoms.calc = squares
     atoms.set_velocities(np.zeros((len(atoms), 3)))

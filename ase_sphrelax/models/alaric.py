@@ -40,10 +40,125 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FORMS", "Target", "eq46", "eq49", "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics",
-           "convergence_verdict", "zero_region_mask"]
+__all__ = ["FORMS", "BOUNDARIES", "mirror_map", "mirror_supported", "resolve_boundary", "Target", "eq46", "eq49",
+           "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics", "convergence_verdict",
+           "zero_region_mask"]
 
 FORMS = ("log", "squares", "paper")
+BOUNDARIES = ("wall", "mirror")
+
+
+def mirror_supported(domain):
+    """True when :func:`mirror_map` can mirror through ``domain``'s boundary with a continuous energy: a Ball
+    (Circle, Sphere) or a 2D Polygon of one convex loop (a star around its centroid)."""
+    from ..domains.analytic import Ball
+    from ..domains.polygon import Polygon
+
+    if isinstance(domain, Ball):
+        return True
+    if not isinstance(domain, Polygon) or len(domain.loops) != 1:
+        return False
+    v = domain.loops[0]
+    e = np.roll(v, -1, axis=0) - v
+    e_next = np.roll(e, -1, axis=0)
+    turn = e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]
+    return bool(np.all(turn >= -1e-12 * float(np.abs(e).max()) ** 2))  # counter-clockwise loop: no right turn
+
+
+def resolve_boundary(boundary, domain):
+    """``"auto"``: ``"mirror"`` when the domain supports it (:func:`mirror_supported`), else ``"wall"``."""
+    if boundary == "auto":
+        return "mirror" if domain is not None and mirror_supported(domain) else "wall"
+    if boundary not in BOUNDARIES:
+        raise ValueError(f"boundary must be 'auto' or one of {BOUNDARIES}, got {boundary!r}")
+    return boundary
+
+
+def _radial_hits(domain, s_gd):
+    """Where the ray from the mirror's centre through ``centre + s`` leaves the domain: ``c = centre + t s``,
+    as ``(t_g, n_gd)`` with ``n`` the outward normal of the face hit (Ball: ``t = R / |s|``, ``n = s / |s|``;
+    convex polygon, the half-planes ``n_k . y <= p_k``: the smallest ``p_k / (n_k . s)`` with ``n_k . s > 0``)."""
+    from ..domains.analytic import Ball
+
+    if isinstance(domain, Ball):
+        r_g = np.sqrt(np.einsum("gd,gd->g", s_gd, s_gd))  # > 0: mirror_map leaves out the centre
+        return domain.radius / r_g, s_gd / r_g[:, None]
+    v = domain.loops[0]
+    e = np.roll(v, -1, axis=0) - v
+    n_kd = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1)[:, None]  # outward (ccw loop)
+    p_k = np.einsum("kd,kd->k", n_kd, v - _mirror_centre(domain))
+    ns_gk = s_gd @ n_kd.T
+    with np.errstate(divide="ignore"):
+        t_gk = np.where(ns_gk > 0.0, p_k[None, :] / np.where(ns_gk > 0.0, ns_gk, 1.0), np.inf)
+    k_g = np.argmin(t_gk, axis=1)
+    return t_gk[np.arange(len(k_g)), k_g], n_kd[k_g]
+
+
+def _mirror_centre(domain):
+    from ..domains.analytic import Ball
+
+    if isinstance(domain, Ball):
+        return domain.center
+    v = domain.loops[0]
+    w = np.roll(v, -1, axis=0)
+    cross = v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1]
+    return ((v + w) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum())  # the area centroid
+
+
+def mirror_map(domain, x_pd, band):
+    """Mirror images of the particles within ``band`` of the domain's boundary (ghosts that complete the kernel).
+
+    The mirror is radial, from the domain's centre ``o`` (a ball's centre, a convex polygon's centroid): with
+    ``s = x - o`` and ``c = o + t s`` where that ray leaves the domain, the ghost is ``g = 2 c - x = o + (2 t - 1) s``,
+    as far outside along the ray as ``x`` is inside. For a ball this is the reflection through the closest boundary
+    point. It is continuous in ``x`` (a closest-point reflection is not inside a polygon: it jumps on the bisectors
+    of the corners), with Jacobian ``J = dg/dx = 2 dc/dx - I``, ``dc/dx = t (I - s n^T / (n . s))`` (``n`` the
+    outward normal of the face hit; ball: ``t (I - n n^T)``).
+
+    The ghosts are those of the particles with ``|phi| < band`` (particles just outside too: the ghost passes
+    through the particle as it crosses the boundary, and the density stays continuous). With ``band`` above the
+    largest support ``H``, the ghosts left out lie beyond any particle's reach (for a ball: a ghost of a particle
+    at depth ``|phi|`` lies ``|phi|`` outside), so the energy does not depend on ``band`` and is continuous;
+    ``next_gap`` lets the caller check that for a polygon.
+
+    Parameters
+    ----------
+    domain : Ball or convex Polygon (:func:`mirror_supported`)
+    x_pd : ndarray (N, d)
+    band : float
+
+    Returns
+    -------
+    owner_g : ndarray (G,) int, the particle each ghost mirrors
+    g_gd : ndarray (G, d), ghost positions
+    jac_gdd : ndarray (G, d, d), ``dg/dx`` of each ghost (``J^T`` maps a ghost's force back to its owner)
+    next_gap : float, the smallest distance to the domain of the ghosts of the particles with
+        ``band <= |phi| < 2 band`` (those left out); ``inf`` when there are none
+    """
+    if not mirror_supported(domain):
+        raise ValueError(f"boundary='mirror' needs a Ball (Circle, Sphere) or a 2D Polygon of one convex loop, got "
+                         f"{domain!r}")
+    d = x_pd.shape[1]
+    depth_p = np.abs(np.asarray(domain.phi(x_pd), dtype=float))
+    centre = _mirror_centre(domain)
+    at_centre_p = np.all(x_pd == centre, axis=1)  # no ray: its mirror is undefined
+    if np.any(at_centre_p & (depth_p < band)):
+        raise ValueError(f"boundary='mirror': a particle at the mirror's centre {centre.tolist()} is within the ghost "
+                         f"band {band:.3g} of the boundary (the domain is too small for the smoothing lengths: too "
+                         f"few particles)")
+    near_q = np.nonzero((depth_p < 2.0 * band) & ~at_centre_p)[0]
+    s_qd = x_pd[near_q] - centre
+    t_q, n_qd = _radial_hits(domain, s_qd)
+    g_qd = centre + (2.0 * t_q - 1.0)[:, None] * s_qd
+    inside_band = depth_p[near_q] < band
+    rest = g_qd[~inside_band]
+    next_gap = float(np.min(np.asarray(domain.phi(rest), dtype=float))) if len(rest) else np.inf
+    owner_g, g_gd = near_q[inside_band], g_qd[inside_band]
+    s_gd, t_g, n_gd = s_qd[inside_band], t_q[inside_band], n_qd[inside_band]
+    ns_g = np.einsum("gd,gd->g", n_gd, s_gd)
+    eye = np.eye(d)
+    dc_gdd = t_g[:, None, None] * (eye - s_gd[:, :, None] * n_gd[:, None, :] / ns_g[:, None, None])
+    return owner_g, g_gd, 2.0 * dc_gdd - eye, next_gap
 
 
 class Target:
