@@ -106,6 +106,15 @@ class LammpsBox:
             return f"region {region_id} prism {bounds} {tilts} units box"
         return f"region {region_id} block {bounds} units box"
 
+    def read_data_commands(self, data_name, atom_style, boundary, units="lj"):
+        """The input lines that set up a run from the data file ``data_name`` written for this box.
+
+        ``units``, ``dimension``, ``boundary`` (a LAMMPS boundary string such as ``"p p p"``),
+        ``atom_style``, ``atom_modify map array`` (the scatter/gather calls need the map) and ``read_data``.
+        """
+        return [f"units {units}", f"dimension {self.lammps_dimension}", f"boundary {boundary}",
+                f"atom_style {atom_style}", "atom_modify map array", f"read_data {data_name}"]
+
     def header_lines(self):
         """Box lines of a LAMMPS data file."""
         lines = [f"{lo:.17g} {hi:.17g} {a}lo {a}hi" for lo, hi, a in zip(self.lo_c, self.hi_c, "xyz")]

@@ -137,12 +137,7 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
         f"# pair potential phi(r) = 2 v0 vt W(r, h), h = {h!r}, v0 = vt = {v0!r}, kernel {model.kernel.name}, "
         f"dim {dim}",
         f"# Fan's E = pe + {self_energy!r} (self term N v0 vt W(0) - V)",
-        "units lj",
-        f"dimension {box.lammps_dimension}",
-        f"boundary {boundary}",
-        "atom_style atomic",
-        "atom_modify map array",
-        f"read_data {data_name}",
+        *box.read_data_commands(data_name, "atomic", boundary),
     ]
     cmds += pair_commands(h, model.dx, dim, style=style, kernel=model.kernel, table_path=folder / "fan_pair.table",
                           n_table=n_table, v0=v0)

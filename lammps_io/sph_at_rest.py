@@ -77,12 +77,7 @@ def sph_at_rest(atoms, h, dx, steps=400, rho0=1.0, c0=10.0, alpha=0.1, dt=None, 
         os.chdir(folder)
         try:
             lmp.commands_list([
-                "units lj",
-                f"dimension {box.lammps_dimension}",
-                "boundary p p p",
-                "atom_style sph",
-                "atom_modify map array",
-                "read_data sph.data",
+                *box.read_data_commands("sph.data", "sph", "p p p"),
                 "pair_style hybrid/overlay sph/rhosum 1 sph/taitwater",
                 f"pair_coeff * * sph/rhosum {h:.17g}",
                 f"pair_coeff * * sph/taitwater {rho0:.17g} {c0:.17g} {alpha:.17g} {h:.17g}",

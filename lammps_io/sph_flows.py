@@ -103,12 +103,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
         os.chdir(folder)
         periodic = ["p" if p else "s" for p in atoms.pbc[:dim]] + (["p"] if dim == 2 else [])
         commands = [
-            "units si",
-            f"dimension {box.lammps_dimension}",
-            f"boundary {' '.join(periodic)}",
-            "atom_style sph",
-            "atom_modify map array",
-            "read_data flow.data",
+            *box.read_data_commands("flow.data", "sph", " ".join(periodic), units="si"),
             "pair_style hybrid/overlay sph/rhosum 1 sph/taitwater" if density == "summation"
             else "pair_style sph/taitwater",
         ]
