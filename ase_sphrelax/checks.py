@@ -6,7 +6,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_positive", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
+__all__ = ["check_positive", "finite_array", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
            "NotConvergedWarning", "SpacingWarning", "spacing_mismatch", "ASE_DEFAULT_FMAX"]
 
 #: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
@@ -70,6 +70,23 @@ def check_positive(name, value, allow_none=False):
     if not math.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be {accepted}, got {value!r}")
     return float(value)
+
+
+def finite_array(name, value, n, shape=(), positive=False):
+    """``value`` as a float array of shape (n, *shape), a scalar broadcast; one-line errors naming ``name``.
+
+    Raises ValueError for a wrong shape, NaN or inf, or (``positive=True``) a value <= 0.
+    """
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full((n, *shape), float(arr))
+    if arr.shape != (n, *shape):
+        raise ValueError(f"{name} must have shape {(n, *shape)} (or be one number), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains NaN or inf: every value must be finite")
+    if positive and np.any(arr <= 0):
+        raise ValueError(f"{name} must be positive, got a minimum of {arr.min():.6g}")
+    return arr
 
 
 def check_dim(dim, allowed=(1, 2, 3)):

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ase_sphrelax.checks import finite_array
+
 from .box import lammps_box
 
 __all__ = ["write_data", "ATOM_STYLES", "UNIT_STYLES", "check_units_style"]
@@ -47,19 +49,6 @@ def check_units_style(units, atom_style):
         raise ValueError(f"atom_style must be one of {ATOM_STYLES}, got {atom_style!r}")
     if units not in UNIT_STYLES:
         raise ValueError(f"units must be one of {UNIT_STYLES}, got {units!r}")
-
-
-def _per_particle(value, n, name, positive=False):
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise ValueError(f"{name} must be a scalar or an array of length {n}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
-    if positive and np.any(arr <= 0):
-        raise ValueError(f"{name} must be positive")
-    return arr
 
 
 def particle_types(atoms):
@@ -143,11 +132,11 @@ def write_data(
             volume = abs(float(np.linalg.det(atoms.cell[: box.dim, : box.dim]))) / n
         else:
             volume = 1.0
-    v_p = _per_particle(volume, n, "volume", positive=True)
+    v_p = finite_array("volume", volume, n, positive=True)
     # per-particle masses
     if masses is None:
         if rho is not None:
-            m_p = _per_particle(rho, n, "rho", positive=True) * v_p
+            m_p = finite_array("rho", rho, n, positive=True) * v_p
         else:
             m_p = atoms.get_masses().astype(float)
             m_p[m_p <= 0] = 1.0
@@ -161,7 +150,7 @@ def write_data(
             m_p = m
         else:
             raise ValueError(f"masses must be a scalar, one value per type ({ntypes}) or per particle ({n})")
-    m_p = _per_particle(m_p, n, "masses", positive=True)
+    m_p = finite_array("masses", m_p, n, positive=True)
     lines = [f"LAMMPS data file written by lammps_io (units {units}, atom_style {atom_style}, dim {box.dim})", ""]
     lines += [f"{n} atoms", f"{ntypes} atom types", ""]
     lines += box.header_lines()
@@ -185,12 +174,12 @@ def write_data(
     if atom_style == "atomic":
         rows = [f"{i + 1} {t_p[i]} {xyz[i]}" for i in range(n)]
     elif atom_style == "sph":
-        rho_p = m_p / v_p if rho is None else _per_particle(rho, n, "rho", positive=True)
-        e_p = _per_particle(esph, n, "esph")
-        cv_p = _per_particle(cv, n, "cv", positive=True)
+        rho_p = m_p / v_p if rho is None else finite_array("rho", rho, n, positive=True)
+        e_p = finite_array("esph", esph, n)
+        cv_p = finite_array("cv", cv, n, positive=True)
         rows = [f"{i + 1} {t_p[i]} {rho_p[i]:.17g} {e_p[i]:.17g} {cv_p[i]:.17g} {xyz[i]}" for i in range(n)]
     else:  # sphere: LAMMPS mass = density * 4/3 pi r^3, also in 2D (checked by reading back)
-        d_p = v_p ** (1.0 / box.dim) if diameter is None else _per_particle(diameter, n, "diameter", positive=True)
+        d_p = v_p ** (1.0 / box.dim) if diameter is None else finite_array("diameter", diameter, n, positive=True)
         radius = 0.5 * d_p
         shape_volume = 4.0 / 3.0 * math.pi * radius**3
         dens_p = m_p / shape_volume

@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import resolve_dim
+from ..checks import finite_array, resolve_dim
 
 __all__ = ["ParticleArrays", "collect", "box_frame", "BoxFrame", "DEFAULT_GAMMA", "written_atomically", "single_fluid",
            "require", "all_or_none_periodic"]
@@ -86,25 +86,11 @@ class BoxFrame:
     shift_c: np.ndarray
 
 
-def _finite(name, value, n, shape=(), positive=False):
-    """``value`` as float array of shape (n, *shape) (a scalar is broadcast); one-line errors."""
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim == 0:
-        arr = np.full((n, *shape), float(arr))
-    if arr.shape != (n, *shape):
-        raise ValueError(f"{name} must have shape {(n, *shape)} (or be one number), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains NaN or inf: every value must be finite")
-    if positive and np.any(arr <= 0):
-        raise ValueError(f"{name} must be positive, got a minimum of {arr.min():.6g}")
-    return arr
-
-
 def _per_particle(atoms, key, override, n, name, positive=False):
     if override is not None:
-        return _finite(name, override, n, positive=positive)
+        return finite_array(name, override, n, positive=positive)
     if key in atoms.arrays:
-        return _finite(f"atoms.arrays[{key!r}]", atoms.arrays[key], n, positive=positive)
+        return finite_array(f"atoms.arrays[{key!r}]", atoms.arrays[key], n, positive=positive)
     return None
 
 
@@ -141,27 +127,27 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
     n = len(atoms)
     if n == 0:
         raise ValueError("atoms: need at least one particle, got an empty Atoms")
-    r_pc = _finite("atoms.positions", atoms.positions, n, (3,))
+    r_pc = finite_array("atoms.positions", atoms.positions, n, (3,))
     dim = resolve_dim(atoms, dim)
-    cell_cc = _finite("atoms.cell", atoms.cell.array, 3, (3,))
+    cell_cc = finite_array("atoms.cell", atoms.cell.array, 3, (3,))
     pbc_c = np.array(atoms.pbc, dtype=bool)
     if not (np.isscalar(gamma) and np.isfinite(gamma) and gamma > 1):
         raise ValueError(f"gamma must be a finite number > 1 (adiabatic index), got {gamma!r}")
     own_m_p = _per_particle(atoms, "masses", None, n, "masses", positive=True)
     rho_p = _per_particle(atoms, "rho", None, n, "densities", positive=True)
-    m_p = _finite("masses", masses, n, positive=True) if masses is not None else None
+    m_p = finite_array("masses", masses, n, positive=True) if masses is not None else None
     if m_p is None and (dx is not None or own_m_p is None):
         dx = atoms.info.get("dx") if dx is None else dx  # an explicit dx wins over the particles' masses
         if dx is not None:
-            dx = _finite("dx", dx, 1, positive=True)[0]
-            rho = _finite("rho0", 1.0 if rho0 is None else rho0, 1, positive=True)[0]
+            dx = finite_array("dx", dx, 1, positive=True)[0]
+            rho = finite_array("rho0", 1.0 if rho0 is None else rho0, 1, positive=True)[0]
             m_p = np.full(n, rho * dx**dim)
             rho_p = np.full(n, rho)
     if m_p is None:
         m_p = own_m_p
     v_pc = np.zeros((n, 3))
     if atoms.has("momenta"):
-        p_pc = _finite("atoms momenta", atoms.get_momenta(), n, (3,))
+        p_pc = finite_array("atoms momenta", atoms.get_momenta(), n, (3,))
         if np.any(p_pc):
             if own_m_p is None:
                 raise ValueError("atoms carry momenta but no masses (atoms.arrays['masses']): their velocities "
@@ -172,12 +158,12 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
                          f"set must be 0 along the unused axes (a {dim}D set with 3D motion is a dimension mismatch)")
     support_p = _per_particle(atoms, "h", support, n, "support radius h", positive=True)
     if support_p is None and atoms.info.get("h") is not None:
-        support_p = _finite("atoms.info['h']", atoms.info["h"], n, positive=True)
+        support_p = finite_array("atoms.info['h']", atoms.info["h"], n, positive=True)
     u_p = _per_particle(atoms, "internal_energy", internal_energy, n, "internal energy")
     if u_p is None:
         cs2 = atoms.info.get("cs2") if cs2 is None else cs2
         if cs2 is not None:
-            u_p = np.full(n, _finite("cs2", cs2, 1, positive=True)[0] / (gamma - 1.0))
+            u_p = np.full(n, finite_array("cs2", cs2, 1, positive=True)[0] / (gamma - 1.0))
     if "type" in atoms.arrays:
         type_p = np.asarray(atoms.arrays["type"])
         if type_p.shape != (n,) or type_p.dtype.kind not in "iu" or type_p.min() < 1:
@@ -187,7 +173,7 @@ def collect(atoms, dim=None, *, masses=None, dx=None, rho0=None, support=None, i
         type_p = np.ones(n, dtype=int)
     origin_c = np.zeros(3)
     if atoms.info.get("origin") is not None:
-        origin = _finite("atoms.info['origin']", np.ravel(atoms.info["origin"]), len(np.ravel(atoms.info["origin"])))
+        origin = finite_array("atoms.info['origin']", np.ravel(atoms.info["origin"]), len(np.ravel(atoms.info["origin"])))
         if len(origin) not in (dim, 3):
             raise ValueError(f"atoms.info['origin'] must have {dim} (or 3) entries, got {len(origin)}")
         origin_c[: len(origin)] = origin
