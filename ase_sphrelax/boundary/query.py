@@ -26,7 +26,7 @@ import numba
 import numpy as np
 
 from ..domains.closest import closest_on_triangle, segment_distance2
-from ..parallel import run_chunks
+from ..parallel import run_chunks, thread_count
 
 __all__ = ["BoundaryPairs", "BoundaryQuery", "boundary_pairs"]
 
@@ -325,7 +325,7 @@ class BoundaryQuery:
             # bins hold every pair until the bins change (each point moves less than the margin from the build)
             row_s, cand_elem, elem_s, d_s = self._candidates(pts, x_sc, reg_start, reg_elem, radius, margin, skip_s)
             run_chunks(_filter_chunk, n_ext, (self.kind, self._elem, x_sc, row_s, cand_elem, radius * radius, skip_s,
-                                              count_s, elem_s, d_s))
+                                              count_s, elem_s, d_s), nthreads=thread_count(len(cand_elem)))
         else:
             row_s, elem_s, d_s = self._within(x_sc, pts, reg_start, reg_elem, radius * radius, skip_s, count_s)
         start_p, elem_k, d_k, point_k = _rows_to_particles(pts.src_s, count_s, row_s, elem_s, d_s, nlist.n_particles)

@@ -260,7 +260,7 @@ class BIPIPacker(Optimizer):
 
     def __init__(self, atoms, calculator=None, max_steps_2a=CAP_2A, max_steps_2c=CAP_2C, tol=0.01, window=10,
                  k_a=None, k_b=None, pressure=True, stages=STAGES, outside="raise", progress=False, logfile=None,
-                 trajectory=None, **kwargs):
+                 trajectory=None, momentum=0.0, **kwargs):
         from ..calculators.bipi import BIPICalculator
 
         calc = calculator if calculator is not None else atoms.calc
@@ -276,6 +276,10 @@ class BIPIPacker(Optimizer):
         self.k_a = self.model.h if k_a is None else check_positive("k_a", k_a)
         self.k_b = self.model.k_b if k_b is None else check_positive("k_b", k_b)
         self.pressure = bool(pressure)
+        momentum = float(momentum)
+        if not 0.0 <= momentum < 1.0:
+            raise ValueError(f"momentum must be in [0, 1) (0: the paper's Eq. 14-15), got {momentum!r}")
+        self.momentum = momentum
         stages = tuple(stages)
         if not stages or any(s not in STAGES for s in stages) or list(stages) != sorted(stages):
             raise ValueError(f"stages must be an ordered subset of {STAGES}, got {stages!r}")
@@ -315,6 +319,7 @@ class BIPIPacker(Optimizer):
         self.iteration = 0
         self._metric = []
         self._sub = None
+        self._velocity = None
         self._t0 = time.perf_counter()
         self.stage_iterations = {s: 0 for s in ("2a", "2c")}
         self.gamma_wall = None
@@ -410,6 +415,11 @@ class BIPIPacker(Optimizer):
         step = self.model.shift(grad_c, calc.get_property("wall_gradient", atoms), calc.get_property("gamma", atoms),
                                 self.pressure)
         step[~movable] = 0.0
+        if self.momentum > 0.0 and self._velocity is not None and self._velocity.shape == step.shape:
+            step += self.momentum * self._velocity  # heavy ball, capped as Eq. 15
+            norm = np.sqrt(np.einsum("pc,pc->p", step, step))
+            over = norm > self.model.cap
+            step[over] *= (self.model.cap / norm[over])[:, None]
         # a move can leave the domain only from closer than the cap: test those particles
         near = calc.boundary_distances() <= self.model.cap * (1 + 1e-12)
         check = np.nonzero(near & movable)[0]
@@ -420,6 +430,8 @@ class BIPIPacker(Optimizer):
             rejected = int(out.sum())
         pos = atoms.positions + step
         atoms.positions = pos
+        if self.momentum > 0.0:
+            self._velocity = step
         tpd = np.linalg.norm(self._displacement(pos[movable], x0[movable]), axis=1)
         return (float(tpd.mean()) if len(tpd) else 0.0), rejected
 
@@ -485,6 +497,7 @@ class BIPIPacker(Optimizer):
         self._metric = []
         self._done = False
         self._sub = None
+        self._velocity = None
         if self.stage == "2b":
             self._freeze()
             self._next_stage()
