@@ -37,6 +37,7 @@ import numpy as np
 __all__ = ["triangle_terms", "plane_offset", "edge_frames", "EDGE_COLUMNS"]
 
 EDGE_COLUMNS = 16  # columns of edge_frames
+INV_INT = 1.0 / np.maximum(np.arange(64), 1.0)  # 1 / k: the recursions multiply instead of dividing (kernels below degree 60)
 
 
 @numba.njit(cache=True, inline="always")
@@ -186,7 +187,7 @@ def _polynomial_part(row, r):
     return total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, q_max, cuts):
     """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
 
@@ -334,12 +335,14 @@ def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p
                 term = e * v_n + a2n * t1  # T_(2n+1)
                 sf += lp[j, 2 * n + 2] * term
                 sq += lq[j, 2 * n + 2] * term
+                if 2 * n + 3 >= cols:
+                    break  # no next power: E_n, J_n are not needed
                 xe0 *= s0
                 xe1 *= s1
-                de = ((xe1 - xe0) + 2 * n * d2 * de) / (2 * n + 1)
+                de = ((xe1 - xe0) + 2 * n * d2 * de) * INV_INT[2 * n + 1]
                 xo0 *= s0
                 xo1 *= s1
-                dj = ((xo1 - xo0) + (2 * n + 1) * d2 * dj) / (2 * n + 2)
+                dj = ((xo1 - xo0) + (2 * n + 1) * d2 * dj) * INV_INT[2 * n + 2]
                 n += 1
             if j != jd:  # the difference of the pieces' constants at rho = a: times atan(x / e)
                 ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)
