@@ -10,10 +10,11 @@ the niceness, the thread count, the final ``|grad C|_avg`` and the boundary laye
 ``d / dx`` of the particles closer than ``BOUNDARY_LAYER`` dx), so the results can be compared as well as the
 times. ``--profile``: CPU time per part (the particle-triangle query, the triangle integrals ``_rows``, the
 pair sums, the rest of a step) from wrappers around functions both checkouts have. ``--momentum M``: this
-checkout packs with ``BIPIPacker(momentum=M)`` (not the paper's rule; the baseline keeps the paper's).
+checkout packs with ``BIPIPacker(momentum=M, momentum_stages=...)`` (default Step 2c; not the paper's rule;
+the baseline keeps the paper's).
 
     python benchmarks/bench_bipi_sphere.py --baseline /path/to/old/checkout [--rounds 2] [--caps 40 80]
-        [--threads 1 2] [--full] [--profile] [--momentum M] [--only-current] [--out FILE]
+        [--threads 1 2] [--full] [--profile] [--momentum M [--momentum-stages 2a 2c]] [--only-current] [--out FILE]
 
 Writes benchmarks/results/bench_bipi_sphere.json (one record per process, medians per checkout and thread count).
 """
@@ -38,7 +39,8 @@ from ase_sphrelax.domains import Sphere
 from ase_sphrelax.drivers import bipi_packer
 from ase_sphrelax.drivers.bipi_packer import pack
 cap_a, cap_c, profile, momentum = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "1", float(sys.argv[4])
-extra = dict(momentum=momentum) if momentum > 0 else {}  # the baseline has no momentum option
+stages = tuple(sys.argv[5].split(","))
+extra = dict(momentum=momentum, momentum_stages=stages) if momentum > 0 else {}  # the baseline has no momentum
 b = BoundaryTriangles.from_domain(Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3))
 pack(b, 0.05, h_over_dx_paper=2.0, progress=False, max_steps_2a=2, max_steps_2c=2)  # compile
 parts = collections.defaultdict(float)
@@ -70,6 +72,7 @@ from ase_sphrelax.analysis.quality import BOUNDARY_LAYER
 d = -b.domain.phi(atoms.positions) / 0.05
 layer = d < BOUNDARY_LAYER
 out = dict(checkout=os.environ.get("PYTHONPATH"), threads=int(os.environ["NUMBA_NUM_THREADS"]), nice=os.nice(0), momentum=momentum,
+           momentum_stages=stages if momentum > 0 else [],
            cpu=c, wall=w, it_2a=packer.stage_iterations["2a"], it_2c=packer.stage_iterations["2c"],
            stopped_by=packer.stopped_by, n_frozen=int(len(packer.frozen)), gradc_final=packer.final_gradc_avg(),
            layer_mean=float(d[layer].mean()), layer_min=float(d.min()), n_layer=int(layer.sum()),
@@ -97,6 +100,7 @@ def main(argv=None):
     parser.add_argument("--profile", action="store_true", help="CPU time per part of an iteration")
     parser.add_argument("--momentum", type=float, default=0.0,
                         help="BIPIPacker(momentum=...) for this checkout (0: the paper's rule; the baseline always runs 0)")
+    parser.add_argument("--momentum-stages", nargs="+", default=["2c"], choices=["2a", "2c"])
     parser.add_argument("--only-current", action="store_true", help="time this checkout only (no baseline runs)")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "bench_bipi_sphere.json"))
     args = parser.parse_args(argv)
@@ -110,7 +114,7 @@ def main(argv=None):
                 env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS=str(threads), PYTHONPATH=checkout)
                 momentum = args.momentum if checkout == str(ROOT) else 0.0
                 out = subprocess.run([sys.executable, "-c", CHILD, *map(str, caps), "1" if args.profile else "0",
-                                      str(momentum)],
+                                      str(momentum), ",".join(args.momentum_stages)],
                                      env=env, capture_output=True, text=True, check=True).stdout
                 records.append(json.loads(out.strip().splitlines()[-1]))
                 print(records[-1], flush=True)

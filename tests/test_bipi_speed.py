@@ -130,3 +130,23 @@ def test_packer_momentum_checked_and_off_by_default():
     assert BIPIPacker(atoms, calc).momentum == 0.0
     with pytest.raises(ValueError, match="momentum"):
         BIPIPacker(atoms, calc, momentum=1.0)
+    with pytest.raises(ValueError, match="momentum_stages"):
+        BIPIPacker(atoms, calc, momentum=0.5, momentum_stages=("2b",))
+
+
+def test_momentum_zero_is_the_paper_rule_and_momentum_moves_only_its_stages():
+    """momentum=0 gives the default trajectory to the bit; with momentum in Step 2c only, Step 2a (and the
+    frozen layer) is the paper's to the bit and 2c differs."""
+    from ase_sphrelax.drivers.bipi_packer import pack
+
+    tri = sphere()
+    kw = dict(h_over_dx_paper=2.0, max_steps_2a=6, max_steps_2c=6)
+    ref, p_ref, _ = pack(tri, 0.1, **kw)
+    zero, _, _ = pack(tri, 0.1, momentum=0.0, **kw)
+    np.testing.assert_array_equal(zero.positions, ref.positions)
+    heavy, p_heavy, _ = pack(tri, 0.1, momentum=0.9, **kw)
+    np.testing.assert_array_equal(p_heavy.frozen, p_ref.frozen)
+    np.testing.assert_array_equal(heavy.positions[p_ref.frozen], ref.positions[p_ref.frozen])
+    rows = [r["gradc_avg"] for r in p_ref.history if r["stage"] == "2a"]
+    assert rows == [r["gradc_avg"] for r in p_heavy.history if r["stage"] == "2a"]
+    assert not np.array_equal(heavy.positions, ref.positions)

@@ -244,8 +244,10 @@ class BIPIPacker(Optimizer):
         ``s_i = Eq. 14 + beta s_(i-1)``, capped by Eq. 15, with ``s_(i-1)`` the previous move (0 where it
         was rejected). Not the paper's rule: it reaches a lower ``|grad C|_avg`` in fewer iterations
         (``benchmarks/README.md``, "BIPI 3D"; the sphere: 352 iterations to 4.1e-5 by the 1 % rule
-        against 1000, the cap, to 3.4e-4 at 0). Step 2a keeps the paper's rule: there momentum moved
-        the boundary layer (TPD's rule stopped after 30 iterations with the layer's minimum at 0.41 dx
+        against 1000, the cap, to 3.4e-4 at 0).
+    momentum_stages : tuple of str
+        The stages ``momentum`` applies to: default Step 2c only. In Step 2a it moved the boundary
+        layer (the sphere: TPD's rule stopped after 30 iterations with the layer's minimum at 0.41 dx
         against 0.44).
     stages : tuple of str
         Which of "2a", "2b", "2c" to run, in order.
@@ -268,7 +270,7 @@ class BIPIPacker(Optimizer):
 
     def __init__(self, atoms, calculator=None, max_steps_2a=CAP_2A, max_steps_2c=CAP_2C, tol=0.01, window=10,
                  k_a=None, k_b=None, pressure=True, stages=STAGES, outside="raise", progress=False, logfile=None,
-                 trajectory=None, momentum=0.0, **kwargs):
+                 trajectory=None, momentum=0.0, momentum_stages=("2c",), **kwargs):
         from ..calculators.bipi import BIPICalculator
 
         calc = calculator if calculator is not None else atoms.calc
@@ -288,6 +290,10 @@ class BIPIPacker(Optimizer):
         if not 0.0 <= momentum < 1.0:
             raise ValueError(f"momentum must be in [0, 1) (0: the paper's Eq. 14-15), got {momentum!r}")
         self.momentum = momentum
+        momentum_stages = tuple(momentum_stages)
+        if any(s not in ("2a", "2c") for s in momentum_stages):
+            raise ValueError(f"momentum_stages must be a subset of ('2a', '2c'), got {momentum_stages!r}")
+        self.momentum_stages = momentum_stages
         stages = tuple(stages)
         if not stages or any(s not in STAGES for s in stages) or list(stages) != sorted(stages):
             raise ValueError(f"stages must be an ordered subset of {STAGES}, got {stages!r}")
@@ -423,7 +429,7 @@ class BIPIPacker(Optimizer):
         step = self.model.shift(grad_c, calc.get_property("wall_gradient", atoms), calc.get_property("gamma", atoms),
                                 self.pressure)
         step[~movable] = 0.0
-        heavy = self.momentum > 0.0 and self.stage == "2c"
+        heavy = self.momentum > 0.0 and self.stage in self.momentum_stages
         if heavy and self._velocity is not None and self._velocity.shape == step.shape:
             step += self.momentum * self._velocity  # heavy ball, capped as Eq. 15
             norm = np.sqrt(np.einsum("pc,pc->p", step, step))
