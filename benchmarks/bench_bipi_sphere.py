@@ -11,10 +11,12 @@ the niceness, the thread count, the final ``|grad C|_avg`` and the boundary laye
 times. ``--profile``: CPU time per part (the particle-triangle query, the triangle integrals ``_rows``, the
 pair sums, the rest of a step) from wrappers around functions both checkouts have. ``--momentum M``: this
 checkout packs with ``BIPIPacker(momentum=M, momentum_stages=...)`` (default Step 2c; not the paper's rule;
-the baseline keeps the paper's).
+the baseline keeps the paper's). ``--step-rules``: Step 2c alone, from the saved end of the case's paper-rule
+Step 2a + 2b, once per variant of the step (momentum, J), with ``|grad C|_avg`` per iteration.
 
     python benchmarks/bench_bipi_sphere.py --baseline /path/to/old/checkout [--rounds 2] [--caps 40 80]
         [--threads 1 2] [--full] [--profile] [--momentum M [--momentum-stages 2a 2c]] [--only-current] [--out FILE]
+    python benchmarks/bench_bipi_sphere.py --step-rules '{"momentum": 0.9}' '{"J": 2.0}' [--cap-2c 1000]
 
 Writes benchmarks/results/bench_bipi_sphere.json (one record per process, medians per checkout and thread count).
 """
@@ -84,6 +86,58 @@ if profile:
 print(json.dumps(out), flush=True)
 """
 
+STEP_RULE = """
+import json, os, sys, time, warnings
+warnings.simplefilter("ignore")
+import numpy as np
+from ase.constraints import FixAtoms
+from ase_sphrelax.analysis.bipi import pack_summary
+from ase_sphrelax.boundary import BoundaryTriangles
+from ase_sphrelax.calculators.bipi import BIPICalculator
+from ase_sphrelax.domains import Sphere
+from ase_sphrelax.drivers import bipi_packer as BP
+from ase_sphrelax.models.bipi import support_from_paper
+variant, cap, start = json.loads(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+b = BoundaryTriangles.from_domain(Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3))
+dx = 0.05
+h = support_from_paper(2.0, dx)
+if not os.path.exists(start):  # the case's Step 2a and 2b with the paper's rule, once
+    atoms, packer, s0 = BP.pack(b, dx, h_over_dx_paper=2.0, progress=False, stages=("2a", "2b"))
+    np.savez(start, r=atoms.positions, x0=s0.positions, frozen=packer.frozen, it2a=packer.stage_iterations["2a"])
+d = np.load(start)
+atoms = BP.initial_fill(b, dx)
+atoms.positions = d["r"]
+atoms.set_constraint(FixAtoms(indices=d["frozen"]))
+calc = BIPICalculator(h=h, dx=dx, boundary=b, J=variant.get("J", 0.5))
+packer = BP.BIPIPacker(atoms, calc, stages=("2c",), max_steps_2c=cap, momentum=variant.get("momentum", 0.0))
+packer.x0 = d["x0"]
+c = time.process_time()
+packer.run()
+out = dict(variant=variant, cap=cap, cpu=time.process_time() - c, stopped=packer.stopped_by,
+           it=packer.stage_iterations["2c"], final=packer.final_gradc_avg(), load=os.getloadavg(),
+           gradc=[r["gradc_avg"] for r in packer.history])
+sm = pack_summary(atoms, packer)
+out.update(layer_mean=sm["boundary_layer_mean"], layer_min=sm["boundary_layer_min"], n_layer=sm["n_boundary_layer"],
+           n_outside=sm["n_outside"])
+print(json.dumps(out), flush=True)
+"""
+
+
+def step_rules(variants, cap, out_path):
+    """Step 2c alone from the saved start of the case's paper-rule Step 2a + 2b, once per variant
+    (``{"momentum": beta}`` or ``{"J": J}``), this checkout, one thread: |grad C|_avg per iteration."""
+    start = str(Path(out_path).with_suffix("")) + "_start2c.npz"
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", PYTHONPATH=str(ROOT))
+    records = []
+    for variant in variants:
+        out = subprocess.run([sys.executable, "-c", STEP_RULE, variant, str(cap), start], env=env, cwd=str(ROOT),
+                             capture_output=True, text=True, check=True).stdout
+        records.append(json.loads(out.strip().splitlines()[-1]))
+        print({k: v for k, v in records[-1].items() if k != "gradc"}, flush=True)
+    Path(out_path).write_text(json.dumps(dict(records=records, date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                                              command="python benchmarks/bench_bipi_sphere.py --step-rules "
+                                              + " ".join(repr(v) for v in variants) + f" --cap-2c {cap}"), indent=1))
+
 
 def median(values):
     values = sorted(values)
@@ -92,7 +146,7 @@ def median(values):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--baseline", required=True, help="an older checkout of the repository")
+    parser.add_argument("--baseline", help="an older checkout of the repository (needed unless --only-current)")
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--caps", nargs=2, type=int, default=[40, 80], metavar=("CAP_2A", "CAP_2C"))
     parser.add_argument("--full", action="store_true", help="the case's own caps (5000, 1000): the whole case")
@@ -102,12 +156,24 @@ def main(argv=None):
                         help="BIPIPacker(momentum=...) for this checkout (0: the paper's rule; the baseline always runs 0)")
     parser.add_argument("--momentum-stages", nargs="+", default=["2c"], choices=["2a", "2c"])
     parser.add_argument("--only-current", action="store_true", help="time this checkout only (no baseline runs)")
-    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "bench_bipi_sphere.json"))
+    parser.add_argument("--step-rules", nargs="+", metavar="JSON",
+                        help='instead: Step 2c alone from the saved paper-rule start, per variant, e.g. \'{"momentum": 0.9}\'')
+    parser.add_argument("--cap-2c", type=int, default=1000, help="with --step-rules: the 2c cap")
+    parser.add_argument("--out", default=None, help="result file (default results/bench_bipi_sphere.json, "
+                        "results/bench_bipi_sphere_step_rules.json with --step-rules)")
     args = parser.parse_args(argv)
+    results = ROOT / "benchmarks" / "results"
+    if args.step_rules:
+        step_rules(args.step_rules, args.cap_2c, args.out or str(results / "bench_bipi_sphere_step_rules.json"))
+        return
+    args.out = args.out or str(results / "bench_bipi_sphere.json")
+    if args.baseline is None and not args.only_current:
+        parser.error("--baseline is needed unless --only-current or --step-rules")
     caps = [5000, 1000] if args.full else args.caps
     checkouts = [str(ROOT)] if args.only_current else [args.baseline, str(ROOT)]
     records = []
     print(f"load average {os.getloadavg()}, nice {os.nice(0)}", flush=True)
+    # each child runs in its checkout: ``python -c`` puts the working directory first on sys.path, ahead of PYTHONPATH
     for _ in range(args.rounds):
         for threads in args.threads:
             for checkout in checkouts:
@@ -115,7 +181,7 @@ def main(argv=None):
                 momentum = args.momentum if checkout == str(ROOT) else 0.0
                 out = subprocess.run([sys.executable, "-c", CHILD, *map(str, caps), "1" if args.profile else "0",
                                       str(momentum), ",".join(args.momentum_stages)],
-                                     env=env, capture_output=True, text=True, check=True).stdout
+                                     env=env, cwd=checkout, capture_output=True, text=True, check=True).stdout
                 records.append(json.loads(out.strip().splitlines()[-1]))
                 print(records[-1], flush=True)
     summary = dict(records=records, caps=caps, date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
