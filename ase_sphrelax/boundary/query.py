@@ -9,7 +9,10 @@ particle may have moved since the bins were built (half the skin for a stored li
 the one-shot state). A particle then tests only the elements registered in its own bin, at
 its current position: no element within ``radius`` is missed, and the cost is one bin look-up
 per particle plus the tests of the particles near the boundary. The registration is reused
-until the neighbour list rebuilds its bins.
+until the neighbour list rebuilds its bins. With a stored list, the first query on new bins also
+keeps, per particle, the registered elements within ``radius + skin`` (its candidates); later
+queries test only those (a particle moves less than half the skin from the build, so every element
+within ``radius`` of it is a candidate), in the same order: the pairs of the bin scan at the same positions.
 
 The pairs come in CSR form over particles (:class:`BoundaryPairs`): row ``p`` holds the
 elements within ``radius`` of particle ``p`` (of any of its periodic images), with their
