@@ -27,6 +27,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -126,7 +127,8 @@ print(json.dumps(out), flush=True)
 def step_rules(variants, cap, out_path):
     """Step 2c alone from the saved start of the case's paper-rule Step 2a + 2b, once per variant
     (``{"momentum": beta}`` or ``{"J": J}``), this checkout, one thread: |grad C|_avg per iteration."""
-    start = str(Path(out_path).with_suffix("")) + "_start2c.npz"
+    # the saved start is a cache of this checkout's Step 2a + 2b (not a result): outside the repository
+    start = str(Path(tempfile.gettempdir()) / f"bench_bipi_sphere_start2c_{abs(hash(str(ROOT))) % 10**8}.npz")
     env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", PYTHONPATH=str(ROOT))
     records = []
     for variant in variants:
