@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zlib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,7 +129,7 @@ def step_rules(variants, cap, out_path):
     """Step 2c alone from the saved start of the case's paper-rule Step 2a + 2b, once per variant
     (``{"momentum": beta}`` or ``{"J": J}``), this checkout, one thread: |grad C|_avg per iteration."""
     # the saved start is a cache of this checkout's Step 2a + 2b (not a result): outside the repository
-    start = str(Path(tempfile.gettempdir()) / f"bench_bipi_sphere_start2c_{abs(hash(str(ROOT))) % 10**8}.npz")
+    start = str(Path(tempfile.gettempdir()) / f"bench_bipi_sphere_start2c_{zlib.crc32(str(ROOT).encode())}.npz")
     env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", PYTHONPATH=str(ROOT))
     records = []
     for variant in variants:
