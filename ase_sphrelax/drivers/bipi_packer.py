@@ -351,7 +351,8 @@ class BIPIPacker(Optimizer):
         d = Optimizer.todict(self)
         d.update(max_steps_2a=self.max_steps_2a, max_steps_2c=self.max_steps_2c, tol=self.tol, window=self.window,
                  k_a=self.k_a, k_b=self.k_b, pressure=self.pressure, stages=list(self.stages), h=self.model.h,
-                 dx=self.model.dx, h_over_dx_paper=self.model.h_over_dx_paper, J=self.model.J)
+                 dx=self.model.dx, h_over_dx_paper=self.model.h_over_dx_paper, J=self.model.J,
+                 momentum=self.momentum, momentum_stages=list(self.momentum_stages))
         return d
 
     def _user_fixed(self, n):
