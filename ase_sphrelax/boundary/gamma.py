@@ -40,7 +40,7 @@ from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
 from .segments import BoundarySegments
-from .surface_integrals import plane_offset, triangle_terms
+from .surface_integrals import EDGE_COLUMNS, edge_frames, plane_offset, triangle_terms
 from .triangles import BoundaryTriangles
 
 __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
@@ -122,15 +122,15 @@ def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
 
 
 @numba.njit(cache=True, inline="always")
-def _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, q_max, cuts):
+def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, q_max, cuts):
     """(gamma_as, int W dS, delta) of a segment (kind 0) or a triangle (kind 1)."""
     if kind == 0:
         return segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, q_max)
-    return triangle_terms(x, y, z, elem, nrm, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
+    return triangle_terms(x, y, z, elem, nrm, frames, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
 
 
 @numba.njit(cache=True, nogil=True)
-def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, next_s, prev_s, pseudo, inv_h, breaks,
+def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, centroid, next_s, prev_s, pseudo, inv_h, breaks,
           fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k, grad_k, delta_k, sum_p,
           grad_pc, near_pc, chi_p, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
@@ -155,7 +155,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             s = point_k[k]
             e = elem_k[k]
             x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-            g, gr, d = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+            g, gr, d = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
                                       1.0, cuts)
             total += g
             g0 += gr * nrm[e, 0]
@@ -164,7 +164,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, centroid, nex
             gb = 0.0
             if rule == 2:
                 if dist_k[k] < band:
-                    gb = _element_terms(kind, x, y, z, elem, nrm, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
                                         band * inv_h, cuts)[1]
             elif rule == 1:
                 cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
@@ -278,9 +278,11 @@ class BoundaryIntegrals:
             self._centroid = np.ascontiguousarray(np.column_stack([b.centroid_sc, np.zeros(len(b))]))
             self._next, self._prev = b.next_s, b.prev_s
             self._pseudo = np.zeros((1, 7, 3))
+            self._frames = np.zeros((1, 3, EDGE_COLUMNS))
         else:
             self._next = self._prev = np.zeros(1, dtype=np.int64)
             self._pseudo = b.pseudo_normal_tfc
+            self._frames = edge_frames(b.packed_tk)  # per-edge geometry, once (not per pair)
         self._inside_points = None
         self._inside_p = None
         self.inside_tests = 0
@@ -364,7 +366,7 @@ class BoundaryIntegrals:
             sum_p[same_p] = 0.0
         # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
         run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
-                              nrm, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
+                              nrm, self._frames, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
                               close2, float(band), BAND_RULES.index(band_rule), bool(terms), skip_p,
                               gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p), nthreads=thread_count(m))
         unknown = chi_p == UNKNOWN

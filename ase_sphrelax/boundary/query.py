@@ -9,7 +9,10 @@ particle may have moved since the bins were built (half the skin for a stored li
 the one-shot state). A particle then tests only the elements registered in its own bin, at
 its current position: no element within ``radius`` is missed, and the cost is one bin look-up
 per particle plus the tests of the particles near the boundary. The registration is reused
-until the neighbour list rebuilds its bins.
+until the neighbour list rebuilds its bins. With a stored list, the first query on new bins also
+keeps, per particle, the registered elements within ``radius + skin`` (its candidates); later
+queries test only those (a particle moves less than half the skin from the build, so every element
+within ``radius`` of it is a candidate), in the same order: the pairs of the bin scan at the same positions.
 
 The pairs come in CSR form over particles (:class:`BoundaryPairs`): row ``p`` holds the
 elements within ``radius`` of particle ``p`` (of any of its periodic images), with their
@@ -26,7 +29,7 @@ import numba
 import numpy as np
 
 from ..domains.closest import closest_on_triangle, segment_distance2
-from ..parallel import run_chunks
+from ..parallel import run_chunks, thread_count
 
 __all__ = ["BoundaryPairs", "BoundaryQuery", "boundary_pairs"]
 
@@ -118,6 +121,26 @@ def _query_chunk(kind, elem, x_sc, bin_s, reg_start, reg_elem, radius2, skip_s, 
             count_s[s] = n
 
 
+@numba.njit(cache=True, nogil=True)
+def _filter_chunk(kind, elem, x_sc, cand_row_s, cand_elem, radius2, skip_s, count_s, elem_s, d_s, first, last):
+    """The candidates of sorted points [first, last) closer than the radius, kept in their order at the
+    start of each point's candidate row (``count_s`` of them; none for the points ``skip_s`` marks)."""
+    skip = skip_s.shape[0] > 0
+    for s in range(first, last):
+        n = 0
+        if not (skip and skip_s[s]):
+            pos = cand_row_s[s]
+            x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
+            for k in range(cand_row_s[s], cand_row_s[s + 1]):
+                e = cand_elem[k]
+                d2 = _element_dist2(kind, elem, e, x, y, z)
+                if d2 < radius2:
+                    elem_s[pos + n] = e
+                    d_s[pos + n] = math.sqrt(d2)
+                    n += 1
+        count_s[s] = n
+
+
 @numba.njit(cache=True)
 def _rows_to_particles(src_s, count_s, row_s, elem_s, d_s, n):
     """Regroup the pairs of the sorted extended points by particle (a particle and its ghosts)."""
@@ -127,7 +150,7 @@ def _rows_to_particles(src_s, count_s, row_s, elem_s, d_s, n):
     for p in range(n):
         start_p[p + 1] += start_p[p]
     cursor = start_p[:-1].copy()
-    m = elem_s.shape[0]
+    m = start_p[n]
     elem_k = np.empty(m, dtype=np.int64)
     d_k = np.empty(m)
     point_k = np.empty(m, dtype=np.int64)
@@ -226,6 +249,9 @@ class BoundaryQuery:
         self._reach = -1.0
         self._reg = None
         self.registrations = 0
+        self._cand_key = None
+        self._cand = None
+        self.candidate_builds = 0
 
     def _registered(self, pts, reach):
         if self._points is pts and reach <= self._reach:
@@ -241,6 +267,31 @@ class BoundaryQuery:
         self._points, self._reach, self._reg = pts, reach, (start, out)
         self.registrations += 1
         return self._reg
+
+    def _within(self, x_sc, pts, reg_start, reg_elem, radius2, skip_s, count_s):
+        """Rows ``(row_s, elem_s, d_s)`` of the registered elements closer than ``sqrt(radius2)`` to each point."""
+        n_ext = x_sc.shape[0]
+        row_s = np.zeros(n_ext + 1, dtype=np.int64)
+        common = (self.kind, self._elem, x_sc, pts.bin_s, reg_start, reg_elem, radius2, skip_s, count_s)
+        run_chunks(_query_chunk, n_ext, common + (row_s, np.empty(0, dtype=np.int64), np.empty(0), False))
+        np.cumsum(count_s, out=row_s[1:])
+        elem_s = np.empty(row_s[-1], dtype=np.int64)
+        d_s = np.empty(row_s[-1])
+        run_chunks(_query_chunk, n_ext, common + (row_s, elem_s, d_s, True))
+        return row_s, elem_s, d_s
+
+    def _candidates(self, pts, x_sc, reg_start, reg_elem, radius, margin, skip_s):
+        """Per sorted point, the registered elements within ``radius + 2 margin`` (``row_s``, ``cand_elem``), kept
+        while the bins stay, and scratch rows of the same size for the kept pairs."""
+        if self._cand_key is None or self._cand_key[0] is not pts or self._cand_key[1:] != (radius, margin):
+            count_s = np.zeros(x_sc.shape[0], dtype=np.int64)
+            row_s, cand_elem, _ = self._within(x_sc, pts, reg_start, reg_elem, (radius + 2.0 * margin) ** 2, skip_s,
+                                               count_s)
+            # scratch for the kept pairs, reused by every call on these bins
+            self._cand_key = (pts, radius, margin)
+            self._cand = (row_s, cand_elem, np.empty(len(cand_elem), dtype=np.int64), np.empty(len(cand_elem)))
+            self.candidate_builds += 1
+        return self._cand
 
     def pairs(self, nlist, r_pc, radius):
         """All (particle, element) pairs closer than ``radius``.
@@ -269,17 +320,17 @@ class BoundaryQuery:
         reg_start, reg_elem = self._registered(pts, radius + margin)
         x_sc = nlist.extend(r_pc)
         n_ext = x_sc.shape[0]
-        count_s = np.zeros(n_ext, dtype=np.int64)
-        row_s = np.zeros(n_ext + 1, dtype=np.int64)
-        empty_i = np.empty(0, dtype=np.int64)
         # periodic elements are images around the cell: the particles (wrapped into it) meet them, not their ghosts
         skip_s = pts.is_ghost_s if self.periodic is not None else np.zeros(0, dtype=np.bool_)
-        common = (self.kind, self._elem, x_sc, pts.bin_s, reg_start, reg_elem, radius * radius, skip_s, count_s)
-        run_chunks(_query_chunk, n_ext, common + (row_s, empty_i, np.empty(0), False))
-        np.cumsum(count_s, out=row_s[1:])
-        elem_s = np.empty(row_s[-1], dtype=np.int64)
-        d_s = np.empty(row_s[-1])
-        run_chunks(_query_chunk, n_ext, common + (row_s, elem_s, d_s, True))
+        count_s = np.zeros(n_ext, dtype=np.int64)
+        if margin > 0.0:
+            # a stored list: the candidates within radius + 2 margin of the positions of the first call on these
+            # bins hold every pair until the bins change (each point moves less than the margin from the build)
+            row_s, cand_elem, elem_s, d_s = self._candidates(pts, x_sc, reg_start, reg_elem, radius, margin, skip_s)
+            run_chunks(_filter_chunk, n_ext, (self.kind, self._elem, x_sc, row_s, cand_elem, radius * radius, skip_s,
+                                              count_s, elem_s, d_s), nthreads=thread_count(len(cand_elem)))
+        else:
+            row_s, elem_s, d_s = self._within(x_sc, pts, reg_start, reg_elem, radius * radius, skip_s, count_s)
         start_p, elem_k, d_k, point_k = _rows_to_particles(pts.src_s, count_s, row_s, elem_s, d_s, nlist.n_particles)
         return BoundaryPairs(start_p, elem_k, d_k, point_k, x_sc.copy(), radius)
 

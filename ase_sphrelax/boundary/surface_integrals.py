@@ -34,7 +34,10 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["triangle_terms", "plane_offset"]
+__all__ = ["triangle_terms", "plane_offset", "edge_frames", "EDGE_COLUMNS"]
+
+EDGE_COLUMNS = 16  # columns of edge_frames
+INV_INT = 1.0 / np.maximum(np.arange(64), 1.0)  # 1 / k: the recursions multiply instead of dividing (kernels below degree 60)
 
 
 @numba.njit(cache=True, inline="always")
@@ -56,28 +59,62 @@ def _piece(breaks, r):
     return j
 
 
+@numba.njit(cache=True)
+def edge_frames(tri):
+    """Per-edge geometry of every triangle, computed once: ``(T, 3, EDGE_COLUMNS)`` for edge i (v_i, v_i+1).
+
+    Columns: 0-2 and 3-5 the edge's end points in lexicographic order and 6-8 the unit direction
+    from the first to the second (the canonical frame of :func:`_edge_offset`, shared bit for bit by
+    the two triangles of an edge); 9-11 the unit vector ``u`` from v_i to v_i+1; 12-14 the in-plane
+    normal ``m`` of the edge towards the opposite vertex (not normalised) and 15 its length. The
+    arithmetic is that of the former per-pair computation, so the terms are unchanged to the bit.
+    """
+    out = np.empty((tri.shape[0], 3, EDGE_COLUMNS))
+    for t in range(tri.shape[0]):
+        for i in range(3):
+            k = (i + 1) % 3
+            k2 = (i + 2) % 3
+            ax, ay, az = tri[t, 3 * i], tri[t, 3 * i + 1], tri[t, 3 * i + 2]
+            bx, by, bz = tri[t, 3 * k], tri[t, 3 * k + 1], tri[t, 3 * k + 2]
+            sx, sy, sz, ex, ey, ez = ax, ay, az, bx, by, bz
+            if (bx, by, bz) < (ax, ay, az):
+                sx, sy, sz, ex, ey, ez = bx, by, bz, ax, ay, az
+            cx, cy, cz = ex - sx, ey - sy, ez - sz
+            inv_len = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
+            cx *= inv_len
+            cy *= inv_len
+            cz *= inv_len
+            ux, uy, uz = bx - ax, by - ay, bz - az
+            length = math.sqrt(ux * ux + uy * uy + uz * uz)
+            ux /= length
+            uy /= length
+            uz /= length
+            wx, wy, wz = tri[t, 3 * k2] - ax, tri[t, 3 * k2 + 1] - ay, tri[t, 3 * k2 + 2] - az
+            along = wx * ux + wy * uy + wz * uz
+            mx, my, mz = wx - along * ux, wy - along * uy, wz - along * uz
+            row = out[t, i]
+            row[0], row[1], row[2], row[3], row[4], row[5] = sx, sy, sz, ex, ey, ez
+            row[6], row[7], row[8] = cx, cy, cz
+            row[9], row[10], row[11] = ux, uy, uz
+            row[12], row[13], row[14] = mx, my, mz
+            row[15] = math.sqrt(mx * mx + my * my + mz * mz)
+    return out
+
+
 @numba.njit(cache=True, inline="always")
-def _edge_offset(px, py, pz, tri, t, i):
+def _edge_offset(px, py, pz, frames, t, i):
     """``w``: the part of ``x_a - x_0`` normal to the line through edge i (v_i, v_i+1) of triangle t.
 
     Computed the same way, bit for bit, by both triangles that share the edge: the direction runs from
     the lexicographically smaller end point to the larger one and ``x_0`` is the end point nearer to
-    the particle. A point near the edge's line (or a vertex) is then seen at the same rounded offset
-    from both sides, so their shares of the solid angle, each ill-conditioned there (``1e-16 L / |w|``),
-    add up as for one point: the sum is exact (backward stable).
+    the particle (``frames``: :func:`edge_frames`). A point near the edge's line (or a vertex) is then
+    seen at the same rounded offset from both sides, so their shares of the solid angle, each
+    ill-conditioned there (``1e-16 L / |w|``), add up as for one point: the sum is exact (backward stable).
     """
-    k = (i + 1) % 3
-    ax, ay, az = tri[t, 3 * i], tri[t, 3 * i + 1], tri[t, 3 * i + 2]
-    bx, by, bz = tri[t, 3 * k], tri[t, 3 * k + 1], tri[t, 3 * k + 2]
-    if (bx, by, bz) < (ax, ay, az):
-        ax, ay, az, bx, by, bz = bx, by, bz, ax, ay, az
-    cx, cy, cz = bx - ax, by - ay, bz - az
-    inv_len = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
-    cx *= inv_len
-    cy *= inv_len
-    cz *= inv_len
-    dax, day, daz = px - ax, py - ay, pz - az
-    dbx, dby, dbz = px - bx, py - by, pz - bz
+    f = frames[t, i]
+    cx, cy, cz = f[6], f[7], f[8]
+    dax, day, daz = px - f[0], py - f[1], pz - f[2]
+    dbx, dby, dbz = px - f[3], py - f[4], pz - f[5]
     if dbx * dbx + dby * dby + dbz * dbz < dax * dax + day * day + daz * daz:
         dax, day, daz = dbx, dby, dbz
     along = dax * cx + day * cy + daz * cz
@@ -150,8 +187,8 @@ def _polynomial_part(row, r):
     return total
 
 
-@numba.njit(cache=True)
-def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, q_max, cuts):
+@numba.njit(cache=True, inline="always")
+def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, q_max, cuts):
     """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
 
     ``q_max`` is the radius (units of ``h``) the triangle is clipped to: 1, the support, for both
@@ -180,9 +217,9 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
     """
     nx, ny, nz = nrm[t, 0], nrm[t, 1], nrm[t, 2]
     # delta from the edge line nearest to the particle (see _edge_offset): consistent with that edge's e
-    w0x, w0y, w0z = _edge_offset(px, py, pz, tri, t, 0)
-    w1x, w1y, w1z = _edge_offset(px, py, pz, tri, t, 1)
-    w2x, w2y, w2z = _edge_offset(px, py, pz, tri, t, 2)
+    w0x, w0y, w0z = _edge_offset(px, py, pz, frames, t, 0)
+    w1x, w1y, w1z = _edge_offset(px, py, pz, frames, t, 1)
+    w2x, w2y, w2z = _edge_offset(px, py, pz, frames, t, 2)
     wx, wy, wz = w0x, w0y, w0z
     if w1x * w1x + w1y * w1y + w1z * w1z < wx * wx + wy * wy + wz * wz:
         wx, wy, wz = w1x, w1y, w1z
@@ -210,20 +247,11 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
     jf = 0.0
     for i in range(3):
         k1 = (i + 1) % 3
-        k2 = (i + 2) % 3
         ax, ay, az = tri[t, 3 * i], tri[t, 3 * i + 1], tri[t, 3 * i + 2]
         bx, by, bz = tri[t, 3 * k1], tri[t, 3 * k1 + 1], tri[t, 3 * k1 + 2]
-        cx, cy, cz = tri[t, 3 * k2], tri[t, 3 * k2 + 1], tri[t, 3 * k2 + 2]
-        ux, uy, uz = bx - ax, by - ay, bz - az
-        length = math.sqrt(ux * ux + uy * uy + uz * uz)
-        ux /= length
-        uy /= length
-        uz /= length
-        # in-plane unit normal of the edge, towards the opposite vertex
-        wx, wy, wz = cx - ax, cy - ay, cz - az
-        along = wx * ux + wy * uy + wz * uz
-        mx, my, mz = wx - along * ux, wy - along * uy, wz - along * uz
-        mlen = math.sqrt(mx * mx + my * my + mz * mz)
+        f = frames[t, i]
+        ux, uy, uz = f[9], f[10], f[11]  # unit edge vector
+        mx, my, mz, mlen = f[12], f[13], f[14], f[15]  # in-plane normal of the edge, towards the opposite vertex
         if i == 0:
             wx, wy, wz = w0x, w0y, w0z
         elif i == 1:
@@ -307,12 +335,14 @@ def triangle_terms(px, py, pz, tri, nrm, t, inv_h, breaks, lp, lq, a0, p1_one, s
                 term = e * v_n + a2n * t1  # T_(2n+1)
                 sf += lp[j, 2 * n + 2] * term
                 sq += lq[j, 2 * n + 2] * term
+                if 2 * n + 3 >= cols:
+                    break  # no next power: E_n, J_n are not needed
                 xe0 *= s0
                 xe1 *= s1
-                de = ((xe1 - xe0) + 2 * n * d2 * de) / (2 * n + 1)
+                de = ((xe1 - xe0) + 2 * n * d2 * de) * INV_INT[2 * n + 1]
                 xo0 *= s0
                 xo1 *= s1
-                dj = ((xo1 - xo0) + (2 * n + 1) * d2 * dj) / (2 * n + 2)
+                dj = ((xo1 - xo0) + (2 * n + 1) * d2 * dj) * INV_INT[2 * n + 2]
                 n += 1
             if j != jd:  # the difference of the pieces' constants at rho = a: times atan(x / e)
                 ang = math.atan2(e * (x1 - x0), e2 + x0 * x1)

@@ -239,6 +239,17 @@ class BIPIPacker(Optimizer):
         ``0.6 dx``).
     pressure : bool
         The step boundary pressure of Eq. 14 (False: Eq. 12).
+    momentum : float
+        0 (default): the paper's Eq. 14-15. ``beta`` in [0, 1): Step 2c moves by the heavy-ball step
+        ``s_i = Eq. 14 + beta s_(i-1)``, capped by Eq. 15, with ``s_(i-1)`` the previous move (0 where it
+        was rejected). Not the paper's rule: it reaches a lower ``|grad C|_avg`` in fewer iterations
+        (``benchmarks/README.md``, "BIPI 3D"; the sphere: 352 iterations to 4.1e-5 by the 1 % rule
+        against 1000, the cap, to 3.4e-4 at 0). Opt-in: at 0.95 the oscillating ``|grad C|_avg``
+        satisfied the 1 % rule after 36 iterations, far from converged.
+    momentum_stages : tuple of str
+        The stages ``momentum`` applies to: default Step 2c only. In Step 2a it moved the boundary
+        layer (the sphere: TPD's rule stopped after 30 iterations with the layer's minimum at 0.41 dx
+        against 0.44).
     stages : tuple of str
         Which of "2a", "2b", "2c" to run, in order.
     outside : {"raise", "move"}
@@ -260,7 +271,7 @@ class BIPIPacker(Optimizer):
 
     def __init__(self, atoms, calculator=None, max_steps_2a=CAP_2A, max_steps_2c=CAP_2C, tol=0.01, window=10,
                  k_a=None, k_b=None, pressure=True, stages=STAGES, outside="raise", progress=False, logfile=None,
-                 trajectory=None, **kwargs):
+                 trajectory=None, momentum=0.0, momentum_stages=("2c",), **kwargs):
         from ..calculators.bipi import BIPICalculator
 
         calc = calculator if calculator is not None else atoms.calc
@@ -276,6 +287,14 @@ class BIPIPacker(Optimizer):
         self.k_a = self.model.h if k_a is None else check_positive("k_a", k_a)
         self.k_b = self.model.k_b if k_b is None else check_positive("k_b", k_b)
         self.pressure = bool(pressure)
+        momentum = float(momentum)
+        if not 0.0 <= momentum < 1.0:
+            raise ValueError(f"momentum must be in [0, 1) (0: the paper's Eq. 14-15), got {momentum!r}")
+        self.momentum = momentum
+        momentum_stages = tuple(momentum_stages)
+        if any(s not in ("2a", "2c") for s in momentum_stages):
+            raise ValueError(f"momentum_stages must be a subset of ('2a', '2c'), got {momentum_stages!r}")
+        self.momentum_stages = momentum_stages
         stages = tuple(stages)
         if not stages or any(s not in STAGES for s in stages) or list(stages) != sorted(stages):
             raise ValueError(f"stages must be an ordered subset of {STAGES}, got {stages!r}")
@@ -315,6 +334,7 @@ class BIPIPacker(Optimizer):
         self.iteration = 0
         self._metric = []
         self._sub = None
+        self._velocity = None
         self._t0 = time.perf_counter()
         self.stage_iterations = {s: 0 for s in ("2a", "2c")}
         self.gamma_wall = None
@@ -331,7 +351,8 @@ class BIPIPacker(Optimizer):
         d = Optimizer.todict(self)
         d.update(max_steps_2a=self.max_steps_2a, max_steps_2c=self.max_steps_2c, tol=self.tol, window=self.window,
                  k_a=self.k_a, k_b=self.k_b, pressure=self.pressure, stages=list(self.stages), h=self.model.h,
-                 dx=self.model.dx, h_over_dx_paper=self.model.h_over_dx_paper, J=self.model.J)
+                 dx=self.model.dx, h_over_dx_paper=self.model.h_over_dx_paper, J=self.model.J,
+                 momentum=self.momentum, momentum_stages=list(self.momentum_stages))
         return d
 
     def _user_fixed(self, n):
@@ -410,6 +431,12 @@ class BIPIPacker(Optimizer):
         step = self.model.shift(grad_c, calc.get_property("wall_gradient", atoms), calc.get_property("gamma", atoms),
                                 self.pressure)
         step[~movable] = 0.0
+        heavy = self.momentum > 0.0 and self.stage in self.momentum_stages
+        if heavy and self._velocity is not None and self._velocity.shape == step.shape:
+            step += self.momentum * self._velocity  # heavy ball, capped as Eq. 15
+            norm = np.sqrt(np.einsum("pc,pc->p", step, step))
+            over = norm > self.model.cap
+            step[over] *= (self.model.cap / norm[over])[:, None]
         # a move can leave the domain only from closer than the cap: test those particles
         near = calc.boundary_distances() <= self.model.cap * (1 + 1e-12)
         check = np.nonzero(near & movable)[0]
@@ -420,6 +447,8 @@ class BIPIPacker(Optimizer):
             rejected = int(out.sum())
         pos = atoms.positions + step
         atoms.positions = pos
+        if heavy:
+            self._velocity = step
         tpd = np.linalg.norm(self._displacement(pos[movable], x0[movable]), axis=1)
         return (float(tpd.mean()) if len(tpd) else 0.0), rejected
 
@@ -485,6 +514,7 @@ class BIPIPacker(Optimizer):
         self._metric = []
         self._done = False
         self._sub = None
+        self._velocity = None
         if self.stage == "2b":
             self._freeze()
             self._next_stage()
