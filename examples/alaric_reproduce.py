@@ -103,7 +103,10 @@ def table1(quick):
             print(f"(a) {form:5s} {name:9s} steps {dyn.nsteps:6d} cpu {cpu:6.1f} s eps {rows[f'{form}:{name}']['epsilon']:.2e} "
                   f"({stop})", flush=True)
     lines = ["# Table 1: 1D Eq. 46, 300 particles, Delta = 0", "",
-             f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps.",
+             f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps. "
+             f"Command: `python examples/alaric_reproduce.py --only a{' --quick' if quick else ''}` "
+             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {os.getloadavg()[0]:.1f} at the end; "
+             "CPU: process time of each run, on a shared 2-vCPU machine); every number in `results.json` (`table1`).",
              "", "| run | paper steps | paper CPU [s] | paper eps | log: steps | log: CPU [s] | log: eps | log: stop "
              "| Eq. 29: steps | Eq. 29: CPU [s] | Eq. 29: eps | Eq. 29: stop |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
