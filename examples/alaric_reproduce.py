@@ -632,6 +632,11 @@ def write_readme(out, results):
     notes = out / "FINDINGS.md"
     if notes.exists():
         lines += [notes.read_text(), "# Tables of `examples/alaric_reproduce.py`", ""]
+    dates = results.get("dates", {})
+    if dates:
+        lines += ["When each part last ran (`results.json`, `dates`; the ALARIC forces are exact since 2026-12-02 "
+                  "02:10 UTC, before that Omega was floored at 0.05 in them): "
+                  + ", ".join(f"{key} {when}" for key, when in sorted(dates.items())) + ".", ""]
     for name in ("table1.md", "table2.md"):
         if (out / name).exists():
             lines += [(out / name).read_text().replace("# ", "## ", 1), ""]
@@ -690,6 +695,9 @@ def main():
         merged = json.loads(results_path.read_text()) if results_path.exists() else {}
         merged[key] = value
         results[key] = value
+        if key != "quick":  # when each part last ran (the README says which code state its table is)
+            merged.setdefault("dates", {})[key] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+            results["dates"] = merged["dates"]
         results_path.write_text(json.dumps(merged, indent=1, default=float))
 
     for part in parts:
