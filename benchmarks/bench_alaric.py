@@ -29,9 +29,22 @@ ALARIC evaluation (a subprocess; goal < 2 GB).
     .venv/bin/python benchmarks/bench_alaric.py --sizes 1e4 --no-scaling --rounds 3   # quick
 
 Writes benchmarks/results/bench_alaric.json (``--out``).
+
+``--dynamics``: a controlled timing of ALARICDynamics instead (the warm evaluation above reuses its Verlet list;
+the dynamics rebuild it whenever H or the moves outgrow the skin). The same relaxation (2D uniform density in the
+unit circle, ``--dyn-n`` particles from one uniformly random start, ``--dyn-steps`` steps, the default ingredients
+S+F+V, no convergence stop, ``--dyn-boundary`` wall or mirror) for each skin factor of ``--dyn-factors`` (skin =
+factor x the mean H at the first evaluation, i.e. ``calculators.alaric.SKIN_FACTOR`` replaced in the child), each
+run in a fresh process on one thread, the factors alternating in ``--dyn-rounds`` rounds after one untimed warm-up
+process per factor (numba's cache); medians of wall and CPU time of ``dyn.run`` (the first evaluation included,
+a 300-particle warm-up run in the same process before it), list builds, evaluations and the final epsilon:
+
+    nice -n 10 .venv/bin/python benchmarks/bench_alaric.py --dynamics --dyn-n 10000 --dyn-steps 300 \
+        --dyn-rounds 5 --dyn-factors 0.1,0.2 --dyn-boundary wall --out benchmarks/results/bench_alaric_dynamics_skin.json
 """
 import argparse
 import functools
+import json
 import os
 import resource
 import statistics
@@ -261,6 +274,80 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
     return float(out.stdout.strip().splitlines()[-1])
 
 
+# -- dynamics: the skin in ALARICDynamics, fresh processes ---------------------------------------------------
+def dynamics_child(n, steps, factor, boundary, seed):
+    """One timed ALARICDynamics run in this process (called in a fresh child): a dict of its figures."""
+    import ase_sphrelax.calculators.alaric as calc_module
+    from ase_sphrelax.domains import Circle
+    from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
+
+    calc_module.SKIN_FACTOR = factor
+    numba.set_num_threads(1)
+
+    def relaxation(count, seed_):
+        rng = np.random.default_rng(seed_)
+        radius, angle = np.sqrt(rng.uniform(0, 1, count)), rng.uniform(0, 2 * np.pi, count)
+        from ase import Atoms
+
+        atoms = Atoms(numbers=np.zeros(count, int), pbc=False,
+                      positions=np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(count)]))
+        calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=2,
+                                domain=Circle((0.0, 0.0), 1.0), boundary=boundary)
+        atoms.calc = calc
+        return atoms, calc, ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0)
+
+    _, _, warm = relaxation(300, seed + 1)  # loads every compiled loop from numba's cache
+    warm.run(3)
+    atoms, calc, dyn = relaxation(n, seed)
+    load_before = os.getloadavg()
+    wall, cpu = clocked(lambda: dyn.run(steps))
+    nlist = calc.nlist
+    return dict(factor=factor, skin=calc._skin, boundary=boundary, n=n, steps=steps, wall_s=wall, cpu_s=cpu,
+                evaluations=int(calc.evaluations), builds=int(getattr(nlist, "builds", -1)),
+                pairs_last=int(getattr(nlist, "_pair_count", -1)), epsilon=float(calc.results["epsilon"]),
+                h_mean_end=float(np.mean(calc.h_p)), load_before=load_before, load_after=os.getloadavg())
+
+
+def dynamics_comparison(n, steps, factors, rounds, boundary, seed):
+    """The skin factors alternating in fresh one-thread processes; per factor the medians over ``rounds``."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+
+    def child(factor):
+        code = (f"import sys, json; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+                f"from bench_alaric import dynamics_child; "
+                f"print(json.dumps(dynamics_child({n}, {steps}, {factor}, {boundary!r}, {seed})))")
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    for factor in factors:  # untimed: compiles or loads every loop once
+        child(factor)
+    runs = []
+    for k in range(rounds):
+        for factor in (factors if k % 2 == 0 else factors[::-1]):
+            row = child(factor)
+            runs.append(row)
+            print(f"round {k} factor {factor}: wall {row['wall_s']:.2f} s, CPU {row['cpu_s']:.2f} s, builds "
+                  f"{row['builds']} / {row['evaluations']} evaluations, pairs {row['pairs_last']}, eps "
+                  f"{row['epsilon']:.3e}, load {row['load_before'][0]:.1f}", flush=True)
+    summary = []
+    for factor in factors:
+        mine = [r for r in runs if r["factor"] == factor]
+        summary.append(dict(factor=factor, **{key: statistics.median(r[key] for r in mine)
+                                              for key in ("wall_s", "cpu_s", "builds", "evaluations", "pairs_last",
+                                                          "epsilon")}))
+    base = summary[0]
+    for row in summary:
+        row["cpu_over_first"] = row["cpu_s"] / base["cpu_s"]
+        row["wall_over_first"] = row["wall_s"] / base["wall_s"]
+        # per-round ratios (a load change hits both runs of a round)
+        row["cpu_over_first_per_round"] = [
+            b["cpu_s"] / a["cpu_s"] for a, b in zip([r for r in runs if r["factor"] == base["factor"]],
+                                                    [r for r in runs if r["factor"] == row["factor"]])]
+        row["cpu_over_first_median_of_rounds"] = statistics.median(row["cpu_over_first_per_round"])
+    return dict(n=n, steps=steps, factors=factors, rounds=rounds, boundary=boundary, seed=seed, runs=runs,
+                summary=summary)
+
+
 def _sizes(text):
     return [int(float(s)) for s in text.split(",") if s]
 
@@ -277,6 +364,14 @@ def main():
     parser.add_argument("--no-scaling", action="store_true")
     parser.add_argument("--memory", action="store_true", help="peak RSS of a 1e6 2D evaluation (a subprocess)")
     parser.add_argument("--no-lammps", action="store_true")
+    parser.add_argument("--dynamics", action="store_true",
+                        help="only the controlled ALARICDynamics timing against the skin (fresh processes)")
+    parser.add_argument("--dyn-n", type=int, default=10000)
+    parser.add_argument("--dyn-steps", type=int, default=300)
+    parser.add_argument("--dyn-rounds", type=int, default=5)
+    parser.add_argument("--dyn-factors", default="0.1,0.2", help="skin factors; ratios are to the first")
+    parser.add_argument("--dyn-boundary", default="wall", choices=("wall", "mirror"))
+    parser.add_argument("--dyn-seed", type=int, default=0)
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "bench_alaric.json"))
     args = parser.parse_args()
     dims = [int(d) for d in args.dims.split(",")]
@@ -288,6 +383,18 @@ def main():
                    load_before=os.getloadavg(),
                    numba_threads_max=numba.config.NUMBA_NUM_THREADS, rows=[])
     print(f"{results['version']}, measuring {results['measured']}; load average {os.getloadavg()}", flush=True)
+    if args.dynamics:
+        results["dynamics"] = dynamics_comparison(args.dyn_n, args.dyn_steps,
+                                                  [float(f) for f in args.dyn_factors.split(",")], args.dyn_rounds,
+                                                  args.dyn_boundary, args.dyn_seed)
+        for row in results["dynamics"]["summary"]:
+            print(f"skin factor {row['factor']}: median CPU {row['cpu_s']:.2f} s (x{row['cpu_over_first']:.3f}, "
+                  f"per-round median x{row['cpu_over_first_median_of_rounds']:.3f}), wall {row['wall_s']:.2f} s, "
+                  f"builds {row['builds']} / {row['evaluations']}, eps {row['epsilon']:.3e}")
+        results["load_after"] = os.getloadavg()
+        print(f"load average {os.getloadavg()}")
+        write_json(args.out, results)
+        return
     for n in _sizes(args.sizes):
         for dim in dims:
             for nthreads in [int(t) for t in args.threads.split(",")]:

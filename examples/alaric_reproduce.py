@@ -13,6 +13,11 @@ writes under ``--out``: ``table1.md`` (a), ``table2.md`` (b), ``fig6.png`` (c), 
     smallest gap (pairing): ``table1_forms/``.
 (b) Table 2: eps_stag for Delta in {0, 0.01, 0.05, 0.1, 0.5, 1}, 101 particles split once to 303,
     against eps_teo.min of Eq. 48; the dynamics (log potential) and after the least-squares polish.
+(b2) Table 2's limiting ingredient, isolated (``table2_dynamics/isolate.md``): for one Delta (``--deltas``, default
+    0.1) the issue's command (the log potential's dynamics, stopped by eps_dot), then from its final state the
+    same driver with only the potential changed (log / least squares / Eq. 29, 4000 more steps, no stop), and LBFGS
+    on the log and on the least-squares potential (4000 steps, the same scales): eps of Eq. 45, its integral
+    form on a grid, the smallest gap and the particle closest to the bottom of the well.
 (c) Fig. 6: 909 particles, 0, 1 and 2 splitting stages, eps traces.
 (d) Fig. 8: radial profiles in 1D, 2D and 3D with N = 77 * 7^d (3D: 77 * 5^3; 2D/3D: unit disc/ball,
     step caps 10000 and 1500).
@@ -98,7 +103,10 @@ def table1(quick):
             print(f"(a) {form:5s} {name:9s} steps {dyn.nsteps:6d} cpu {cpu:6.1f} s eps {rows[f'{form}:{name}']['epsilon']:.2e} "
                   f"({stop})", flush=True)
     lines = ["# Table 1: 1D Eq. 46, 300 particles, Delta = 0", "",
-             f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps.",
+             f"Convergence: eps or eps_dot below 1e-8 (checked at each velocity stop / interval end), cap {cap} steps. "
+             f"Command: `python examples/alaric_reproduce.py --only a{' --quick' if quick else ''}` "
+             f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average {os.getloadavg()[0]:.1f} at the end; "
+             "CPU: process time of each run, on a shared 2-vCPU machine); every number in `results.json` (`table1`).",
              "", "| run | paper steps | paper CPU [s] | paper eps | log: steps | log: CPU [s] | log: eps | log: stop "
              "| Eq. 29: steps | Eq. 29: CPU [s] | Eq. 29: eps | Eq. 29: stop |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -194,6 +202,141 @@ def table2(quick):
         ok = "yes" if min(r["eps"], r["eps_dynamics"]) >= r["teo"] else "**no**"
         lines.append(f"| {delta:g} | {pt} | {r['teo']:.2e} | {ps} | {r['eps_dynamics']:.2e} | {r['eps']:.2e} | {ok} |")
     return rows, "\n".join(lines) + "\n"
+
+
+# -- (b2) -----------------------------------------------------------------------------------------
+ISOLATE_STEPS = 4000
+
+
+def _line_state(atoms):
+    """Eq. 46 line diagnostics of ``atoms`` (cell [0, 2), origin -1) with its calculator's current results."""
+    calc = atoms.calc
+    atoms.get_forces()
+    r = calc.results
+    m = model.reset_mass(r["target"], r["number_density"])
+    rho_p = m * r["number_density"]
+    x_p = np.mod(atoms.positions[:, 0], 2.0) - 1.0  # physical coordinates in [-1, 1) (origin -1)
+    return dict(epsilon=float(model.epsilon(rho_p, r["target"], r["number_density"])), mass=float(m),
+                max_rel_error=float(np.max(np.abs(rho_p / r["target"] - 1.0))),
+                min_gap_over_mean=_min_gap_over_mean(atoms), r_min=float(np.abs(x_p).min()),
+                x_p=x_p, h_p=np.array(r["smoothing_lengths"]))
+
+
+def _integral_epsilon(x_p, h_p, mass, delta):
+    from alaric_table2_summary import integral_epsilon  # the same grid measure as table2_*/integral.md
+
+    line = Atoms(numbers=np.zeros(len(x_p), int), positions=np.column_stack([x_p, np.zeros((len(x_p), 2))]))
+    line.new_array("h", h_p)
+    line.set_masses(np.full(len(x_p), mass))
+    return integral_epsilon(line, delta)
+
+
+def _lbfgs(atoms, steps, mass, cs2=1.0):
+    """LBFGS on the attached calculator's potential with polish_least_squares' scales (alpha, maxstep, memory);
+    eps of Eq. 45 every 250 steps. Ends at the last positions."""
+    from ase.optimize import LBFGS
+
+    calc = atoms.calc
+    calc.silence_scale_hint()  # the steps below are scaled to the potential (alpha, maxstep)
+    atoms.get_forces()
+    spacing = float(np.mean(calc.results["smoothing_lengths"])) / calc.eta
+    rho_ref = float(np.mean(calc.results["target"]))
+    opt = LBFGS(atoms, logfile=None, maxstep=0.15 * spacing, alpha=10.0 * mass * cs2 * rho_ref / spacing**2,
+                memory=20)
+    trace = []
+    for done in range(250, steps + 1, 250):
+        kept = atoms.positions.copy()
+        try:
+            opt.run(fmax=1e-14, steps=250)
+        except ValueError:  # ASE's LBFGS goes NaN once y.s = 0 (nothing left to gain): end at the last chunk
+            atoms.positions = kept
+            trace.append((done - 250, eps_of(atoms, calc), "LBFGS stalled (y.s = 0), last finite chunk kept"))
+            break
+        trace.append((done, eps_of(atoms, calc)))
+    return trace
+
+
+def table2_isolate(quick, out, deltas=(0.1,)):
+    """(b2) One ingredient at a time from the log potential's converged Table 2 state."""
+    import subprocess
+    import sys
+
+    from ase.io import read
+
+    steps = 500 if quick else ISOLATE_STEPS
+    folder = out / "table2_dynamics" / "isolate"
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for delta in deltas:
+        start_dir = folder / f"delta_{delta:g}"
+        command = [sys.executable, "-m", "ase_sphrelax.cli", "density", "--profile", "eq46", "--delta", f"{delta:g}",
+                   "--dim", "1", "--n", "303", "--split", "1", "--no-polish", "--overwrite", "--out", str(start_dir)]
+        subprocess.run(command, check=True, capture_output=True, text=True)
+        summary = json.loads((start_dir / "summary.json").read_text())
+        relaxed = read(start_dir / "relaxed.extxyz")
+        origin = np.array(relaxed.info["origin"], dtype=float)
+        density, gradient = model.eq46(delta)
+
+        def fresh(form, mass=None):
+            atoms = Atoms(numbers=np.zeros(len(relaxed), int), cell=[2.0, 0.0, 0.0], pbc=[True, False, False],
+                          positions=relaxed.positions - np.array([origin[0], 0.0, 0.0]))
+            atoms.wrap()
+            atoms.calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=1, origin=origin,
+                                          form=form, mass=mass)
+            return atoms
+
+        def record(label, potential, driver, atoms, cpu, extra=None):
+            state = _line_state(atoms)
+            row = dict(delta=delta, run=label, potential=potential, driver=driver, cpu_s=cpu,
+                       epsilon=state["epsilon"], max_rel_error=state["max_rel_error"],
+                       min_gap_over_mean=state["min_gap_over_mean"], r_min=state["r_min"],
+                       epsilon_integral=_integral_epsilon(state["x_p"], state["h_p"], state["mass"], delta),
+                       epsilon_teo_min=summary["epsilon_teo_min"], **(extra or {}))
+            rows.append(row)
+            print(f"(b2) Delta {delta:g} {label}: eps {row['epsilon']:.3e}, integral {row['epsilon_integral']:.3e}, "
+                  f"gap {row['min_gap_over_mean']:.3f}, r_min {row['r_min']:.3g} ({cpu:.1f} s)", flush=True)
+
+        record("A: the issue's command", "log", f"ALARIC S+F+V, {summary['steps']} steps, {summary['stop_reason']}",
+               fresh("log", summary["mass"]), summary["wall_time_s"],
+               dict(command=" ".join(["sphrelax"] + command[3:]), steps=summary["steps"]))
+        for form in ("log", "squares", "paper"):
+            atoms = fresh(form)
+            dyn = ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0)
+            c0 = time.process_time()
+            dyn.run(steps)
+            record(f"A + {steps} steps of the dynamics, form {form}", form,
+                   f"ALARIC S+F+V, {steps} more steps (no stop)", atoms, time.process_time() - c0,
+                   dict(trace=[(e["step"], e["epsilon"]) for e in dyn.trace]))
+        for form in ("log", "squares"):
+            atoms = fresh(form, summary["mass"])
+            c0 = time.process_time()
+            trace = _lbfgs(atoms, steps, summary["mass"])
+            record(f"A + LBFGS, form {form}", form, f"LBFGS, {trace[-1][0]} steps"
+                   + (" (then stalled: y.s = 0)" if len(trace[-1]) > 2 else ""), atoms,
+                   time.process_time() - c0, dict(trace=trace, lowest_epsilon=min(t[1] for t in trace),
+                        lbfgs_steps=trace[-1][0]))
+    command = f"python examples/alaric_reproduce.py --only b2{' --quick' if quick else ''} --out {out}"
+    lines = ["# Table 2's limiting ingredient, isolated (issue 20 item 2)", "",
+             f"Command: `{command}` ({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average "
+             f"{os.getloadavg()[0]:.1f}); every number in `isolate.json`. Eq. 46, 101 particles split once to 303. "
+             "Row A is the issue's Table 2 command (`sphrelax density --profile eq46 --delta D --dim 1 --n 303 "
+             "--split 1 --no-polish`, the log potential, stopped by its eps_dot criterion; its files in "
+             "`isolate/delta_D/`). Every other row starts from A's final positions and changes one thing: the "
+             "potential (log, least squares, the paper's Eq. 29) under the same ALARIC dynamics (S+F+V, Eq. 44 mass "
+             "reset, no stop), or the potential under the same LBFGS (polish_least_squares' scales). eps: Eq. 45 with "
+             "the Eq. 44 mass; integral eps: the grid form of `alaric_table2_summary.py` (sees an empty well); gap: the "
+             "smallest particle gap over the mean (pairing below 0.5); r_min: the particle closest to the bottom of "
+             "the well.", "",
+             "| Delta | run | potential | driver | eps (Eq. 45) | Eq. 48 | integral eps | max abs(rho/rho* - 1) "
+             "| min gap / mean | r_min | CPU s (A: wall) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['delta']:g} | {r['run']} | {r['potential']} | {r['driver']} | {r['epsilon']:.2e} | "
+                     f"{r['epsilon_teo_min']:.2e} | {r['epsilon_integral']:.2e} | {r['max_rel_error']:.3g} | "
+                     f"{r['min_gap_over_mean']:.3f} | {r['r_min']:.3g} | {r['cpu_s']:.1f} |")
+    (folder.parent / "isolate.md").write_text("\n".join(lines) + "\n")
+    (folder.parent / "isolate.json").write_text(json.dumps(dict(command=command, load_average=os.getloadavg(),
+                                                                rows=rows), indent=1, default=float))
+    return rows
 
 
 # -- (c) ------------------------------------------------------------------------------------------
@@ -481,9 +624,19 @@ def _md_table(title, header, rows, note=None):
 def write_readme(out, results):
     """examples/results/alaric/README.md from results.json (and the tables written by parts a and b)."""
     lines = ["# ALARIC reproductions (Vela Vela et al.)", "",
-             "Made by `.venv/bin/python examples/alaric_reproduce.py` (all parts; `--only a,b` for some, `--quick` to "
-             "check the script); every number is in `results.json`, the load average of each part in `load.txt`. "
+             "This page is generated by `.venv/bin/python examples/alaric_reproduce.py` (all parts; `--only a,b` for "
+             "some, `--quick` to check the script, `--only none` to regenerate this page alone) from `FINDINGS.md` "
+             "(the issue 20 status and the findings, each number with its result file) and, below them, the tables of "
+             "the script's parts (every number in `results.json`, the load average of each part in `load.txt`). "
              "Shared 2-vCPU machine, other jobs running: wall and CPU times are indicative only.", ""]
+    notes = out / "FINDINGS.md"
+    if notes.exists():
+        lines += [notes.read_text(), "# Tables of `examples/alaric_reproduce.py`", ""]
+    dates = results.get("dates", {})
+    if dates:
+        lines += ["When each part last ran (`results.json`, `dates`; the ALARIC forces are exact since 2026-12-02 "
+                  "02:10 UTC, before that Omega was floored at 0.05 in them): "
+                  + ", ".join(f"{key} {when}" for key, when in sorted(dates.items())) + ".", ""]
     for name in ("table1.md", "table2.md"):
         if (out / name).exists():
             lines += [(out / name).read_text().replace("# ", "## ", 1), ""]
@@ -521,9 +674,6 @@ def write_readme(out, results):
                            ["state", "eps", "min NN distance / mean", "NN std / mean", "NN std / mean (r < 0.8)"],
                            [[k, f"{v['eps']:.2e}", f"{v['nn_min_over_mean']:.3f}", f"{v['nn_std_over_mean']:.3f}",
                              f"{v['interior_nn_std_over_mean']:.3f}"] for k, v in r["pairing"].items()])
-    notes = out / "FINDINGS.md"
-    if notes.exists():
-        lines += [notes.read_text()]
     (out / "README.md").write_text("\n".join(lines) + "\n")
 
 
@@ -531,6 +681,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", default="a,b,c,d,e,f,g,h", help="comma-separated parts (default all)")
     parser.add_argument("--quick", action="store_true", help="smaller runs (minutes, for checking the script)")
+    parser.add_argument("--deltas", default="0.1", help="part b2: the Deltas (comma-separated)")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "alaric"))
     args = parser.parse_args()
     out = Path(args.out)
@@ -544,6 +695,9 @@ def main():
         merged = json.loads(results_path.read_text()) if results_path.exists() else {}
         merged[key] = value
         results[key] = value
+        if key != "quick":  # when each part last ran (the README says which code state its table is)
+            merged.setdefault("dates", {})[key] = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+            results["dates"] = merged["dates"]
         results_path.write_text(json.dumps(merged, indent=1, default=float))
 
     for part in parts:
@@ -562,6 +716,8 @@ def main():
                                              f"{os.getloadavg()[0]:.1f}.\n")
             (folder / "results.json").write_text(json.dumps(dict(command=command, load_average=os.getloadavg(),
                                                                  runs=rows), indent=1, default=float))
+        elif part == "b2":
+            table2_isolate(args.quick, out, tuple(float(d) for d in args.deltas.split(",")))
         elif part == "b":
             rows, md = table2(args.quick)
             (out / "table2.md").write_text(md)
