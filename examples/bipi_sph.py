@@ -13,8 +13,9 @@ the packing domain; h_B / dx = 2 (support h = 4 dx) for the packing and, unless 
 another support (in units of dx), for the SPH run.
 
 Starts (each given the same wall particles: :func:`ase_sphrelax.drivers.bipi_packer.add_walls`,
-ceil(h/dx) layers of the Step-1 grid outside the floor, wedge and side walls, none above the
-water surface):
+ceil(h/dx) layers of the Step-1 grid outside the floor, wedge and side walls, plus the cell centres
+the fill dropped within dx/8 of the boundary (so every wall is 1 dx from the Cartesian fluid; at
+dx = 0.02 the tank's right wall passes through a column of centres), none above the water surface):
 
 * ``cartesian``: Step 1 only (cell centres, none within dx/8 of the boundary);
 * ``bipi``: BIPIPacker with the 1 % rules (window 10, caps 5000 / 1000);

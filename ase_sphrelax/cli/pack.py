@@ -110,7 +110,8 @@ def add_arguments(parser):
     add_size_argument(parser)
     parser.add_argument("--walls", type=positive(int), nargs="?", const=0, default=None, metavar="K",
                         help="also write wall particles: K layers (default ceil(h/dx)) of the Step-1 grid outside the "
-                             "boundary; packed.extxyz then carries a 'type' column (1 fluid, 2 wall)")
+                             "boundary, with the cell centres Step 1 dropped within dx/8 of it; packed.extxyz then "
+                             "carries a 'type' column (1 fluid, 2 wall)")
     parser.add_argument("--periodic", nargs="+", default=None, metavar="AXIS",
                         help="periodic axes: x, y or 'x y' in 2D; x, y, z in 3D (edges on the periodic faces are "
                              "dropped; the period is the boundary's extent unless --cell gives it)")

@@ -132,13 +132,21 @@ def wall_layers(h, dx):
     return int(np.ceil(check_positive("h", h) / check_positive("dx", dx) - 1e-9))
 
 
-def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
+def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, drop=None):
     """Wall particles: the Step-1 grid's cell centres outside the domain, within ``layers * dx`` of it.
 
     The solid side of every wall, on the same Cartesian grid as :func:`initial_fill` (same
     ``origin``), so that fluid and wall particles continue one lattice: a cell centre ``r`` is a
     wall particle when ``0 < phi(r) <= layers dx`` (``phi`` the domain's signed distance,
     negative inside). Not packed against the wall (Step 1 only).
+
+    With ``drop`` (the ``drop`` given to :func:`initial_fill`) the band also takes the centres
+    that the fill left out as too close to the boundary, ``-drop dx <= phi(r) <= 0``: fluid and
+    walls are then one unbroken lattice, every wall 1 dx from the fluid. Without it (the
+    default, walls strictly outside), a column of centres lying on a wall belongs to neither,
+    and that wall is 2 dx from the fluid: the wedge tank of ``examples/bipi_sph.py`` at
+    ``dx = 0.02`` is 102.5 dx wide, so the centres at ``x = 2.05`` lie on its right wall.
+    :func:`add_walls`, which pairs the walls with a fill, passes the fill's default.
 
     Parameters
     ----------
@@ -152,6 +160,9 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
         Grid anchor, as for :func:`initial_fill`.
     keep : callable or None
         ``keep(r_pd) -> bool array``: a further filter (e.g. no wall above a free surface).
+    drop : float or None
+        Fraction of ``dx``: also take the centres with ``-drop dx <= phi <= 0`` (those
+        ``initial_fill(..., drop=drop)`` leaves out); ``None``: only ``phi > 0``.
 
     Returns
     -------
@@ -166,6 +177,8 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
             raise ValueError("wall_particles: give layers (an integer >= 1) or h (the kernel support) for the default")
         layers = wall_layers(h, dx)
     layers = _count("layers", layers, minimum=1)
+    if drop is not None and not (np.isfinite(drop) and 0.0 <= drop < layers):
+        raise ValueError(f"wall_particles: drop must be None or a fraction of dx in [0, layers), got {drop!r}")
     boundary = as_boundary(boundary)
     domain = boundary.domain
     dim = domain.dim
@@ -180,7 +193,8 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
         grids = np.meshgrid(np.array([x0]), *axes[1:], indexing="ij")
         r_pd = np.stack([g.ravel() for g in grids], axis=1)
         phi_p = domain.phi(r_pd)
-        r_pd = r_pd[(phi_p > 0.0) & (phi_p <= layers * dx)]
+        near = (phi_p > 0.0) if drop is None else (phi_p >= -drop * dx)
+        r_pd = r_pd[near & (phi_p <= layers * dx)]
         if keep is not None and len(r_pd):
             r_pd = r_pd[np.asarray(keep(r_pd), dtype=bool)]
         found.append(r_pd)
@@ -195,15 +209,18 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None):
     return walls
 
 
-def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, walls=None):
+def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, walls=None, drop=DROP_FRACTION):
     """``atoms`` (fluid, ``type`` FLUID) followed by :func:`wall_particles` (``type`` WALL).
 
     Returns a new Atoms with ``atoms``' cell, pbc and info, without constraints or calculator;
     ``info["n_fluid"]`` and ``info["n_wall"]`` count the kinds. ``walls``: wall particles made
     elsewhere (:mod:`~ase_sphrelax.drivers.bipi_walls`), used instead of the grid ones.
+    ``drop``: passed to :func:`wall_particles`; the default, :func:`initial_fill`'s, makes the
+    grid walls also take the cell centres the fill dropped within ``dx/8`` of the boundary, so
+    every wall is 1 dx from a Step-1 fluid (``None``: walls strictly outside, ``phi > 0``).
     """
     if walls is None:
-        walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep)
+        walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep, drop=drop)
     out = atoms.copy()
     out.set_constraint()
     out.calc = None

@@ -1,30 +1,40 @@
-"""The 2 dx gap of the wedge tank's grid walls at the right wall (README, section (a)).
+"""The gap between the fluid and the grid walls of the tanks (README, section (a)), before and after the fix.
 
     python examples/results/bipi_sph/grid_gap.py   # writes grid_gap.json beside it
+
+``rule = "strict"``: wall particles only at cell centres with phi > 0 (``add_walls(..., drop=None)``, the rule
+of the runs kept as ``*_gridgap*``); ``rule = "fill_drop"``: they also take the centres ``initial_fill``
+dropped within dx/8 of the boundary (``add_walls``' default since 2026-12-02). For the wedge tank: the
+side gaps (fluid's outer column to the first wall column, above the floor); for both tanks: the wall
+counts, so that a run made with the old rule can be told apart (its JSON's ``n_wall``).
 """
 import importlib.util
 import json
 from pathlib import Path
 
-import numpy as np
-
-from ase_sphrelax.drivers.bipi_packer import initial_fill
+from ase_sphrelax.drivers.bipi_packer import DROP_FRACTION, add_walls, initial_fill
 
 here = Path(__file__).resolve().parent
 spec = importlib.util.spec_from_file_location("bipi_sph", here.parents[1] / "bipi_sph.py")
 example = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(example)
 rows = {}
-for dx in (0.02, 0.01):
-    boundary = example.wedge_tank()
-    both = example.with_walls(initial_fill(boundary, dx), boundary, dx, example.H_OVER_DX * dx, example.DEPTH)
-    t, r = both.arrays["type"], both.positions
-    side = (r[:, 1] > 0.05) & (r[:, 0] > 1.5)  # above the floor, right half
-    rows[f"dx={dx:g}"] = dict(fluid_x_max=float(r[(t == 1) & side, 0].max()),
-                              right_wall_x_min=float(r[(t == 2) & side, 0].min()),
-                              left_wall_x_max=float(r[(t == 2) & (r[:, 1] > 0.05) & (r[:, 0] < 0.5), 0].max()),
-                              fluid_x_min=float(r[t == 1, 0].min()), width=example.WIDTH)
-    rows[f"dx={dx:g}"]["right_gap_dx"] = (rows[f"dx={dx:g}"]["right_wall_x_min"] - rows[f"dx={dx:g}"]["fluid_x_max"]) / dx
-    rows[f"dx={dx:g}"]["left_gap_dx"] = (rows[f"dx={dx:g}"]["fluid_x_min"] - rows[f"dx={dx:g}"]["left_wall_x_max"]) / dx
+for case, dx in (("wedge", 0.02), ("wedge", 0.01), ("coral", 0.02)):
+    boundary, depth = (example.wedge_tank(), example.DEPTH) if case == "wedge" else (example.coral_tank(dx),
+                                                                                       example.CORAL_DEPTH)
+    fluid = initial_fill(boundary, dx)
+    for rule, drop in (("strict", None), ("fill_drop", DROP_FRACTION)):
+        both = add_walls(fluid, boundary, dx, h=example.H_OVER_DX * dx, keep=lambda r: r[:, 1] < depth, drop=drop)
+        t, r = both.arrays["type"], both.positions
+        row = dict(n_fluid=int((t == 1).sum()), n_wall=int((t == 2).sum()))
+        if case == "wedge":
+            up = r[:, 1] > 0.05  # above the floor
+            right, left = up & (r[:, 0] > 1.5), up & (r[:, 0] < 0.5)
+            row.update(fluid_x_max=float(r[(t == 1) & right, 0].max()), right_wall_x_min=float(r[(t == 2) & right, 0].min()),
+                       fluid_x_min=float(r[(t == 1) & left, 0].min()), left_wall_x_max=float(r[(t == 2) & left, 0].max()),
+                       width=example.WIDTH)
+            row["right_gap_dx"] = (row["right_wall_x_min"] - row["fluid_x_max"]) / dx
+            row["left_gap_dx"] = (row["fluid_x_min"] - row["left_wall_x_max"]) / dx
+        rows[f"{case} dx={dx:g} {rule}"] = row
 (here / "grid_gap.json").write_text(json.dumps(rows, indent=1))
 print(json.dumps(rows, indent=1))
