@@ -44,6 +44,7 @@ import numpy as np
 
 from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
+from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, check_k, check_knn_options
 from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
@@ -158,7 +159,7 @@ class ParVISampler:
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5, time_step="global"):
+                 whiten_every=50, whiten_until=0.5, time_step="global", neighbours="kernel", k=None):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -199,10 +200,20 @@ class ParVISampler:
             score = None if score is None else self.map.score_y(score)
         self._friction_from_target = friction is None
         self.target = CountingTarget(log_density, score, dim)
-        self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
-                                rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
-                                viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
-                                regularisation=regularisation, density=density, diffusion=diffusion, eps=eps)
+        if neighbours not in ("kernel", "knn"):
+            raise ValueError(f"neighbours must be 'kernel' or 'knn', got {neighbours!r}")
+        if neighbours == "knn":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7)
+            check_knn_options(formulation, eos, h, density, regularisation, kernel)
+            self.model = KNNParVIModel(self.target, int(dim), k=check_k(DEFAULT_K if k is None else k, n),
+                                       alpha=alpha, c0=c0)
+        elif k is not None:
+            raise ValueError(f"k: the number of neighbours of neighbours='knn'; give neighbours='knn' or k=None, "
+                             f"got k={k!r}")
+        else:
+            self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
+                                    rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
+                                    viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
+                                    regularisation=regularisation, density=density, diffusion=diffusion, eps=eps)
         self.dim, self.n, self.steps = int(dim), int(n), int(steps)
         if self.model.adaptive:
             self.model._eta_for(self.n)  # M too small for an adaptive support: an error before any work
@@ -241,7 +252,8 @@ class ParVISampler:
                                friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
                                max_steps=self.max_steps, whiten=None if self.whiten is None else
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
-                               whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step)
+                               whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
+                               neighbours=neighbours, k=getattr(self.model, "k", None))
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:

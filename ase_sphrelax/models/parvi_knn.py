@@ -1,0 +1,212 @@
+"""SPH-ParVI with k-nearest-neighbour densities: a variant that runs in any dimension (issue 18, item 3).
+
+The kernel-sum densities of :class:`~ase_sphrelax.models.parvi.ParVIModel` need a support that holds more
+mass than the particle's own kernel weight, ``eta^d > sigma f(0)``: about 330 neighbours in 10-D and 1e4 in
+32-D for Wendland C2 (a compact kernel puts its weight near the centre of a ball whose volume sits near the
+rim). Here the density of particle a comes from the distances to its k nearest neighbours
+``r_a(1) <= ... <= r_a(k)`` (k fixed, independent of d):
+
+* (K1) ``log rho_a = psi_k - log(M V_d) - (d / k) sum_{j<=k} log r_a(j)``, ``psi_k = (1/k) sum_{j<=k} psi(j)``
+  (``psi`` the digamma function, ``V_d`` the unit ball's volume, particle mass ``m = 1/M``): the mean of the
+  k Kozachenko-Leonenko log-density estimators ``psi(j) - log(M V_d r_a(j)^d)``, each unbiased for
+  ``log rho`` when the neighbours around a are a Poisson process of locally constant intensity ``M rho``
+  (then ``M rho V_d r_a(j)^d ~ Gamma(j, 1)`` and ``E log Gamma(j, 1) = psi(j)``).
+
+With the isothermal EOS (``u = c0^2 log rho``) and the score force, the energy of the default model,
+
+* (K2) ``E = sum_a m c0^2 log rho_a - alpha sum_a m log p(x_a)
+  = -(c0^2 m d / k) sum_a sum_{b in N_k(a)} log r_ab - alpha m sum_a log p(x_a) + const``,
+
+is a pair potential ``-log r`` on the directed k-nearest-neighbour graph. The set ``N_k(a)`` changes when
+neighbours swap order, but ``sum_{j<=k} log r_a(j)`` (the sum of the k smallest of continuous functions) is
+continuous: E is continuous and piecewise smooth, and the forces
+
+* (K3) ``F_a = -grad_a E = (c0^2 m d / k) sum_{edges (a,b) or (b,a)} (x_a - x_b) / r_ab^2 + alpha m grad log p(x_a)``
+
+are its exact gradient wherever no two of a particle's k-th and (k+1)-th neighbour distances are equal
+(almost everywhere; at such a swap the force jumps by at most one edge's ``c0^2 m d / (k r)``). The internal
+forces are pairwise antisymmetric (momentum is conserved). There is no kernel, no support to solve for and no
+self weight: any ``1 <= k < M`` works in any d. The resting state is derived in
+:mod:`ase_sphrelax.sampling.theory` (eqs. K4-K7). ``h`` reported is ``r_a(k)`` (the ball that holds the k
+neighbours); viscosity is not used (the sampler's friction damps the fluid).
+
+Neighbour search: :class:`scipy.spatial.cKDTree` queried for ``k + 1`` points per particle at every
+evaluation, O(M k log M) in low d; in 32-D at M = 2000 a kd-tree is close to brute force
+(``examples/results/parvi/highdim/README.md`` has the timing).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+from scipy.integrate import quad
+from scipy.special import digamma
+
+from .parvi import ParVIEvaluation, unit_ball_volume
+
+__all__ = ["KNNParVIModel", "check_k", "check_knn_options", "knn_graph", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
+
+#: Default number of neighbours of ``neighbours="knn"``.
+DEFAULT_K = 20
+#: Default softening delta of eq. K1.
+DEFAULT_SOFTENING = 0.5
+
+
+def check_k(k, n):
+    """``k`` as an int with ``1 <= k < n``; a one-line error naming ``k`` otherwise."""
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+        raise ValueError(f"k must be an integer >= 1 (neighbours per particle), got {k!r}")
+    if k >= n:
+        raise ValueError(f"k must be smaller than the number of particles n = {n}, got k = {k}")
+    return int(k)
+
+
+def knn_graph(x_pc, k):
+    """The k nearest neighbours of every point, itself excluded: ``(idx_pk, dist_pk)``, sorted by distance.
+
+    One :class:`~scipy.spatial.cKDTree` query of ``k + 1`` points. A point that has exact copies may not be
+    listed first among its own neighbours: the row's last column is then dropped instead.
+    """
+    m = x_pc.shape[0]
+    dist_pk, idx_pk = cKDTree(x_pc).query(x_pc, k=k + 1)
+    self_pk = idx_pk == np.arange(m)[:, None]
+    self_pk[~self_pk.any(axis=1), -1] = True
+    keep_pk = ~self_pk
+    return idx_pk[keep_pk].reshape(m, k), dist_pk[keep_pk].reshape(m, k)
+
+
+class KNNParVIModel:
+    """SPH-ParVI forces with k-nearest-neighbour densities (the module docstring, eqs. K1-K3).
+
+    Same interface as :class:`~ase_sphrelax.models.parvi.ParVIModel` for
+    :class:`~ase_sphrelax.sampling.sampler.ParVISampler`: :meth:`evaluate`, :meth:`cfl_step`,
+    :meth:`cfl_steps`.
+
+    Parameters
+    ----------
+    target : CountingTarget
+    dim : int
+    k : int
+        Neighbours per particle, ``1 <= k < M`` (checked by :meth:`evaluate` and by the sampler).
+    alpha, c0 : float
+        Score-force amplification and isothermal sound speed (stationary density ``p^(alpha/c0^2)``).
+    softening : float or None
+        delta >= 0 of eq. K1 (None: :data:`DEFAULT_SOFTENING`): the distances enter as ``sqrt(r^2 + delta^2 H_a^2)``, ``H_a = r_a(k)``.
+    """
+
+    #: the sampler's switches: no adaptive support to solve, summation densities, a gradient system
+    adaptive = False
+    density = "summation"
+    conservative = True
+    formulation = "force"
+    eos = "isothermal"
+    viscosity = "none"
+    viscosity_alpha = 0.0
+
+    def __init__(self, target, dim, k=DEFAULT_K, alpha=1.0, c0=1.0, softening=None):
+        self.target = target
+        self.dim = int(dim)
+        self.k = check_k(k, k + 1)  # the particle number is checked at evaluate (and by the sampler)
+        self.alpha = float(alpha)
+        self.c0 = float(c0)
+        self.softening = float(DEFAULT_SOFTENING if softening is None else softening)
+        if not math.isfinite(self.softening) or self.softening < 0:
+            raise ValueError(f"softening must be a finite number >= 0, got {softening!r}")
+        self.n_neighbours = float(self.k)
+        self.log_bias = poisson_log_constant(self.k, self.dim, self.softening)
+
+    def log_density_estimate(self, dist_pk, m):
+        """Eq. K1: ``log rho_a`` from the k sorted neighbour distances (M, k) of M particles."""
+        s_pk = dist_pk**2 + (self.softening * dist_pk[:, -1:]) ** 2
+        return self.log_bias - math.log(m * unit_ball_volume(self.dim)) - 0.5 * self.dim * np.mean(np.log(s_pk), axis=1)
+
+    def internal_forces(self, r_pc, idx_pk):
+        """Eq. K3 without the score, and each particle's pair stiffness per unit mass (the sum of its in- and
+        out-edges' weights, for the step). ``idx_pk`` sorted by distance: its last column is the k-th neighbour."""
+        m_particles, k = idx_pk.shape
+        diff_pkc = r_pc[:, None, :] - r_pc[idx_pk]
+        r2_pk = np.einsum("pkc,pkc->pk", diff_pkc, diff_pkc)
+        s_pk = r2_pk + self.softening**2 * r2_pk[:, -1:]
+        if not np.all(s_pk > 0):
+            raise ValueError("positions: a particle coincides with its k nearest neighbours (infinite pair energy)")
+        coeff = self.c0**2 * self.dim / (k * m_particles)  # c0^2 m d / k with m = 1 / M
+        w_pk = coeff / s_pk
+        w_pk[:, -1] += self.softening**2 * w_pk.sum(axis=1)  # the H_a = r_a(k) terms (eq. K3)
+        f_pkc = w_pk[:, :, None] * diff_pkc
+        f_pc = f_pkc.sum(axis=1)
+        flat = idx_pk.ravel()
+        for c in range(self.dim):
+            f_pc[:, c] -= np.bincount(flat, weights=f_pkc[:, :, c].ravel(), minlength=m_particles)
+        stiff_p = (w_pk.sum(axis=1) + np.bincount(flat, weights=w_pk.ravel(), minlength=m_particles)) * m_particles
+        return f_pc, stiff_p
+
+    def evaluate(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
+        """Forces (eq. K3), densities (eq. K1) and, with ``want_energy`` and a log-density, the energy (eq. K2)
+        at positions ``r_pc`` (M, d). ``v_pc`` and ``rho_p`` are accepted for the sampler's interface and unused."""
+        r_pc = np.asarray(r_pc, dtype=float)
+        if r_pc.ndim != 2 or r_pc.shape[1] != self.dim:
+            raise ValueError(f"positions must have shape (M, {self.dim}), got {r_pc.shape}")
+        m_particles = r_pc.shape[0]
+        check_k(self.k, m_particles)
+        if not np.all(np.isfinite(r_pc)):
+            bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
+            raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
+        mass = 1.0 / m_particles
+        idx_pk, dist_pk = knn_graph(r_pc, self.k)
+        f_pc, stiff_p = self.internal_forces(r_pc, idx_pk)
+        g_pc = self.target.score(r_pc)
+        f_pc += self.alpha * mass * g_pc
+        log_rho_p = self.log_density_estimate(dist_pk, m_particles)
+        rho_p = np.exp(log_rho_p)
+        log_p, energy = None, None
+        if want_energy and self.target.has_density:
+            log_p = self.target.log_density(r_pc)
+            energy = float(mass * (self.c0**2 * log_rho_p.sum() - self.alpha * log_p.sum()))
+        accel_p = np.sqrt(np.einsum("pc,pc->p", f_pc, f_pc)) / mass
+        return ParVIEvaluation(forces=f_pc, rho=rho_p, rho_summation=rho_p, h=dist_pk[:, -1].copy(),
+                               pressure=self.c0**2 * rho_p, log_p=log_p, energy=energy,
+                               accel_max=float(accel_p.max()), sound_speed=self.c0,
+                               sound_speed_p=np.full(m_particles, self.c0), fallback=0, mass=mass,
+                               stiffness_p=stiff_p,
+                               nearest_p=np.sqrt(dist_pk[:, 0] ** 2 + (self.softening * dist_pk[:, -1]) ** 2))
+
+    def cfl_steps(self, evaluation, courant=1.0):
+        """Each particle's step (M,): ``min(0.25 sqrt(l_a / a_a), 1 / omega_a)``, ``l_a`` the softened nearest
+        distance ``sqrt(r_a(1)^2 + delta^2 H_a^2)``, ``a_a`` the acceleration and ``omega_a^2`` the sum of the pair
+        weights of eq. K3 per unit mass (a bound on the fastest pair frequency: leapfrog is stable below
+        ``2 / omega``)."""
+        accel_p = np.maximum(np.sqrt(np.einsum("pc,pc->p", evaluation.forces, evaluation.forces)) / evaluation.mass,
+                             1e-300)
+        return courant * np.minimum(0.25 * np.sqrt(evaluation.nearest_p / accel_p),
+                                    1.0 / np.sqrt(evaluation.stiffness_p))
+
+    def cfl_step(self, evaluation, courant=1.0):
+        """One step for all particles: :meth:`cfl_steps` with the smallest length, largest acceleration and
+        largest stiffness."""
+        a = max(evaluation.accel_max, 1e-300)
+        return courant * min(0.25 * math.sqrt(float(evaluation.nearest_p.min()) / a),
+                             1.0 / math.sqrt(float(evaluation.stiffness_p.max())))
+
+
+def poisson_log_constant(k, dim, softening):
+    """The constant ``C_k`` of eq. K1 that makes ``log rho_a`` unbiased for a Poisson process of locally
+    constant intensity: ``psi(k) + (d / 2k) [(k - 1) I + log(1 + delta^2)]``, ``I = int_0^1 log(u^(2/d) + delta^2) du``
+    (given ``H_a = r_a(k)``, the k - 1 inner neighbours are uniform in the ball: ``(r/H)^d`` uniform on (0, 1)).
+    ``delta = 0``: ``I = -2/d`` and ``C_k = psi(k) - (k - 1)/k = (1/k) sum_{j<=k} psi(j)`` (Kozachenko-Leonenko)."""
+    if softening == 0.0:
+        integral = -2.0 / dim
+    else:
+        integral = quad(lambda u: math.log(u ** (2.0 / dim) + softening**2), 0.0, 1.0, limit=200)[0]
+    return float(digamma(k) + 0.5 * dim / k * ((k - 1) * integral + math.log1p(softening**2)))
+
+
+def check_knn_options(formulation, eos, h, density, regularisation, kernel):
+    """``neighbours="knn"`` is the score force with the isothermal EOS and no kernel: a one-line error naming the
+    first option given another value."""
+    given = dict(formulation=(formulation, "force"), eos=(eos, "isothermal"), h=(h, "adaptive"),
+                 density=(density, "summation"), regularisation=(regularisation, 0.0), kernel=(kernel, "wendland_c2"))
+    for name, (value, allowed) in given.items():
+        if value != allowed:
+            raise ValueError(f"{name}: neighbours='knn' runs the score force with the isothermal EOS and k-nearest-"
+                             f"neighbour densities (no kernel, no support); it needs {name}={allowed!r}, got {value!r}")

@@ -1,0 +1,192 @@
+"""SPH-ParVI above 3 dimensions: the k-nearest-neighbour variant (``neighbours="knn"``, issue 18 item 3).
+
+Parts (each writes/updates ``<out>/results.json``; run them one at a time):
+
+* ``stationary``: the resting state on a unit Gaussian in 1D (M = 300), 2D (M = 500) and 10-D (M = 500):
+  variance per axis, kurtosis of a coordinate, and the virial identity of theory.py eq. K5
+  (``mean |x|^2 = d`` at rest), against the kernel default where it runs;
+* ``gaussian10d``: the 10-D Gaussian (condition number 100) at M = 100, 500 (2000 with ``--sizes``), 1000
+  evaluations per particle: energy distance to 5000 i.i.d. reference points, relative to i.i.d. samples of
+  the same size (as ``benchmarks/bench_sampling.py``);
+* ``logistic``: the 32-D logistic posterior at M = 100, 500: posterior mean error in posterior sds and the
+  marginal sd ratios against the NUTS reference (``examples/results/parvi/reference_logistic.npy``);
+* ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D.
+
+Usage::
+
+    PYTHONPATH=$PWD python examples/parvi_highdim.py stationary
+    PYTHONPATH=$PWD python examples/parvi_highdim.py gaussian10d --sizes 100 500
+    PYTHONPATH=$PWD python examples/parvi_highdim.py logistic --sizes 100 500
+    PYTHONPATH=$PWD python examples/parvi_highdim.py timing
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ase_sphrelax.checks import NotConvergedWarning
+from ase_sphrelax.sampling import metrics
+from ase_sphrelax.sampling.sampler import ParVIDivergence, sample
+from ase_sphrelax.sampling.targets import gaussian_target, get_target
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "examples" / "results" / "parvi" / "highdim"
+REFERENCE_LOGISTIC = ROOT / "examples" / "results" / "parvi" / "reference_logistic.npy"
+
+#: the configurations compared: the variant alone and with the whitening of item 1
+CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", whiten="covariance")}
+
+
+def _stamp():
+    try:
+        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                             text=True).stdout.strip()
+    except OSError:
+        rev = "?"
+    return dict(git=rev, load=os.getloadavg(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
+
+
+def _update(out, key, value):
+    path = out / "results.json"
+    data = json.loads(path.read_text()) if path.exists() else {}
+    data[key] = value
+    path.write_text(json.dumps(data, indent=1, default=float) + "\n")
+
+
+def _run(target, m, seed, steps, **kwargs):
+    """sample() with the warnings caught: (result or None, error, converged, wall)."""
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotConvergedWarning)
+        try:
+            res = sample(target.log_density, target.score, n=m, dim=target.dim, seed=seed, steps=steps, **kwargs)
+        except (ParVIDivergence, ValueError) as exc:
+            return None, str(exc).splitlines()[0][:300], False, time.perf_counter() - t0
+    return res, None, bool(res.info["converged"]), time.perf_counter() - t0
+
+
+def part_stationary(args):
+    rows = []
+    for d, m in ((1, 300), (2, 500), (10, 500)):
+        target = gaussian_target(np.zeros(d), np.eye(d), name=f"unit{d}")
+        for name, kw in (("knn", dict(neighbours="knn")), ("kernel default", {})):
+            for steps in args.stationary_steps:
+                res, err, conv, wall = _run(target, m, 0, steps, **kw)
+                row = dict(d=d, m=m, config=name, steps=steps, wall=wall, error=err)
+                if res is not None:
+                    x = res.samples
+                    var_c = x.var(axis=0)
+                    kurt_c = (x**4).mean(axis=0) / (x**2).mean(axis=0) ** 2
+                    row.update(var_mean=float(var_c.mean()), var_min=float(var_c.min()), var_max=float(var_c.max()),
+                               mean_sq_radius_over_d=float((x**2).sum(axis=1).mean() / d),
+                               mean_abs=float(np.abs(x.mean(axis=0)).max()), kurtosis=float(kurt_c.mean()),
+                               kinetic_final=float(res.trace["kinetic"][-1]), converged=conv,
+                               steps_run=int(res.info["steps"]))
+                print(json.dumps(row, default=float), flush=True)
+                rows.append(row)
+    _update(args.out, "stationary", dict(rows=rows, **_stamp()))
+
+
+def part_gaussian10d(args):
+    target = get_target("gaussian10d")
+    ref = target.sample(5000, np.random.default_rng(12345))
+    rows = []
+    for m in args.sizes:
+        for seed in range(args.repeats):
+            iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
+            for name in args.configs:
+                res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS[name])
+                row = dict(m=m, seed=seed, config=name, steps=args.steps, iid_energy=iid, wall=wall, error=err)
+                if res is not None:
+                    e = metrics.energy_distance(res.samples, ref)
+                    var_ratio = np.diag(np.cov(res.samples, rowvar=False)) / np.diag(target.cov)
+                    row.update(energy=e, ratio_to_iid=e / iid, converged=conv, n_score=res.n_score,
+                               cov_err=metrics.cov_error(res.samples, target.cov),
+                               var_ratio_min=float(var_ratio.min()), var_ratio_max=float(var_ratio.max()),
+                               mahalanobis_sq_over_d=float(np.mean(np.einsum(
+                                   "pc,cd,pd->p", res.samples, np.linalg.inv(target.cov), res.samples)) / 10))
+                print(json.dumps(row, default=float), flush=True)
+                rows.append(row)
+                _update(args.out, f"gaussian10d_{args.tag}", dict(rows=rows, **_stamp()))
+
+
+def part_logistic(args):
+    target = get_target("logistic")
+    ref = np.load(REFERENCE_LOGISTIC)
+    mean_c, sd_c = ref.mean(axis=0), ref.std(axis=0)
+    rows = []
+    for m in args.sizes:
+        for seed in range(args.repeats):
+            for name in args.configs:
+                res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS[name])
+                row = dict(m=m, seed=seed, config=name, steps=args.steps, wall=wall, error=err)
+                if res is not None:
+                    x = res.samples
+                    z_c = np.abs(x.mean(axis=0) - mean_c) / sd_c
+                    ratio_c = x.std(axis=0) / sd_c
+                    row.update(mean_err_sd_max=float(z_c.max()), mean_err_sd_median=float(np.median(z_c)),
+                               sd_ratio_min=float(ratio_c.min()), sd_ratio_max=float(ratio_c.max()),
+                               sd_ratio_median=float(np.median(ratio_c)),
+                               sd_within_10pct=int(np.sum(np.abs(ratio_c - 1) <= 0.1)),
+                               energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score)
+                print(json.dumps(row, default=float), flush=True)
+                rows.append(row)
+                _update(args.out, f"logistic_{args.tag}", dict(rows=rows, reference_halves_energy=float(
+                    metrics.energy_distance(ref[: len(ref) // 2], ref[len(ref) // 2:])), **_stamp()))
+
+
+def part_timing(args):
+    from scipy.spatial import cKDTree
+    from scipy.spatial.distance import cdist
+
+    rows = []
+    for d in (10, 32):
+        for m in (500, 2000):
+            x = np.random.default_rng(0).standard_normal((m, d))
+            k = 20
+            for rnd in range(3):
+                t0 = time.perf_counter()
+                cKDTree(x).query(x, k=k + 1)
+                tree = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                dist = cdist(x, x)
+                np.argpartition(dist, k, axis=1)[:, : k + 1]
+                brute = time.perf_counter() - t0
+                rows.append(dict(d=d, m=m, k=k, round=rnd, tree=tree, brute=brute))
+    for row in rows:
+        print(row)
+    med = {}
+    for d in (10, 32):
+        for m in (500, 2000):
+            sel = [r for r in rows if r["d"] == d and r["m"] == m]
+            med[f"d{d}_m{m}"] = dict(tree=float(np.median([r["tree"] for r in sel])),
+                                     brute=float(np.median([r["brute"] for r in sel])))
+    print(med)
+    _update(args.out, "timing", dict(rows=rows, median=med, **_stamp()))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing"])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--stationary-steps", type=int, nargs="+", default=[3000])
+    parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
+    parser.add_argument("--tag", default="main", help="suffix of the results.json key")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
+         timing=part_timing)[args.part](args)
+
+
+if __name__ == "__main__":
+    main()
