@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import time
@@ -41,7 +42,10 @@ OUT = ROOT / "examples" / "results" / "parvi" / "highdim"
 REFERENCE_LOGISTIC = ROOT / "examples" / "results" / "parvi" / "reference_logistic.npy"
 
 #: the configurations compared: the variant alone and with the whitening of item 1
-CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", whiten="covariance")}
+CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", whiten="covariance"),
+           "knn+whiten(20,0.8)": dict(neighbours="knn", whiten="covariance", whiten_every=20, whiten_until=0.8),
+           "knn-ratio+whiten": dict(neighbours="knn-ratio", whiten="covariance"),
+           "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local")}
 
 
 def _stamp():
@@ -72,11 +76,20 @@ def _run(target, m, seed, steps, **kwargs):
     return res, None, bool(res.info["converged"]), time.perf_counter() - t0
 
 
+def _iid_radius_sd(d):
+    """Standard deviation of |x| for x ~ N(0, I_d) (a chi variable)."""
+    mean = math.sqrt(2.0) * math.exp(math.lgamma((d + 1) / 2) - math.lgamma(d / 2))
+    return math.sqrt(d - mean**2)
+
+
 def part_stationary(args):
     rows = []
     for d, m in ((1, 300), (2, 500), (10, 500)):
         target = gaussian_target(np.zeros(d), np.eye(d), name=f"unit{d}")
-        for name, kw in (("knn", dict(neighbours="knn")), ("kernel default", {})):
+        for name, kw in (("knn", dict(neighbours="knn")), ("knn, k=8", dict(neighbours="knn", k=8)),
+                         ("knn-ratio", dict(neighbours="knn-ratio")),
+                         ("knn-ratio, local steps", dict(neighbours="knn-ratio", time_step="local")),
+                         ("kernel default", {})):
             for steps in args.stationary_steps:
                 res, err, conv, wall = _run(target, m, 0, steps, **kw)
                 row = dict(d=d, m=m, config=name, steps=steps, wall=wall, error=err)
@@ -84,7 +97,9 @@ def part_stationary(args):
                     x = res.samples
                     var_c = x.var(axis=0)
                     kurt_c = (x**4).mean(axis=0) / (x**2).mean(axis=0) ** 2
-                    row.update(var_mean=float(var_c.mean()), var_min=float(var_c.min()), var_max=float(var_c.max()),
+                    radius_p = np.sqrt((x**2).sum(axis=1))
+                    row.update(radius_sd=float(radius_p.std()), iid_radius_sd=_iid_radius_sd(d),
+                               var_mean=float(var_c.mean()), var_min=float(var_c.min()), var_max=float(var_c.max()),
                                mean_sq_radius_over_d=float((x**2).sum(axis=1).mean() / d),
                                mean_abs=float(np.abs(x.mean(axis=0)).max()), kurtosis=float(kurt_c.mean()),
                                kinetic_final=float(res.trace["kinetic"][-1]), converged=conv,
@@ -107,7 +122,7 @@ def part_gaussian10d(args):
                 if res is not None:
                     e = metrics.energy_distance(res.samples, ref)
                     var_ratio = np.diag(np.cov(res.samples, rowvar=False)) / np.diag(target.cov)
-                    row.update(energy=e, ratio_to_iid=e / iid, converged=conv, n_score=res.n_score,
+                    row.update(energy=e, ratio_to_iid=e / iid, converged=conv, n_score=res.n_score, n_density=res.n_density,
                                cov_err=metrics.cov_error(res.samples, target.cov),
                                var_ratio_min=float(var_ratio.min()), var_ratio_max=float(var_ratio.max()),
                                mahalanobis_sq_over_d=float(np.mean(np.einsum(
@@ -135,7 +150,8 @@ def part_logistic(args):
                                sd_ratio_min=float(ratio_c.min()), sd_ratio_max=float(ratio_c.max()),
                                sd_ratio_median=float(np.median(ratio_c)),
                                sd_within_10pct=int(np.sum(np.abs(ratio_c - 1) <= 0.1)),
-                               energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score)
+                               energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score,
+                               n_density=res.n_density)
                 print(json.dumps(row, default=float), flush=True)
                 rows.append(row)
                 _update(args.out, f"logistic_{args.tag}", dict(rows=rows, reference_halves_energy=float(

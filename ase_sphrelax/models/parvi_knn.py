@@ -40,15 +40,16 @@ import math
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.integrate import quad
 from scipy.special import digamma
 
 from .parvi import ParVIEvaluation, unit_ball_volume
 
-__all__ = ["KNNParVIModel", "check_k", "check_knn_options", "knn_graph", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
+__all__ = ["KNNParVIModel", "KNNRatioParVIModel", "check_k", "check_knn_options", "knn_graph", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
 
 #: Default number of neighbours of ``neighbours="knn"``.
 DEFAULT_K = 20
+#: Weight lambda of the scale-free shape term of ``neighbours="knn-ratio"`` (eq. R5).
+DEFAULT_SHAPE = 0.2
 #: Default softening delta of eq. K1.
 DEFAULT_SOFTENING = 0.5
 
@@ -118,7 +119,8 @@ class KNNParVIModel:
 
     def log_density_estimate(self, dist_pk, m):
         """Eq. K1: ``log rho_a`` from the k sorted neighbour distances (M, k) of M particles."""
-        s_pk = dist_pk**2 + (self.softening * dist_pk[:, -1:]) ** 2
+        r2_pk = dist_pk**2
+        s_pk = r2_pk + self.softening**2 * r2_pk.mean(axis=1, keepdims=True)
         return self.log_bias - math.log(m * unit_ball_volume(self.dim)) - 0.5 * self.dim * np.mean(np.log(s_pk), axis=1)
 
     def internal_forces(self, r_pc, idx_pk):
@@ -127,12 +129,12 @@ class KNNParVIModel:
         m_particles, k = idx_pk.shape
         diff_pkc = r_pc[:, None, :] - r_pc[idx_pk]
         r2_pk = np.einsum("pkc,pkc->pk", diff_pkc, diff_pkc)
-        s_pk = r2_pk + self.softening**2 * r2_pk[:, -1:]
+        s_pk = r2_pk + self.softening**2 * r2_pk.mean(axis=1, keepdims=True)
         if not np.all(s_pk > 0):
             raise ValueError("positions: a particle coincides with its k nearest neighbours (infinite pair energy)")
         coeff = self.c0**2 * self.dim / (k * m_particles)  # c0^2 m d / k with m = 1 / M
         w_pk = coeff / s_pk
-        w_pk[:, -1] += self.softening**2 * w_pk.sum(axis=1)  # the H_a = r_a(k) terms (eq. K3)
+        w_pk += (self.softening**2 / k) * w_pk.sum(axis=1, keepdims=True)  # through the mean square distance (K3)
         f_pkc = w_pk[:, :, None] * diff_pkc
         f_pc = f_pkc.sum(axis=1)
         flat = idx_pk.ravel()
@@ -169,7 +171,7 @@ class KNNParVIModel:
                                accel_max=float(accel_p.max()), sound_speed=self.c0,
                                sound_speed_p=np.full(m_particles, self.c0), fallback=0, mass=mass,
                                stiffness_p=stiff_p,
-                               nearest_p=np.sqrt(dist_pk[:, 0] ** 2 + (self.softening * dist_pk[:, -1]) ** 2))
+                               nearest_p=np.sqrt(dist_pk[:, 0] ** 2 + self.softening**2 * np.mean(dist_pk**2, axis=1)))
 
     def cfl_steps(self, evaluation, courant=1.0):
         """Each particle's step (M,): ``min(0.25 sqrt(l_a / a_a), 1 / omega_a)``, ``l_a`` the softened nearest
@@ -189,16 +191,113 @@ class KNNParVIModel:
                              1.0 / math.sqrt(float(evaluation.stiffness_p.max())))
 
 
-def poisson_log_constant(k, dim, softening):
+class KNNRatioParVIModel(KNNParVIModel):
+    """SPH-ParVI with a k-nearest-neighbour estimate of the ratio ``rho / p^beta`` (``neighbours="knn-ratio"``,
+    theory.py eqs. R1-R4), ``beta = alpha / c0^2``.
+
+    * (R1) ``g_a = sum_{b in {a} + N_k(a)} f(s_ab) q_b / (M V_d H_a^d (k + 1) / 2)``, ``q_b = p(x_b)^(-beta)``,
+      ``s_ab = (r_ab / H_a)^d`` (the volume fraction of a's ball inside r_ab), ``f(s) = 1 - s``, ``H_a = r_a(k)``
+      (the particle itself, ``s = 0``, included: every particle then feels its own score);
+    * (R2) ``E = c0^2 m sum_a log g_a`` (the fluid's free energy ``int rho log(rho / p^beta)``, estimated);
+    * (R3) the forces are its exact gradient: pair terms through ``s_ab`` and ``H_a`` and, on every neighbour b,
+      the score force ``alpha m W_b grad log p(x_b)``, ``W_b = sum_a pi_ab f(s_ab)`` the weight b carries in its
+      neighbours' estimates (``pi_ab = q_b / sum_c f(s_ac) q_c``).
+
+    Where the kernel estimate of rho is smoothed over a's ball (a bias of order ``(H / L)^2``, large above
+    3 dimensions), ``rho / p^beta`` is constant at the resting state ``rho ∝ p^beta``, so smoothing it is exact
+    there: the continuum minimiser has no smoothing bias (theory.py eq. R4). Needs the log-density (one evaluation
+    per particle per step besides the score) and ``k >= 2``.
+    """
+
+    def __init__(self, target, dim, k=DEFAULT_K, alpha=1.0, c0=1.0):
+        super().__init__(target, dim, k=k, alpha=alpha, c0=c0, softening=0.0)
+        if self.k < 2:
+            raise ValueError(f"k must be >= 2 for neighbours='knn-ratio' (the k-th neighbour has weight 0), got {k!r}")
+        if not target.has_density:
+            raise ValueError("log_density: neighbours='knn-ratio' weighs the neighbours by p^(-alpha/c0^2); give it")
+        self.beta = self.alpha / self.c0**2
+        self.shape = DEFAULT_SHAPE
+
+    def evaluate(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
+        """Forces (eq. R3), the k-NN densities (eq. K1, reported) and the energy (eq. R2) at ``r_pc`` (M, d)."""
+        r_pc = np.asarray(r_pc, dtype=float)
+        if r_pc.ndim != 2 or r_pc.shape[1] != self.dim:
+            raise ValueError(f"positions must have shape (M, {self.dim}), got {r_pc.shape}")
+        m_particles, d, k = r_pc.shape[0], self.dim, self.k
+        check_k(k, m_particles)
+        if not np.all(np.isfinite(r_pc)):
+            bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
+            raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
+        mass = 1.0 / m_particles
+        idx_pk, dist_pk = knn_graph(r_pc, k)
+        h_p = dist_pk[:, -1]
+        if not np.all(h_p > 0):
+            raise ValueError("positions: a particle coincides with its k nearest neighbours (its ball is empty)")
+        log_p = self.target.log_density(r_pc)
+        if not np.all(np.isfinite(log_p)):
+            raise ValueError("log_density is -inf at a particle: neighbours='knn-ratio' needs p > 0 at every particle")
+        g_pc = self.target.score(r_pc)
+        diff_pkc = r_pc[:, None, :] - r_pc[idx_pk]
+        r2_pk = np.einsum("pkc,pkc->pk", diff_pkc, diff_pkc)
+        h2_p1 = (h_p**2)[:, None]
+        s_pk = np.minimum((r2_pk / h2_p1) ** (0.5 * d), 1.0)
+        f_pk = 1.0 - s_pk
+        # s / r^2 = r^(d-2) / H^d, finite at r = 0 for d >= 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_r2_pk = np.where(r2_pk > 0, s_pk / r2_pk, 0.0)
+        lq_pk = -self.beta * log_p[idx_pk]  # log q_b
+        lq_self_p = -self.beta * log_p
+        shift_p = np.maximum(lq_pk.max(axis=1), lq_self_p)
+        q_pk = np.exp(lq_pk - shift_p[:, None])
+        q_self_p = np.exp(lq_self_p - shift_p)
+        sum_p = np.einsum("pk,pk->p", f_pk, q_pk) + q_self_p  # the particle itself: s = 0, f = 1
+        pi_pk = q_pk / sum_p[:, None]
+        coeff = self.c0**2 * mass
+        # explicit r-dependence of s (f' = -1): e = C pi d s / r^2 on (x_a - x_b)
+        e_pk = coeff * d * pi_pk * s_r2_pk
+        # H_a terms: G_a = -dE/dH_a = C d / H_a (1 - sum_j pi_aj s_aj), on the k-th neighbour's edge
+        g_h_p = coeff * d / h_p * (1.0 - np.einsum("pk,pk->p", pi_pk, s_pk))
+        e_pk[:, -1] += g_h_p / h_p
+        if self.shape > 0.0:  # eq. R5: -lambda C (d/k) sum_{j<k} log(r_aj / H_a), scale-free
+            if not np.all(r2_pk > 0):
+                raise ValueError("positions: two particles coincide (the shape term's -log r is infinite)")
+            e_pk[:, :-1] += self.shape * coeff * d / k / r2_pk[:, :-1]
+            e_pk[:, -1] -= self.shape * coeff * d * (k - 1) / k / h_p**2
+        f_pkc = e_pk[:, :, None] * diff_pkc
+        f_pc = f_pkc.sum(axis=1)
+        flat = idx_pk.ravel()
+        for c in range(d):
+            f_pc[:, c] -= np.bincount(flat, weights=f_pkc[:, :, c].ravel(), minlength=m_particles)
+        weight_p = np.bincount(flat, weights=(pi_pk * f_pk).ravel(), minlength=m_particles) + q_self_p / sum_p
+        f_pc += self.alpha * mass * weight_p[:, None] * g_pc
+        log_g_p = (shift_p + np.log(sum_p) - d * np.log(h_p)
+                   - math.log(m_particles * unit_ball_volume(d) * 0.5 * (k + 1)))
+        shape_p = -(d / k) * np.log(np.maximum(r2_pk[:, :-1], 1e-300) / h2_p1).sum(axis=1) * 0.5
+        energy = float(coeff * (log_g_p.sum() + self.shape * shape_p.sum())) if want_energy else None
+        abs_e = np.abs(e_pk)
+        stiff_p = (abs_e.sum(axis=1) + np.bincount(flat, weights=abs_e.ravel(), minlength=m_particles)) / mass
+        rho_p = np.exp(self.log_density_estimate(dist_pk, m_particles))
+        accel_p = np.sqrt(np.einsum("pc,pc->p", f_pc, f_pc)) / mass
+        return ParVIEvaluation(forces=f_pc, rho=rho_p, rho_summation=rho_p, h=h_p.copy(), pressure=self.c0**2 * rho_p,
+                               log_p=log_p, energy=energy, accel_max=float(accel_p.max()), sound_speed=self.c0,
+                               sound_speed_p=np.full(m_particles, self.c0), fallback=0, mass=mass,
+                               stiffness_p=np.maximum(stiff_p, 1e-300), nearest_p=np.maximum(dist_pk[:, 0], 1e-3 * h_p),
+                               log_ratio=log_g_p, weight=weight_p)
+
+
+def poisson_log_constant(k, dim, softening, draws=20000):
     """The constant ``C_k`` of eq. K1 that makes ``log rho_a`` unbiased for a Poisson process of locally
-    constant intensity: ``psi(k) + (d / 2k) [(k - 1) I + log(1 + delta^2)]``, ``I = int_0^1 log(u^(2/d) + delta^2) du``
-    (given ``H_a = r_a(k)``, the k - 1 inner neighbours are uniform in the ball: ``(r/H)^d`` uniform on (0, 1)).
-    ``delta = 0``: ``I = -2/d`` and ``C_k = psi(k) - (k - 1)/k = (1/k) sum_{j<=k} psi(j)`` (Kozachenko-Leonenko)."""
+    constant intensity: ``psi(k) + (d / 2k) E sum_{j<=k} log(t_j + delta^2 mean_i t_i)``, ``t_j = (r_a(j) / r_a(k))^2``.
+    Given ``r_a(k)``, the k - 1 inner neighbours are uniform in the ball: ``t_j = u_j^(2/d)``, u uniform on
+    (0, 1), ``t_k = 1``. ``delta = 0``: ``E log t_j = -2/d`` and ``C_k = psi(k) - (k - 1)/k = (1/k) sum_{j<=k} psi(j)``
+    (Kozachenko-Leonenko), exact; ``delta > 0``: the expectation by Monte Carlo with ``draws`` fixed-seed samples
+    (standard error below 1e-3 for k >= 2)."""
     if softening == 0.0:
-        integral = -2.0 / dim
-    else:
-        integral = quad(lambda u: math.log(u ** (2.0 / dim) + softening**2), 0.0, 1.0, limit=200)[0]
-    return float(digamma(k) + 0.5 * dim / k * ((k - 1) * integral + math.log1p(softening**2)))
+        return float(digamma(k) - (k - 1) / k)
+    t_nk = np.ones((draws, k))
+    t_nk[:, :-1] = np.random.default_rng(20261202).random((draws, k - 1)) ** (2.0 / dim)
+    s_nk = t_nk + softening**2 * t_nk.mean(axis=1, keepdims=True)
+    return float(digamma(k) + 0.5 * dim / k * np.log(s_nk).sum(axis=1).mean())
 
 
 def check_knn_options(formulation, eos, h, density, regularisation, kernel):

@@ -44,7 +44,7 @@ import numpy as np
 
 from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
-from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, check_k, check_knn_options
+from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, KNNRatioParVIModel, check_k, check_knn_options
 from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
@@ -200,15 +200,16 @@ class ParVISampler:
             score = None if score is None else self.map.score_y(score)
         self._friction_from_target = friction is None
         self.target = CountingTarget(log_density, score, dim)
-        if neighbours not in ("kernel", "knn"):
-            raise ValueError(f"neighbours must be 'kernel' or 'knn', got {neighbours!r}")
-        if neighbours == "knn":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7)
+        if neighbours not in ("kernel", "knn", "knn-ratio"):
+            raise ValueError(f"neighbours must be 'kernel', 'knn' or 'knn-ratio', got {neighbours!r}")
+        if neighbours != "kernel":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7, R1-R4)
             check_knn_options(formulation, eos, h, density, regularisation, kernel)
-            self.model = KNNParVIModel(self.target, int(dim), k=check_k(DEFAULT_K if k is None else k, n),
-                                       alpha=alpha, c0=c0)
+            model_class = KNNParVIModel if neighbours == "knn" else KNNRatioParVIModel
+            self.model = model_class(self.target, int(dim), k=check_k(DEFAULT_K if k is None else k, n),
+                                     alpha=alpha, c0=c0)
         elif k is not None:
-            raise ValueError(f"k: the number of neighbours of neighbours='knn'; give neighbours='knn' or k=None, "
-                             f"got k={k!r}")
+            raise ValueError(f"k: the number of neighbours of neighbours='knn' or 'knn-ratio'; give one of those or "
+                             f"k=None, got k={k!r}")
         else:
             self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
                                     rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
