@@ -34,7 +34,7 @@ import numpy as np
 
 from ase_sphrelax.checks import NotConvergedWarning
 from ase_sphrelax.sampling import metrics
-from ase_sphrelax.sampling.sampler import ParVIDivergence, sample
+from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler
 from ase_sphrelax.sampling.targets import gaussian_target, get_target
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,9 +70,14 @@ def _run(target, m, seed, steps, **kwargs):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NotConvergedWarning)
         try:
-            res = sample(target.log_density, target.score, n=m, dim=target.dim, seed=seed, steps=steps, **kwargs)
+            sampler = ParVISampler(target.log_density, target.score, n=m, dim=target.dim, seed=seed, steps=steps,
+                                   **kwargs)
+            res = sampler.run()
         except (ParVIDivergence, ValueError) as exc:
             return None, str(exc).splitlines()[0][:300], False, time.perf_counter() - t0
+    search = getattr(sampler.model, "search", None)
+    if search is not None:  # the neighbour search: tree rebuilds against evaluations
+        res.info["search_rebuilds"], res.info["search_calls"] = search.rebuilds, search.calls
     return res, None, bool(res.info["converged"]), time.perf_counter() - t0
 
 
@@ -122,7 +127,9 @@ def part_gaussian10d(args):
                 if res is not None:
                     e = metrics.energy_distance(res.samples, ref)
                     var_ratio = np.diag(np.cov(res.samples, rowvar=False)) / np.diag(target.cov)
-                    row.update(energy=e, ratio_to_iid=e / iid, converged=conv, n_score=res.n_score, n_density=res.n_density,
+                    row.update(energy=e, ratio_to_iid=e / iid, converged=conv,
+                               search_rebuilds=res.info.get("search_rebuilds"),
+                               search_calls=res.info.get("search_calls"), n_score=res.n_score, n_density=res.n_density,
                                cov_err=metrics.cov_error(res.samples, target.cov),
                                var_ratio_min=float(var_ratio.min()), var_ratio_max=float(var_ratio.max()),
                                mahalanobis_sq_over_d=float(np.mean(np.einsum(
@@ -151,6 +158,8 @@ def part_logistic(args):
                                sd_ratio_median=float(np.median(ratio_c)),
                                sd_within_10pct=int(np.sum(np.abs(ratio_c - 1) <= 0.1)),
                                energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score,
+                               search_rebuilds=res.info.get("search_rebuilds"),
+                               search_calls=res.info.get("search_calls"),
                                n_density=res.n_density)
                 print(json.dumps(row, default=float), flush=True)
                 rows.append(row)

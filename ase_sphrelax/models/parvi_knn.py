@@ -6,33 +6,39 @@ mass than the particle's own kernel weight, ``eta^d > sigma f(0)``: about 330 ne
 rim). Here the density of particle a comes from the distances to its k nearest neighbours
 ``r_a(1) <= ... <= r_a(k)`` (k fixed, independent of d):
 
-* (K1) ``log rho_a = psi_k - log(M V_d) - (d / k) sum_{j<=k} log r_a(j)``, ``psi_k = (1/k) sum_{j<=k} psi(j)``
-  (``psi`` the digamma function, ``V_d`` the unit ball's volume, particle mass ``m = 1/M``): the mean of the
-  k Kozachenko-Leonenko log-density estimators ``psi(j) - log(M V_d r_a(j)^d)``, each unbiased for
-  ``log rho`` when the neighbours around a are a Poisson process of locally constant intensity ``M rho``
-  (then ``M rho V_d r_a(j)^d ~ Gamma(j, 1)`` and ``E log Gamma(j, 1) = psi(j)``).
+* (K1) ``log rho_a = C_k - log(M V_d) - (d / 2k) sum_{j<=k} log(r_a(j)^2 + delta^2 Hbar_a^2)``, with
+  ``Hbar_a^2 = (1/k) sum_{j<=k} r_a(j)^2`` and particle mass ``m = 1/M``. For ``delta = 0`` it is the mean of the
+  k Kozachenko-Leonenko log-density estimators ``psi(j) - log(M V_d r_a(j)^d)``, each unbiased for ``log rho``
+  when the neighbours of a are a Poisson process of locally constant intensity ``M rho``
+  (``M rho V_d r_a(j)^d ~ Gamma(j, 1)``, ``E log Gamma(j, 1) = psi(j)``): ``C_k = (1/k) sum_j psi(j)``. The
+  softening ``delta`` (default 0.5) bounds the pair stiffness of close neighbours by ``1 / (delta Hbar)^2``;
+  :func:`poisson_log_constant` gives ``C_k`` for it (Monte Carlo, fixed seed).
 
 With the isothermal EOS (``u = c0^2 log rho``) and the score force, the energy of the default model,
 
 * (K2) ``E = sum_a m c0^2 log rho_a - alpha sum_a m log p(x_a)
-  = -(c0^2 m d / k) sum_a sum_{b in N_k(a)} log r_ab - alpha m sum_a log p(x_a) + const``,
+  = -(c0^2 m d / 2k) sum_a sum_{b in N_k(a)} log(r_ab^2 + delta^2 Hbar_a^2) - alpha m sum_a log p(x_a) + const``,
 
-is a pair potential ``-log r`` on the directed k-nearest-neighbour graph. The set ``N_k(a)`` changes when
-neighbours swap order, but ``sum_{j<=k} log r_a(j)`` (the sum of the k smallest of continuous functions) is
-continuous: E is continuous and piecewise smooth, and the forces
+is a sum over the directed k-nearest-neighbour graph. The set ``N_k(a)`` changes when neighbours swap order,
+but the sums over the k nearest (of continuous functions, equal at a swap) are continuous: E is continuous and
+piecewise smooth, and the forces
 
-* (K3) ``F_a = -grad_a E = (c0^2 m d / k) sum_{edges (a,b) or (b,a)} (x_a - x_b) / r_ab^2 + alpha m grad log p(x_a)``
+* (K3) ``F_a = sum_{edges (a,b), (b,a)} w_ab (x_a - x_b) + alpha m grad log p(x_a)``,
+  ``w_ab = (c0^2 m d / k) [1 / s_ab + (delta^2 / k) sum_{c in N_k(a)} 1 / s_ac]``, ``s_ab = r_ab^2 + delta^2 Hbar_a^2``
 
-are its exact gradient wherever no two of a particle's k-th and (k+1)-th neighbour distances are equal
-(almost everywhere; at such a swap the force jumps by at most one edge's ``c0^2 m d / (k r)``). The internal
-forces are pairwise antisymmetric (momentum is conserved). There is no kernel, no support to solve for and no
-self weight: any ``1 <= k < M`` works in any d. The resting state is derived in
-:mod:`ase_sphrelax.sampling.theory` (eqs. K4-K7). ``h`` reported is ``r_a(k)`` (the ball that holds the k
-neighbours); viscosity is not used (the sampler's friction damps the fluid).
+are its exact gradient wherever no particle's k-th and (k+1)-th neighbours are at equal distance (almost
+everywhere; at such a swap the force jumps by one edge's weight, 1/k of the total). The internal forces are
+pairwise antisymmetric (momentum is conserved). There is no kernel, no support to solve for and no self
+weight: any ``1 <= k < M`` works in any d. The resting state is derived in :mod:`ase_sphrelax.sampling.theory`
+(eqs. K4-K7). ``h`` reported is ``r_a(k)``; viscosity is not used (the sampler's friction damps the fluid).
 
-Neighbour search: :class:`scipy.spatial.cKDTree` queried for ``k + 1`` points per particle at every
-evaluation, O(M k log M) in low d; in 32-D at M = 2000 a kd-tree is close to brute force
-(``examples/results/parvi/highdim/README.md`` has the timing).
+:class:`KNNRatioParVIModel` (``neighbours="knn-ratio"``, eqs. R1-R5) estimates ``rho / p^beta`` instead of rho.
+
+Neighbour search (:class:`KNNSearch`): a :class:`scipy.spatial.cKDTree` query of ``2k + 1`` points per particle
+builds a candidate list; later evaluations measure the distances to the candidates only and keep the k nearest,
+exact by a displacement bound, and rebuild where the bound fails. In 32-D at M = 2000 a kd-tree query is no
+faster than brute force (``examples/results/parvi/highdim/README.md`` has the timing): the reuse is what keeps a
+step O(M k d).
 """
 from __future__ import annotations
 
@@ -44,7 +50,7 @@ from scipy.special import digamma
 
 from .parvi import ParVIEvaluation, unit_ball_volume
 
-__all__ = ["KNNParVIModel", "KNNRatioParVIModel", "check_k", "check_knn_options", "knn_graph", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
+__all__ = ["KNNParVIModel", "KNNRatioParVIModel", "check_k", "check_knn_options", "knn_graph", "KNNSearch", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
 
 #: Default number of neighbours of ``neighbours="knn"``.
 DEFAULT_K = 20
@@ -75,6 +81,57 @@ def knn_graph(x_pc, k):
     self_pk[~self_pk.any(axis=1), -1] = True
     keep_pk = ~self_pk
     return idx_pk[keep_pk].reshape(m, k), dist_pk[keep_pk].reshape(m, k)
+
+
+class KNNSearch:
+    """The k nearest neighbours of moving points, exact at every call, with a candidate list reused between calls.
+
+    A rebuild queries a :class:`~scipy.spatial.cKDTree` for ``k + extra`` candidates per point (``extra``
+    defaults to k). Later calls compute the distances to the candidates only (O(M (k + extra) d)) and keep the k
+    nearest; that is the true k-NN set as long as, for every point a, its k-th candidate distance now is at most
+    ``r_a(k + extra)`` at the rebuild minus ``delta_a + max_b delta_b`` (``delta`` the displacements since the
+    rebuild): every point outside the list was at least ``r_a(k + extra)`` away then and moved closer by at most
+    that. Where this fails (or the number of points changes) the list is rebuilt. Ties may be ordered either way.
+    """
+
+    def __init__(self, k, extra=None):
+        self.k = int(k)
+        self.extra = self.k if extra is None else int(extra)
+        self.x_build = None
+        self.rebuilds = 0
+        self.calls = 0
+
+    def _rebuild(self, x_pc):
+        m = x_pc.shape[0]
+        width = min(self.k + self.extra, m - 1)
+        self.cand_pk, self.reach_p = knn_graph(x_pc, width)
+        self.reach_p = self.reach_p[:, -1] if width > self.k else np.full(m, np.inf)
+        self.x_build = x_pc.copy()
+        self.rebuilds += 1
+
+    def query(self, x_pc):
+        """``(idx_pk, dist_pk)``: the k nearest neighbours of every point (itself excluded), sorted by distance."""
+        self.calls += 1
+        if self.x_build is None or self.x_build.shape != x_pc.shape:
+            self._rebuild(x_pc)
+        moved_p = np.sqrt(np.einsum("pc,pc->p", x_pc - self.x_build, x_pc - self.x_build))
+        idx_pk, dist_pk = self._nearest_candidates(x_pc)
+        if np.any(dist_pk[:, -1] > self.reach_p - moved_p - moved_p.max()):
+            self._rebuild(x_pc)
+            idx_pk, dist_pk = self._nearest_candidates(x_pc)
+        return idx_pk, dist_pk
+
+    def _nearest_candidates(self, x_pc):
+        diff_pkc = x_pc[:, None, :] - x_pc[self.cand_pk]
+        d_pk = np.sqrt(np.einsum("pkc,pkc->pk", diff_pkc, diff_pkc))
+        if d_pk.shape[1] > self.k:
+            part_pk = np.argpartition(d_pk, self.k - 1, axis=1)[:, : self.k]
+            d_pk = np.take_along_axis(d_pk, part_pk, axis=1)
+            cand_pk = np.take_along_axis(self.cand_pk, part_pk, axis=1)
+        else:
+            cand_pk = self.cand_pk
+        order_pk = np.argsort(d_pk, axis=1, kind="stable")
+        return np.take_along_axis(cand_pk, order_pk, axis=1), np.take_along_axis(d_pk, order_pk, axis=1)
 
 
 class KNNParVIModel:
@@ -115,6 +172,7 @@ class KNNParVIModel:
         if not math.isfinite(self.softening) or self.softening < 0:
             raise ValueError(f"softening must be a finite number >= 0, got {softening!r}")
         self.n_neighbours = float(self.k)
+        self.search = KNNSearch(self.k)
         self.log_bias = poisson_log_constant(self.k, self.dim, self.softening)
 
     def log_density_estimate(self, dist_pk, m):
@@ -155,7 +213,7 @@ class KNNParVIModel:
             bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
         mass = 1.0 / m_particles
-        idx_pk, dist_pk = knn_graph(r_pc, self.k)
+        idx_pk, dist_pk = self.search.query(r_pc)
         f_pc, stiff_p = self.internal_forces(r_pc, idx_pk)
         g_pc = self.target.score(r_pc)
         f_pc += self.alpha * mass * g_pc
@@ -229,7 +287,7 @@ class KNNRatioParVIModel(KNNParVIModel):
             bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
         mass = 1.0 / m_particles
-        idx_pk, dist_pk = knn_graph(r_pc, k)
+        idx_pk, dist_pk = self.search.query(r_pc)
         h_p = dist_pk[:, -1]
         if not np.all(h_p > 0):
             raise ValueError("positions: a particle coincides with its k nearest neighbours (its ball is empty)")
