@@ -150,6 +150,21 @@ class ParVISampler:
         ``trace["dt"]`` and ``trace["time"]`` are then the median particle's; ``info`` has
         ``dt_median`` and ``dt_min`` of the last step. Needs ``dt=None``; ``courant`` defaults to
         :data:`LOCAL_COURANT` (0.25) there, 0.5 for the global step.
+    neighbours : {"kernel", "knn", "knn-ratio"}
+        ``"kernel"`` (default): the SPH kernel sums of :class:`~ase_sphrelax.models.parvi.ParVIModel`.
+        ``"knn"``: densities from each particle's k nearest neighbours
+        (:class:`~ase_sphrelax.models.parvi_knn.KNNParVIModel`, a softened Kozachenko-Leonenko estimate; forces the
+        exact gradient of the energy), any ``1 <= k < n`` in any dimension, where the kernel sums need hundreds of
+        neighbours above 3-D (M >= 656 in 10-D). At rest the particles satisfy the Stein identities
+        ``sum grad log p = 0`` and ``mean (x . grad log p) = -d`` exactly (theory.py, eqs. K4-K6); the density is p
+        in the continuum limit (K7), which above a few dimensions the neighbour balls are too wide to reach: the
+        particles rest on the typical-set shell (second moments of Gaussians right, radial spread not). Use
+        ``whiten="covariance"`` on anisotropic targets. ``"knn-ratio"`` (experimental): a k-NN estimate of
+        ``rho / p`` (theory.py, eqs. R1-R5; needs ``log_density``), free of that bias in the continuum but stiff and
+        slow to settle (examples/results/parvi/highdim/). Both need the score force with the isothermal EOS and
+        ``h="adaptive"``; viscosity options are not used (the friction damps the fluid).
+    k : int or None
+        Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20); an error with the kernel.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -484,5 +499,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     * ``time_step="local"`` — every particle advanced with its own CFL step (local time stepping), so
       that a stiff particle does not set the step of all; the resting states, hence the stationary
       density, are those of the default ``"global"`` step (theory.py, eqs. L1-L3).
+    * ``neighbours="knn"`` (with ``k``, default 20) — densities from each particle's k nearest neighbours, for
+      any ``k < n`` in any dimension (the kernel default needs M >= 656 in 10-D and cannot run in 32-D); exact
+      Stein identities at rest, density p in the continuum limit, a typical-set shell above a few dimensions
+      (theory.py, eqs. K1-K7). Combine with ``whiten="covariance"`` on anisotropic targets.
+      ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()
