@@ -175,6 +175,17 @@ class KNNParVIModel:
         self.search = KNNSearch(self.k)
         self.log_bias = poisson_log_constant(self.k, self.dim, self.softening)
 
+    def _checked_positions(self, r_pc):
+        """``r_pc`` as a float (M, d) array; one-line errors for a wrong shape, ``k >= M`` or non-finite rows."""
+        r_pc = np.asarray(r_pc, dtype=float)
+        if r_pc.ndim != 2 or r_pc.shape[1] != self.dim:
+            raise ValueError(f"positions must have shape (M, {self.dim}), got {r_pc.shape}")
+        check_k(self.k, r_pc.shape[0])
+        if not np.all(np.isfinite(r_pc)):
+            bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
+            raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
+        return r_pc
+
     def log_density_estimate(self, dist_pk, m):
         """Eq. K1: ``log rho_a`` from the k sorted neighbour distances (M, k) of M particles."""
         r2_pk = dist_pk**2
@@ -204,14 +215,8 @@ class KNNParVIModel:
     def evaluate(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
         """Forces (eq. K3), densities (eq. K1) and, with ``want_energy`` and a log-density, the energy (eq. K2)
         at positions ``r_pc`` (M, d). ``v_pc`` and ``rho_p`` are accepted for the sampler's interface and unused."""
-        r_pc = np.asarray(r_pc, dtype=float)
-        if r_pc.ndim != 2 or r_pc.shape[1] != self.dim:
-            raise ValueError(f"positions must have shape (M, {self.dim}), got {r_pc.shape}")
+        r_pc = self._checked_positions(r_pc)
         m_particles = r_pc.shape[0]
-        check_k(self.k, m_particles)
-        if not np.all(np.isfinite(r_pc)):
-            bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
-            raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
         mass = 1.0 / m_particles
         idx_pk, dist_pk = self.search.query(r_pc)
         f_pc, stiff_p = self.internal_forces(r_pc, idx_pk)
@@ -278,14 +283,8 @@ class KNNRatioParVIModel(KNNParVIModel):
 
     def evaluate(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
         """Forces (eq. R3), the k-NN densities (eq. K1, reported) and the energy (eq. R2) at ``r_pc`` (M, d)."""
-        r_pc = np.asarray(r_pc, dtype=float)
-        if r_pc.ndim != 2 or r_pc.shape[1] != self.dim:
-            raise ValueError(f"positions must have shape (M, {self.dim}), got {r_pc.shape}")
+        r_pc = self._checked_positions(r_pc)
         m_particles, d, k = r_pc.shape[0], self.dim, self.k
-        check_k(k, m_particles)
-        if not np.all(np.isfinite(r_pc)):
-            bad = np.nonzero(~np.all(np.isfinite(r_pc), axis=1))[0]
-            raise ValueError(f"positions must be finite; particles {bad[:10].tolist()} are not")
         mass = 1.0 / m_particles
         idx_pk, dist_pk = self.search.query(r_pc)
         h_p = dist_pk[:, -1]
