@@ -10,7 +10,8 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
   the same size (as ``benchmarks/bench_sampling.py``);
 * ``logistic``: the 32-D logistic posterior at M = 100, 500: posterior mean error in posterior sds and the
   marginal sd ratios against the NUTS reference (``examples/results/parvi/reference_logistic.npy``);
-* ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D.
+* ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D;
+* ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
 
 Usage::
 
@@ -44,6 +45,7 @@ REFERENCE_LOGISTIC = ROOT / "examples" / "results" / "parvi" / "reference_logist
 #: the configurations compared: the variant alone and with the whitening of item 1
 CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", whiten="covariance"),
            "knn+whiten(20,0.8)": dict(neighbours="knn", whiten="covariance", whiten_every=20, whiten_until=0.8),
+           "knn+whiten+local": dict(neighbours="knn", whiten="covariance", time_step="local"),
            "knn-ratio+whiten": dict(neighbours="knn-ratio", whiten="covariance"),
            "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local")}
 
@@ -197,9 +199,69 @@ def part_timing(args):
     _update(args.out, "timing", dict(rows=rows, median=med, **_stamp()))
 
 
+def _fmt(value, digits=3):
+    return "" if value is None else f"{value:.{digits}g}" if isinstance(value, float) else str(value)
+
+
+def part_tables(args):
+    """Markdown tables of every part in results.json (printed; the README quotes them)."""
+    data = json.loads((args.out / "results.json").read_text())
+    lines = []
+    if "stationary" in data:
+        lines += ["| d | M | configuration | steps | var per axis (mean, min-max) | mean sq radius / d | kurtosis | "
+                  "radius sd (i.i.d.) | final kinetic | max abs mean |", "|" + " --- |" * 10]
+        for r in data["stationary"]["rows"]:
+            if r["error"]:
+                lines.append(f"| {r['d']} | {r['m']} | {r['config']} | {r['steps']} | error: {r['error'][:90]} |"
+                             + " |" * 5)
+                continue
+            lines.append(f"| {r['d']} | {r['m']} | {r['config']} | {r['steps']} | {r['var_mean']:.4f} "
+                         f"({r['var_min']:.3f}-{r['var_max']:.3f}) | {r['mean_sq_radius_over_d']:.4f} | "
+                         f"{r['kurtosis']:.3f} | {r['radius_sd']:.3f} ({r['iid_radius_sd']:.3f}) | "
+                         f"{r['kinetic_final']:.2g} | {r['mean_abs']:.2g} |")
+        lines.append("")
+    for key in sorted(k for k in data if k.startswith("gaussian10d")):
+        lines += [f"`{key}` ({data[key]['utc']} UTC, git {data[key]['git']}, load {data[key]['load'][0]:.1f})", "",
+                  "| M | seed | configuration | energy distance | i.i.d. | ratio to i.i.d. | var ratio min-max "
+                  "(per x axis) | Mahalanobis^2 / d | tree rebuilds / evaluations | wall s |", "|" + " --- |" * 10]
+        for r in data[key]["rows"]:
+            if r["error"]:
+                lines.append(f"| {r['m']} | {r['seed']} | {r['config']} | error: {r['error'][:90]} |" + " |" * 6)
+                continue
+            lines.append(f"| {r['m']} | {r['seed']} | {r['config']} | {r['energy']:.4g} | {r['iid_energy']:.4g} | "
+                         f"**{r['ratio_to_iid']:.2f}** | {r['var_ratio_min']:.2f}-{r['var_ratio_max']:.2f} | "
+                         f"{r['mahalanobis_sq_over_d']:.3f} | {r['search_rebuilds']} / {r['search_calls']} | "
+                         f"{r['wall']:.0f} |")
+        lines.append("")
+    for key in sorted(k for k in data if k.startswith("logistic")):
+        lines += [f"`{key}` ({data[key]['utc']} UTC, git {data[key]['git']}, load {data[key]['load'][0]:.1f}; "
+                  f"the reference's two halves are {data[key]['reference_halves_energy']:.3g} apart in energy "
+                  f"distance)", "",
+                  "| M | configuration | mean error / sd (max, median) | sd ratio (min, median, max) | "
+                  "sds within 10 % (of 32) | energy distance | wall s |", "|" + " --- |" * 7]
+        for r in data[key]["rows"]:
+            if r["error"]:
+                lines.append(f"| {r['m']} | {r['config']} | error: {r['error'][:90]} |" + " |" * 4)
+                continue
+            lines.append(f"| {r['m']} | {r['config']} | {r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f} | "
+                         f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f} | "
+                         f"{r['sd_within_10pct']} | {r['energy']:.3g} | {r['wall']:.0f} |")
+        lines.append("")
+    if "timing" in data:
+        lines += [f"Neighbour search, one k = 20 query of M points ({data['timing']['utc']} UTC, load "
+                  f"{data['timing']['load'][0]:.1f}; median of 3 rounds):", "",
+                  "| d | M | cKDTree query s | brute force (cdist + argpartition) s |", "| --- | --- | --- | --- |"]
+        for key, row in data["timing"]["median"].items():
+            d, m = key[1:].split("_m")
+            lines.append(f"| {d} | {m} | {row['tree']:.4f} | {row['brute']:.4f} |")
+    text = "\n".join(lines) + "\n"
+    (args.out / "tables.md").write_text(text)
+    print(text)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing"])
+    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--steps", type=int, default=1000)
@@ -210,7 +272,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
-         timing=part_timing)[args.part](args)
+         timing=part_timing, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":

@@ -304,11 +304,13 @@ class KNNRatioParVIModel(KNNParVIModel):
             s_r2_pk = np.where(r2_pk > 0, s_pk / r2_pk, 0.0)
         lq_pk = -self.beta * log_p[idx_pk]  # log q_b
         lq_self_p = -self.beta * log_p
-        shift_p = np.maximum(lq_pk.max(axis=1), lq_self_p)
+        shift_p = np.maximum(lq_pk[:, :-1].max(axis=1, initial=-np.inf), lq_self_p)  # f = 0 at the k-th neighbour
         q_pk = np.exp(lq_pk - shift_p[:, None])
         q_self_p = np.exp(lq_self_p - shift_p)
         sum_p = np.einsum("pk,pk->p", f_pk, q_pk) + q_self_p  # the particle itself: s = 0, f = 1
         pi_pk = q_pk / sum_p[:, None]
+        # s_ak = 1 identically for the k-th neighbour: its explicit and H_a terms cancel (and f = 0): drop both
+        pi_pk[:, -1] = 0.0
         coeff = self.c0**2 * mass
         # explicit r-dependence of s (f' = -1): e = C pi d s / r^2 on (x_a - x_b)
         e_pk = coeff * d * pi_pk * s_r2_pk
