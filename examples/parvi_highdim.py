@@ -11,6 +11,7 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
 * ``logistic``: the 32-D logistic posterior at M = 100, 500: posterior mean error in posterior sds and the
   marginal sd ratios against the NUTS reference (``examples/results/parvi/reference_logistic.npy``);
 * ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D;
+* ``probes``: the whitening map at M = 100, a 2000-step logistic run, the 32-D shell, knn-ratio's pairing;
 * ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
 
 Usage::
@@ -199,6 +200,71 @@ def part_timing(args):
     _update(args.out, "timing", dict(rows=rows, median=med, **_stamp()))
 
 
+def part_probes(args):
+    """The numbers the README and theory.py quote besides the tables: the whitening map of ``knn+whiten`` at M = 100
+    (default start against i.i.d. starting points), a 2000-step logistic run, the 32-D unit Gaussian's shell, and
+    the pairing of ``knn-ratio`` without its shape term (eq. R5)."""
+    from scipy.spatial import cKDTree
+
+    import ase_sphrelax.models.parvi_knn as parvi_knn
+    from ase_sphrelax.sampling import whitening
+
+    out = {}
+    target = get_target("gaussian10d")
+    renew = whitening.AffineMap.renew
+    for start in ("default", "iid"):
+        eig = []
+
+        def recording(self, y_pc, v_pc, rho_p=None):
+            result = renew(self, y_pc, v_pc, rho_p)
+            eig.append(np.linalg.eigvalsh(self.l_cc @ self.l_cc.T).tolist())
+            return result
+
+        whitening.AffineMap.renew = recording
+        try:
+            x0 = None if start == "default" else target.sample(100, np.random.default_rng(5))
+            res, err, conv, wall = _run(target, 100, 0, args.steps, x0=x0, **CONFIGS["knn+whiten"])
+        finally:
+            whitening.AffineMap.renew = renew
+        out[f"gaussian10d_m100_knn+whiten_start_{start}"] = dict(
+            map_eigenvalues_min=[min(e) for e in eig], map_eigenvalues_max=[max(e) for e in eig],
+            target_eigenvalues=np.linalg.eigvalsh(target.cov).tolist(), error=err)
+        print(start, [f"{min(e):.3g}-{max(e):.3g}" for e in eig], flush=True)
+    logistic = get_target("logistic")
+    ref = np.load(REFERENCE_LOGISTIC)
+    res, err, conv, wall = _run(logistic, 500, 0, 2000, **CONFIGS["knn+whiten(20,0.8)"])
+    ratio_c = res.samples.std(axis=0) / ref.std(axis=0)
+    out["logistic_m500_knn+whiten(20,0.8)_2000_steps"] = dict(
+        sd_ratio_min=float(ratio_c.min()), sd_ratio_median=float(np.median(ratio_c)), sd_ratio_max=float(ratio_c.max()),
+        mean_err_sd_max=float(np.max(np.abs(res.samples.mean(axis=0) - ref.mean(axis=0)) / ref.std(axis=0))),
+        reference_virial=float(np.mean(np.einsum("pc,pc->p", ref - ref.mean(axis=0), logistic.score(ref)))),
+        samples_virial=float(np.mean(np.einsum("pc,pc->p", res.samples - res.samples.mean(axis=0),
+                                                logistic.score(res.samples)))), wall=wall)
+    print(out["logistic_m500_knn+whiten(20,0.8)_2000_steps"], flush=True)
+    unit32 = gaussian_target(np.zeros(32), np.eye(32), name="unit32")
+    res, err, conv, wall = _run(unit32, 500, 0, args.steps, neighbours="knn")
+    x = res.samples
+    out["unit32_m500_knn"] = dict(radius_sd=float(np.sqrt((x**2).sum(axis=1)).std()), iid_radius_sd=_iid_radius_sd(32),
+                                  var_min=float(x.var(axis=0).min()), var_max=float(x.var(axis=0).max()),
+                                  mean_sq_radius_over_d=float((x**2).sum(axis=1).mean() / 32), wall=wall)
+    print(out["unit32_m500_knn"], flush=True)
+    unit10 = gaussian_target(np.zeros(10), np.eye(10), name="unit10")
+    iid = unit10.sample(500, np.random.default_rng(1))
+    near_iid = cKDTree(iid).query(iid, 2)[0][:, 1]
+    for shape in (0.0, parvi_knn.DEFAULT_SHAPE):
+        saved, parvi_knn.DEFAULT_SHAPE = parvi_knn.DEFAULT_SHAPE, shape
+        try:
+            res, err, conv, wall = _run(unit10, 500, 0, 600, neighbours="knn-ratio")
+        finally:
+            parvi_knn.DEFAULT_SHAPE = saved
+        near = cKDTree(res.samples).query(res.samples, 2)[0][:, 1]
+        out[f"unit10_m500_knn-ratio_shape{shape}_600_steps"] = dict(
+            nearest_q10=float(np.quantile(near, 0.1)), nearest_median=float(np.median(near)),
+            iid_nearest_q10=float(np.quantile(near_iid, 0.1)), iid_nearest_median=float(np.median(near_iid)))
+        print(shape, out[f"unit10_m500_knn-ratio_shape{shape}_600_steps"], flush=True)
+    _update(args.out, "probes", dict(out, **_stamp()))
+
+
 def _fmt(value, digits=3):
     return "" if value is None else f"{value:.{digits}g}" if isinstance(value, float) else str(value)
 
@@ -261,7 +327,7 @@ def part_tables(args):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "tables"])
+    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--steps", type=int, default=1000)
@@ -272,7 +338,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
-         timing=part_timing, tables=part_tables)[args.part](args)
+         timing=part_timing, probes=part_probes, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":
