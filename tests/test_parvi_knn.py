@@ -167,15 +167,15 @@ def test_coincident_particles_are_an_error_without_softening():
 
 @settings(max_examples=25, deadline=None, database=None)
 @given(d=st.integers(1, 12), m=st.integers(3, 60), seed=st.integers(0, 10**6), step=st.sampled_from([1e-3, 0.05, 0.5]),
-       data=st.data())
-def test_reused_candidate_lists_give_the_exact_neighbours(d, m, seed, step, data):
+       extra=st.sampled_from([0, 2, None]), data=st.data())
+def test_reused_candidate_lists_give_the_exact_neighbours(d, m, seed, step, extra, data):
     """KNNSearch against a fresh tree query along a random walk (distances equal; sets equal up to ties)."""
     from ase_sphrelax.models.parvi_knn import KNNSearch
 
     k = data.draw(st.integers(1, m - 1))
     rng = np.random.default_rng(seed)
     x = rng.standard_normal((m, d))
-    search = KNNSearch(k)
+    search = KNNSearch(k, extra)
     for _ in range(6):
         idx, dist = search.query(x)
         ref_idx, ref_dist = knn_graph(x, k)

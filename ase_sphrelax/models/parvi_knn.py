@@ -105,7 +105,8 @@ class KNNSearch:
         m = x_pc.shape[0]
         width = min(self.k + self.extra, m - 1)
         self.cand_pk, self.reach_p = knn_graph(x_pc, width)
-        self.reach_p = self.reach_p[:, -1] if width > self.k else np.full(m, np.inf)
+        # every other point a candidate: nothing outside the list can come closer
+        self.reach_p = self.reach_p[:, -1] if width < m - 1 else np.full(m, np.inf)
         self.x_build = x_pc.copy()
         self.rebuilds += 1
 
