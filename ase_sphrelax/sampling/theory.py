@@ -111,8 +111,8 @@ the per-axis split of an anisotropic target, nor about the shape of the radial d
   ``H ~ (k / (M p V_d))^(1/d)``, to be small against the scale on which log p varies (``H |grad log p| << 1``).
 
   Above a few dimensions it is not: in 10-D at M = 500 the ball of k = 20 around a typical point of a unit
-  Gaussian has radius about 2.7, comparable to the whole distribution (the i.i.d. nearest-neighbour distance is
-  already 1.9), and its growth with M is ``M^(-1/d)``. The estimate is then a heavy smoothing of rho across the
+  Gaussian has radius about 2.7 (the estimate above at ``|x| = sqrt(10)``), comparable to the whole distribution
+  (the median i.i.d. nearest-neighbour distance is already 1.92), and it shrinks only like ``M^(-1/d)``. The estimate is then a heavy smoothing of rho across the
   distribution, and the resting state is not p: on the unit Gaussian it concentrates on the typical-set shell
   (measured radius standard deviations 0.14 in 10-D and 0.037 in 32-D at M = 500, against 0.70 for i.i.d.
   points, ``examples/results/parvi/highdim/``; a coordinate's kurtosis then is ``3 d / (d + 2)``, that of a uniform sphere). By K5 the shell has the
