@@ -265,8 +265,17 @@ def part_probes(args):
     _update(args.out, "probes", dict(out, **_stamp()))
 
 
-def _fmt(value, digits=3):
-    return "" if value is None else f"{value:.{digits}g}" if isinstance(value, float) else str(value)
+def _table(lines, title, columns, rows, lead, cells):
+    """Append a markdown table: the ``lead`` keys of each row, then ``cells(row)`` or the row's error."""
+    lines += ([title, ""] if title else []) + ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
+    for r in rows:
+        body = ([f"error: {r['error'][:90]}"] + [""] * (len(columns) - len(lead) - 1)) if r.get("error") else cells(r)
+        lines.append("| " + " | ".join([str(r[c]) for c in lead] + body) + " |")
+    lines.append("")
+
+
+def _stamp_line(key, entry):
+    return f"`{key}` ({entry['utc']} UTC, git {entry['git']}, load {entry['load'][0]:.1f})"
 
 
 def part_tables(args):
@@ -274,45 +283,34 @@ def part_tables(args):
     data = json.loads((args.out / "results.json").read_text())
     lines = []
     if "stationary" in data:
-        lines += ["| d | M | configuration | steps | var per axis (mean, min-max) | mean sq radius / d | kurtosis | "
-                  "radius sd (i.i.d.) | final kinetic | max abs mean |", "|" + " --- |" * 10]
-        for r in data["stationary"]["rows"]:
-            if r["error"]:
-                lines.append(f"| {r['d']} | {r['m']} | {r['config']} | {r['steps']} | error: {r['error'][:90]} |"
-                             + " |" * 5)
-                continue
-            lines.append(f"| {r['d']} | {r['m']} | {r['config']} | {r['steps']} | {r['var_mean']:.4f} "
-                         f"({r['var_min']:.3f}-{r['var_max']:.3f}) | {r['mean_sq_radius_over_d']:.4f} | "
-                         f"{r['kurtosis']:.3f} | {r['radius_sd']:.3f} ({r['iid_radius_sd']:.3f}) | "
-                         f"{r['kinetic_final']:.2g} | {r['mean_abs']:.2g} |")
-        lines.append("")
+        _table(lines, _stamp_line("stationary", data["stationary"]),
+               ["d", "M", "configuration", "steps", "var per axis (mean, min-max)", "mean sq radius / d", "kurtosis",
+                "radius sd (i.i.d.)", "final kinetic", "max abs mean"], data["stationary"]["rows"],
+               ["d", "m", "config", "steps"],
+               lambda r: [f"{r['var_mean']:.4f} ({r['var_min']:.3f}-{r['var_max']:.3f})",
+                          f"{r['mean_sq_radius_over_d']:.4f}", f"{r['kurtosis']:.3f}",
+                          f"{r['radius_sd']:.3f} ({r['iid_radius_sd']:.3f})", f"{r['kinetic_final']:.2g}",
+                          f"{r['mean_abs']:.2g}"])
     for key in sorted(k for k in data if k.startswith("gaussian10d")):
-        lines += [f"`{key}` ({data[key]['utc']} UTC, git {data[key]['git']}, load {data[key]['load'][0]:.1f})", "",
-                  "| M | seed | configuration | energy distance | i.i.d. | ratio to i.i.d. | var ratio min-max "
-                  "(per x axis) | Mahalanobis^2 / d | tree rebuilds / evaluations | wall s |", "|" + " --- |" * 10]
-        for r in data[key]["rows"]:
-            if r["error"]:
-                lines.append(f"| {r['m']} | {r['seed']} | {r['config']} | error: {r['error'][:90]} |" + " |" * 6)
-                continue
-            lines.append(f"| {r['m']} | {r['seed']} | {r['config']} | {r['energy']:.4g} | {r['iid_energy']:.4g} | "
-                         f"**{r['ratio_to_iid']:.2f}** | {r['var_ratio_min']:.2f}-{r['var_ratio_max']:.2f} | "
-                         f"{r['mahalanobis_sq_over_d']:.3f} | {r['search_rebuilds']} / {r['search_calls']} | "
-                         f"{r['wall']:.0f} |")
-        lines.append("")
+        _table(lines, _stamp_line(key, data[key]),
+               ["M", "seed", "configuration", "energy distance", "i.i.d.", "ratio to i.i.d.",
+                "var ratio min-max (per x axis)", "Mahalanobis^2 / d", "tree rebuilds / evaluations", "wall s"],
+               data[key]["rows"], ["m", "seed", "config"],
+               lambda r: [f"{r['energy']:.4g}", f"{r['iid_energy']:.4g}", f"**{r['ratio_to_iid']:.2f}**",
+                          f"{r['var_ratio_min']:.2f}-{r['var_ratio_max']:.2f}", f"{r['mahalanobis_sq_over_d']:.3f}",
+                          f"{r['search_rebuilds']} / {r['search_calls']}", f"{r['wall']:.0f}"])
     for key in sorted(k for k in data if k.startswith("logistic")):
-        lines += [f"`{key}` ({data[key]['utc']} UTC, git {data[key]['git']}, load {data[key]['load'][0]:.1f}; "
-                  f"the reference's two halves are {data[key]['reference_halves_energy']:.3g} apart in energy "
-                  f"distance)", "",
-                  "| M | configuration | mean error / sd (max, median) | sd ratio (min, median, max) | "
-                  "sds within 10 % (of 32) | energy distance | wall s |", "|" + " --- |" * 7]
-        for r in data[key]["rows"]:
-            if r["error"]:
-                lines.append(f"| {r['m']} | {r['config']} | error: {r['error'][:90]} |" + " |" * 4)
-                continue
-            lines.append(f"| {r['m']} | {r['config']} | {r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f} | "
-                         f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f} | "
-                         f"{r['sd_within_10pct']} | {r['energy']:.3g} | {r['wall']:.0f} |")
-        lines.append("")
+        _table(lines, _stamp_line(key, data[key]) + f"; the reference's two halves are "
+               f"{data[key]['reference_halves_energy']:.3g} apart in energy distance",
+               ["M", "configuration", "mean error / sd (max, median)", "sd ratio (min, median, max)",
+                "sds within 10 % (of 32)", "energy distance", "wall s"], data[key]["rows"], ["m", "config"],
+               lambda r: [f"{r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f}",
+                          f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f}",
+                          str(r["sd_within_10pct"]), f"{r['energy']:.3g}", f"{r['wall']:.0f}"])
+    if "probes" in data:
+        lines += [_stamp_line("probes", data["probes"]), ""]
+        lines += [f"* `{key}`: {json.dumps(value, default=float)}" for key, value in data["probes"].items()
+                  if isinstance(value, dict)] + [""]
     if "timing" in data:
         lines += [f"Neighbour search, one k = 20 query of M points ({data['timing']['utc']} UTC, load "
                   f"{data['timing']['load'][0]:.1f}; median of 3 rounds):", "",

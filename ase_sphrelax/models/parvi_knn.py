@@ -50,7 +50,8 @@ from scipy.special import digamma
 
 from .parvi import ParVIEvaluation, unit_ball_volume
 
-__all__ = ["KNNParVIModel", "KNNRatioParVIModel", "check_k", "check_knn_options", "knn_graph", "KNNSearch", "DEFAULT_K", "DEFAULT_SOFTENING", "poisson_log_constant"]
+__all__ = ["KNNParVIModel", "KNNRatioParVIModel", "KNNSearch", "check_k", "check_knn_options", "knn_graph",
+           "poisson_log_constant", "DEFAULT_K", "DEFAULT_SOFTENING", "DEFAULT_SHAPE"]
 
 #: Default number of neighbours of ``neighbours="knn"``.
 DEFAULT_K = 20
@@ -151,7 +152,8 @@ class KNNParVIModel:
     alpha, c0 : float
         Score-force amplification and isothermal sound speed (stationary density ``p^(alpha/c0^2)``).
     softening : float or None
-        delta >= 0 of eq. K1 (None: :data:`DEFAULT_SOFTENING`): the distances enter as ``sqrt(r^2 + delta^2 H_a^2)``, ``H_a = r_a(k)``.
+        delta >= 0 of eq. K1 (None: :data:`DEFAULT_SOFTENING`): the distances enter as
+        ``sqrt(r^2 + delta^2 Hbar_a^2)``, ``Hbar_a^2`` the mean square of the k neighbour distances.
     """
 
     #: the sampler's switches: no adaptive support to solve, summation densities, a gradient system

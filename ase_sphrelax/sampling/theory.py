@@ -110,19 +110,19 @@ the per-axis split of an anisotropic target, nor about the shape of the radial d
   p itself by default, as for the kernel fluid. This needs the ball holding the k neighbours,
   ``H ~ (k / (M p V_d))^(1/d)``, to be small against the scale on which log p varies (``H |grad log p| << 1``).
 
-  Above a few dimensions it is not: in 10-D at M = 500 the ball of k = 20 around a typical point of a unit
-  Gaussian has radius about 2.7 (the estimate above at ``|x| = sqrt(10)``), comparable to the whole distribution
-  (the median i.i.d. nearest-neighbour distance is already 1.92), and it shrinks only like ``M^(-1/d)``. The estimate is then a heavy smoothing of rho across the
-  distribution, and the resting state is not p: on the unit Gaussian it concentrates on the typical-set shell
-  (measured radius standard deviations 0.14 in 10-D and 0.037 in 32-D at M = 500, against 0.70 for i.i.d.
-  points, ``examples/results/parvi/highdim/``; a coordinate's kurtosis then is ``3 d / (d + 2)``, that of a uniform sphere). By K5 the shell has the
-  right mean square radius, so second moments of Gaussians stay right (and the energy distance, which mostly
-  sees location and scale, stays close to i.i.d.); on a target whose log-density is not quadratic the virial
-  places the shell wrongly (the logistic posterior's log-likelihood grows linearly in the tails: its marginal
-  standard deviations come out 1.10-1.25 times the NUTS reference's, while the particles satisfy K5:
-  ``mean (x - mean x) . grad log p = -32.02``, the reference -32.11). On an anisotropic target the isotropic
-  neighbour balls mix directions: the 10-D Gaussian of condition number 100 needs ``whiten="covariance"``
-  (item 1), under which the fluid sees a unit covariance.
+  Above a few dimensions it is not: in 10-D at M = 500 the ball of k = 20 around a typical point of a unit Gaussian
+  has radius about 2.7 (the estimate above at ``|x| = sqrt(10)``), comparable to the whole distribution (the median
+  i.i.d. nearest-neighbour distance is already 1.92), and it shrinks only like ``M^(-1/d)``. The estimate is then a
+  heavy smoothing of rho across the distribution, and the resting state is not p: on the unit Gaussian it
+  concentrates on the typical-set shell (measured radius standard deviations 0.14 in 10-D and 0.037 in 32-D at M =
+  500, against 0.70 for i.i.d. points, ``examples/results/parvi/highdim/``; a coordinate's kurtosis then is ``3 d /
+  (d + 2)``, that of a uniform sphere). By K5 the shell has the right mean square radius, so second moments of
+  Gaussians stay right (and the energy distance, which mostly sees location and scale, stays close to i.i.d.); on a
+  target whose log-density is not quadratic the virial places the shell wrongly (the logistic posterior's
+  log-likelihood grows linearly in the tails: its marginal standard deviations come out 1.10-1.25 times the NUTS
+  reference's, while the particles satisfy K5: ``mean (x - mean x) . grad log p = -32.02``, the reference -32.11).
+  On an anisotropic target the isotropic neighbour balls mix directions: the 10-D Gaussian of condition number 100
+  needs ``whiten="covariance"`` (item 1), under which the fluid sees a unit covariance.
 
   In 1D and 2D the ball is small except in the tails, where it spans the tail: the tails are thinned
   (kurtosis below 3, measured in ``examples/results/parvi/highdim/``); the variance stays exact by K5.
@@ -141,10 +141,11 @@ The smoothing of K7 is harmless for a quantity that is constant at the solution.
   ``const + eps^2 C^2 (<phi, K phi> - <K phi, K phi> / 2) + O(eps^3)`` (inner products weighted by p^beta), which is
   ``>= eps^2 C^2 <K phi, K phi> / 2 >= 0``: ``rho ∝ p^beta`` is a minimiser whatever the size of the ball, with
   no smoothing bias (modes that K annihilates are flat: the continuum does not fix the arrangement below H);
-* (R5) a scale-free shape term ``-lambda c0^2 m (d/k) sum_a sum_{j<k} log(r_a(j) / H_a)`` (lambda = 0.2)
-  repels close pairs: f is flat at s = 0 in high d, and without it particles pair up (measured in 10-D at
-  M = 500: a tenth of the particles had a neighbour within 0.22, with the term within 0.59, i.i.d. points 1.48). It depends only on the arrangement in units of
-  the spacing: a constant per particle in the continuum, so it does not move R4's minimiser at leading order.
+* (R5) a scale-free shape term ``-lambda c0^2 m (d/k) sum_a sum_{j<k} log(r_a(j) / H_a)`` (lambda = 0.2) repels
+  close pairs: f is flat at s = 0 in high d, and without it particles pair up (measured in 10-D at M = 500: a tenth
+  of the particles had a neighbour within 0.22, with the term within 0.59, i.i.d. points 1.48). It depends only on
+  the arrangement in units of the spacing: a constant per particle in the continuum, so it does not move R4's
+  minimiser at leading order.
 
 What R4 does not cover: the importance weights ``q_b`` vary over a ball by ``exp(beta |grad log p| H)``, a
 factor of hundreds in 10-D, so that one neighbour dominates each estimate, the forces are stiff (small steps)
