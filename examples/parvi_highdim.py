@@ -51,13 +51,22 @@ CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", w
            "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local")}
 
 
-def _stamp():
+def _git_revision():
     try:
-        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
-                             text=True).stdout.strip()
+        return subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
+                              text=True).stdout.strip()
     except OSError:
-        rev = "?"
-    return dict(git=rev, load=os.getloadavg(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
+        return "?"
+
+
+#: the revision when this process started (the code it runs), set by main()
+STARTED = {}
+
+
+def _stamp():
+    """The revision the part ran (at its start), and the load and UTC time when it finished."""
+    return dict(git=STARTED.get("git") or _git_revision(), started_utc=STARTED.get("utc"), load=os.getloadavg(),
+                utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
 
 
 def _update(out, key, value):
@@ -334,6 +343,7 @@ def main(argv=None):
     parser.add_argument("--tag", default="main", help="suffix of the results.json key")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
+    STARTED.update(git=_git_revision(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
          timing=part_timing, probes=part_probes, tables=part_tables)[args.part](args)
