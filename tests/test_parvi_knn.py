@@ -127,6 +127,11 @@ def test_runs_with_100_particles_above_3_dimensions(d):
         _run(d, 100, 1)  # the kernel default cannot
 
 
+def test_default_k_is_capped_by_the_particles():
+    s = ParVISampler(lambda x: -0.5 * np.sum(x**2, axis=1), lambda x: -x, dim=3, n=8, neighbours="knn")
+    assert s.model.k == 7 and s.parameters["k"] == 7
+
+
 def test_default_configuration_is_unchanged():
     s = ParVISampler(lambda x: -0.5 * np.sum(x**2, axis=1), lambda x: -x, dim=2, n=50)
     assert type(s.model) is ParVIModel and s.parameters["neighbours"] == "kernel" and s.parameters["k"] is None

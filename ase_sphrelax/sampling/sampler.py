@@ -164,7 +164,8 @@ class ParVISampler:
         slow to settle (examples/results/parvi/highdim/). Both need the score force with the isothermal EOS and
         ``h="adaptive"``; viscosity options are not used (the friction damps the fluid).
     k : int or None
-        Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20); an error with the kernel.
+        Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20, at most n - 1); an error with
+        the kernel.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -220,7 +221,7 @@ class ParVISampler:
         if neighbours != "kernel":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7, R1-R4)
             check_knn_options(formulation, eos, h, density, regularisation, kernel)
             model_class = KNNParVIModel if neighbours == "knn" else KNNRatioParVIModel
-            self.model = model_class(self.target, int(dim), k=check_k(DEFAULT_K if k is None else k, n),
+            self.model = model_class(self.target, int(dim), k=check_k(min(DEFAULT_K, n - 1) if k is None else k, n),
                                      alpha=alpha, c0=c0)
         elif k is not None:
             raise ValueError(f"k: the number of neighbours of neighbours='knn' or 'knn-ratio'; give one of those or "
