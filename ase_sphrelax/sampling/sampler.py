@@ -44,6 +44,7 @@ import numpy as np
 
 from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
+from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, KNNRatioParVIModel, check_k, check_knn_options
 from .convergence import assess_convergence, ensemble_moments
 from .result import CountingTarget, SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
@@ -149,6 +150,22 @@ class ParVISampler:
         ``trace["dt"]`` and ``trace["time"]`` are then the median particle's; ``info`` has
         ``dt_median`` and ``dt_min`` of the last step. Needs ``dt=None``; ``courant`` defaults to
         :data:`LOCAL_COURANT` (0.25) there, 0.5 for the global step.
+    neighbours : {"kernel", "knn", "knn-ratio"}
+        ``"kernel"`` (default): the SPH kernel sums of :class:`~ase_sphrelax.models.parvi.ParVIModel`.
+        ``"knn"``: densities from each particle's k nearest neighbours
+        (:class:`~ase_sphrelax.models.parvi_knn.KNNParVIModel`, a softened Kozachenko-Leonenko estimate; forces the
+        exact gradient of the energy), any ``1 <= k < n`` in any dimension, where the kernel sums need hundreds of
+        neighbours above 3-D (M >= 656 in 10-D). At rest the particles satisfy the Stein identities
+        ``sum grad log p = 0`` and ``mean (x . grad log p) = -d`` exactly (theory.py, eqs. K4-K6); the density is p
+        in the continuum limit (K7), which above a few dimensions the neighbour balls are too wide to reach: the
+        particles rest on the typical-set shell (second moments of Gaussians right, radial spread not). Use
+        ``whiten="covariance"`` on anisotropic targets. ``"knn-ratio"`` (experimental): a k-NN estimate of
+        ``rho / p`` (theory.py, eqs. R1-R5; needs ``log_density``), free of that bias in the continuum but stiff and
+        slow to settle (examples/results/parvi/highdim/). Both need the score force with the isothermal EOS and
+        ``h="adaptive"``; viscosity options are not used (the friction damps the fluid).
+    k : int or None
+        Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20, at most n - 1); an error with
+        the kernel.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -158,7 +175,7 @@ class ParVISampler:
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5, time_step="global"):
+                 whiten_every=50, whiten_until=0.5, time_step="global", neighbours="kernel", k=None):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -199,10 +216,21 @@ class ParVISampler:
             score = None if score is None else self.map.score_y(score)
         self._friction_from_target = friction is None
         self.target = CountingTarget(log_density, score, dim)
-        self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
-                                rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
-                                viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
-                                regularisation=regularisation, density=density, diffusion=diffusion, eps=eps)
+        if neighbours not in ("kernel", "knn", "knn-ratio"):
+            raise ValueError(f"neighbours must be 'kernel', 'knn' or 'knn-ratio', got {neighbours!r}")
+        if neighbours != "kernel":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7, R1-R4)
+            check_knn_options(formulation, eos, h, density, regularisation, kernel)
+            model_class = KNNParVIModel if neighbours == "knn" else KNNRatioParVIModel
+            self.model = model_class(self.target, int(dim), k=check_k(min(DEFAULT_K, n - 1) if k is None else k, n),
+                                     alpha=alpha, c0=c0)
+        elif k is not None:
+            raise ValueError(f"k: the number of neighbours of neighbours='knn' or 'knn-ratio'; give one of those or "
+                             f"k=None, got k={k!r}")
+        else:
+            self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
+                                    rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
+                                    viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
+                                    regularisation=regularisation, density=density, diffusion=diffusion, eps=eps)
         self.dim, self.n, self.steps = int(dim), int(n), int(steps)
         if self.model.adaptive:
             self.model._eta_for(self.n)  # M too small for an adaptive support: an error before any work
@@ -241,7 +269,8 @@ class ParVISampler:
                                friction=self.friction, rule=rule, init_scale=init_scale, seed=seed,
                                max_steps=self.max_steps, whiten=None if self.whiten is None else
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
-                               whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step)
+                               whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
+                               neighbours=neighbours, k=getattr(self.model, "k", None))
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -471,5 +500,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     * ``time_step="local"`` — every particle advanced with its own CFL step (local time stepping), so
       that a stiff particle does not set the step of all; the resting states, hence the stationary
       density, are those of the default ``"global"`` step (theory.py, eqs. L1-L3).
+    * ``neighbours="knn"`` (with ``k``, default 20) — densities from each particle's k nearest neighbours, for
+      any ``k < n`` in any dimension (the kernel default needs M >= 656 in 10-D and cannot run in 32-D); exact
+      Stein identities at rest, density p in the continuum limit, a typical-set shell above a few dimensions
+      (theory.py, eqs. K1-K7). Combine with ``whiten="covariance"`` on anisotropic targets.
+      ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()

@@ -6,7 +6,8 @@ Run once before SPH-ParVI starts, on a few points, with their own evaluation cou
 * :func:`locate_target` -- a short diagonal Newton search for a mode: at the current point x and
   per-axis scale s, the score's central difference over ``x +- s_c e_c`` gives the curvature
   ``k_c = -d score_c / d x_c``; where ``k_c > 0`` the scale becomes ``1 / sqrt(k_c)`` and x moves by
-  the Newton step ``score_c / k_c`` (at most ten scales per iteration); where it is not, x stays
+  the Newton step ``score_c / k_c`` (at most ten scales per iteration, halved while it lowers log p when the
+  log-density is given); where it is not, x stays
   and the scale doubles (the probe looks wider: between the modes of a mixture the secant over a
   wider span measures the spread of the whole target). A Gaussian is found in one step (any centre, any scale). A score
   whose finite values never show positive curvature, on any axis at any probed scale, points away
@@ -41,6 +42,29 @@ def _score_or_nan(probe, x_pc):
     return out
 
 
+def _backtrack(probe, x_c, step_c, halvings=40):
+    """The Newton step halved until log p does not decrease (when the log-density is known): a secant curvature
+    that underestimates an exponential (the logistic posterior's log-precision) would send x off to where the
+    score overflows."""
+    if not probe.has_density or not np.any(step_c):
+        return step_c
+
+    def log_p(x):
+        with np.errstate(all="ignore"):
+            out = float(np.asarray(probe._log_density(x[None, :]), dtype=float).ravel()[0])
+        probe.n_density += 1
+        return out if np.isfinite(out) else -np.inf
+
+    here = log_p(x_c)
+    if not np.isfinite(here):
+        return step_c
+    for _ in range(halvings):
+        if log_p(x_c + step_c) >= here:
+            return step_c
+        step_c = 0.5 * step_c
+    return np.zeros_like(step_c)
+
+
 def locate_target(probe, dim, iterations=30):
     """A mode and per-axis scale of the target from its score (see the module docstring).
 
@@ -70,6 +94,7 @@ def locate_target(probe, dim, iterations=30):
             step_c = np.where(convex_c, g0_c / np.where(convex_c, k_c, 1.0), 0.0)
             cap_c = 10.0 * np.maximum(s_c, new_s_c)
             step_c = np.clip(step_c, -cap_c, cap_c)
+            step_c = _backtrack(probe, x_c, step_c)
         else:
             step_c = np.zeros(dim)
         settled = np.all(np.abs(step_c) <= 0.1 * new_s_c) and np.all(np.abs(new_s_c - s_c) <= 0.1 * s_c)

@@ -79,6 +79,79 @@ is what is wanted: a stiff particle (a small H or a large acceleration, the funn
 the step of all. Friction is applied per particle in its own time (``exp(-beta dt_a / 2)``), so the
 number of steps a particle needs to be damped scales with its own step, not the smallest one.
 
+k-nearest-neighbour densities (``neighbours="knn"``, :mod:`ase_sphrelax.models.parvi_knn`, eqs. K1-K3 there).
+The density of particle a comes from its k nearest neighbours (a Kozachenko-Leonenko estimate, softened), the
+EOS is isothermal and the body force the score, so the flow descends (K2)
+``E = -(c0^2 m d / 2k) sum_a sum_{b in N_k(a)} log s_ab - alpha m sum_a log p(x_a)``,
+``s_ab = r_ab^2 + delta^2 Hbar_a^2``. Its resting states (``F_a = 0`` for all a) obey three exact identities,
+for any M, k, delta and d, because ``E_int`` (the first sum) is invariant under translations and rotations and
+changes by a constant under a scaling (``log s_ab`` gains ``2 log lambda`` when all x are multiplied by lambda):
+
+* (K4) translation: ``sum_a F_int,a = 0``, so at rest ``sum_a grad log p(x_a) = 0``;
+* (K5) scaling (Euler's relation, ``sum_a x_a . grad_a E_int = -c0^2 m d M``): ``sum_a x_a . F_int,a = c0^2 d``
+  for every configuration (m M = 1), so at rest ``(1/M) sum_a (x_a - c) . grad log p(x_a) = -d c0^2 / alpha``
+  for any c (with K4);
+* (K6) rotation: ``sum_a (x_a grad log p(x_a)^T - grad log p(x_a) x_a^T) = 0`` at rest.
+
+These are the Stein identities ``E_p[grad log p] = 0`` and ``E_p[x . grad log p] = -d`` (integration by parts)
+that an exact sample satisfies on average: the resting fluid satisfies them exactly (with ``alpha = c0^2``).
+For a Gaussian ``N(mu, Sigma)`` K4 makes the particles' mean exactly mu, and K5 makes their mean squared
+Mahalanobis radius exactly ``d c0^2 / alpha``: for an isotropic target and an isotropic arrangement the variance
+per axis is ``c0^2 / alpha`` (1 by default) on average over the axes, in any dimension, exactly at rest. With
+motion left, the time-averaged virial adds ``2 <K> / alpha``: the measured mean square exceeds d by that.
+K4-K6 hold for the kernel default too (``rho_a H_a^d = m eta^d`` scales the same way), but say nothing about
+the per-axis split of an anisotropic target, nor about the shape of the radial distribution.
+
+* (K7) continuum limit. Write ``log rho_a = log rho(x_a) + b_a``: ``b_a`` is the estimator's error, a function
+  of the arrangement of a's neighbours measured in units of their spacing (the estimator is scale-free). Where
+  the neighbours are a Poisson process ``E b_a = 0`` (the constant ``C_k``: exact for ``delta = 0``, by Monte
+  Carlo otherwise); where the resting arrangement is the same (statistically) everywhere, ``b`` is a constant
+  and drops out of the isothermal EOS. Then ``c0^2 log rho = alpha log p + const``: ``rho ∝ p^(alpha / c0^2)``,
+  p itself by default, as for the kernel fluid. This needs the ball holding the k neighbours,
+  ``H ~ (k / (M p V_d))^(1/d)``, to be small against the scale on which log p varies (``H |grad log p| << 1``).
+
+  Above a few dimensions it is not: in 10-D at M = 500 the ball of k = 20 around a typical point of a unit Gaussian
+  has radius about 2.7 (the estimate above at ``|x| = sqrt(10)``), comparable to the whole distribution (the median
+  i.i.d. nearest-neighbour distance is already 1.92), and it shrinks only like ``M^(-1/d)``. The estimate is then a
+  heavy smoothing of rho across the distribution, and the resting state is not p: on the unit Gaussian it
+  concentrates on the typical-set shell (measured radius standard deviations 0.14 in 10-D and 0.037 in 32-D at M =
+  500, against 0.70 for i.i.d. points, ``examples/results/parvi/highdim/``; a coordinate's kurtosis then is ``3 d /
+  (d + 2)``, that of a uniform sphere). By K5 the shell has the right mean square radius, so second moments of
+  Gaussians stay right (and the energy distance, which mostly sees location and scale, stays close to i.i.d.); on a
+  target whose log-density is not quadratic the virial places the shell wrongly (the logistic posterior's
+  log-likelihood grows linearly in the tails: its marginal standard deviations come out 1.10-1.25 times the NUTS
+  reference's, while the particles satisfy K5: ``mean (x - mean x) . grad log p = -32.02``, the reference -32.11).
+  On an anisotropic target the isotropic neighbour balls mix directions: the 10-D Gaussian of condition number 100
+  needs ``whiten="covariance"`` (item 1), under which the fluid sees a unit covariance.
+
+  In 1D and 2D the ball is small except in the tails, where it spans the tail: the tails are thinned
+  (kurtosis below 3, measured in ``examples/results/parvi/highdim/``); the variance stays exact by K5.
+
+k-NN estimate of the ratio (``neighbours="knn-ratio"``, :class:`~ase_sphrelax.models.parvi_knn.KNNRatioParVIModel`).
+The smoothing of K7 is harmless for a quantity that is constant at the solution. With ``q_b = p(x_b)^(-beta)``,
+``beta = alpha / c0^2``, the flow descends
+
+* (R2) ``E = c0^2 m sum_a log g_a``, (R1) ``g_a = sum_{b in {a} + N_k(a)} f(s_ab) q_b / (M V_d H_a^d (k + 1) / 2)``,
+  ``s_ab = (r_ab / H_a)^d``, ``f(s) = 1 - s``, ``H_a = r_a(k)`` (f vanishes at the k-th neighbour, so E is
+  continuous when neighbours swap), an estimate of the free energy ``int rho log(rho / p^beta)``;
+* (R3) its exact gradient (FD-tested) has, on each particle b, the score force ``alpha m W_b grad log p(x_b)``
+  with ``W_b`` the weight b carries in its own and its neighbours' estimates;
+* (R4) in the continuum ``g = K[rho / p^beta]``, K the smoothing over the ball (a positive operator with
+  eigenvalues in [0, 1]); with ``rho = C p^beta (1 + eps phi)`` and ``int rho phi = 0`` the energy is
+  ``const + eps^2 C^2 (<phi, K phi> - <K phi, K phi> / 2) + O(eps^3)`` (inner products weighted by p^beta), which is
+  ``>= eps^2 C^2 <K phi, K phi> / 2 >= 0``: ``rho ∝ p^beta`` is a minimiser whatever the size of the ball, with
+  no smoothing bias (modes that K annihilates are flat: the continuum does not fix the arrangement below H);
+* (R5) a scale-free shape term ``-lambda c0^2 m (d/k) sum_a sum_{j<k} log(r_a(j) / H_a)`` (lambda = 0.2) repels
+  close pairs: f is flat at s = 0 in high d, and without it particles pair up (measured in 10-D at M = 500: a tenth
+  of the particles had a neighbour within 0.22, with the term within 0.59, i.i.d. points 1.48). It depends only on
+  the arrangement in units of the spacing: a constant per particle in the continuum, so it does not move R4's
+  minimiser at leading order.
+
+What R4 does not cover: the importance weights ``q_b`` vary over a ball by ``exp(beta |grad log p| H)``, a
+factor of hundreds in 10-D, so that one neighbour dominates each estimate, the forces are stiff (small steps)
+and noisy. Measured: in 10-D the radial spread is restored (radius sd 0.55 against 0.13 for ``"knn"``), but
+the fluid had not come to rest in 1000 steps; on the 32-D logistic posterior it does not settle.
+
 The functions here solve these relations for isotropic targets ``log p = -r^2 / (2 sigma^2)``
 in d dimensions (radial quadrature, the constant from the mass) and return the profile's
 moments, to compare with the particles.
