@@ -68,7 +68,7 @@ LOCAL_GROWTH = None
 VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
                       critical=dict(friction="critical"))
 #: Numeric options a variant may set as ``name=value`` tokens.
-VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every")
+VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp")
 
 
 def variant_options(spec):
@@ -134,11 +134,23 @@ class ParVISampler:
         Fixed time step; None: the CFL step (times ``courant``) at every step.
     courant : float or None
         Factor on the CFL step; None: 0.5 (``DEFAULTS``), or :data:`LOCAL_COURANT` with ``time_step="local"``.
-    friction : float or None
+    friction : float, None or "critical"
         Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
         per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
         found). The drag sets the time the fluid takes to settle, ``~ beta s^2``, while the CFL
         step scales with s: ``beta = 1 / s`` makes the number of steps to rest the same at any scale.
+        ``"critical"``: a matrix drag, critical along each principal direction of the particles'
+        Fisher matrix (rates ``2 (alpha k_i)^(1/2)``, k_i a typical particle's curvature of
+        ``-log p`` along it, from the scores the steps compute; :mod:`.friction`), renewed every
+        ``friction_every`` steps; in whitened coordinates the whitened target's. No friction rule
+        changes the stationary density (theory.py, eqs. F1-F3); ``info["friction_rates"]`` has the
+        last rates.
+    friction_every : int
+        Steps between renewals of the ``"critical"`` drag (default 50).
+    friction_ramp : float
+        In (0, 1]; below 1 the drag (any rule) is multiplied by ``friction_ramp^(1 - step / (steps / 2))``
+        over the first half of the run, rising to the rule's own: little friction while the fluid spreads
+        (default 1: no ramp).
     rule : {"final", "optimal"}
     x0 : ndarray (M, d) or None
         Initial particles; default drawn with ``seed`` from N(0, init_scale^2 I) or, without
@@ -192,7 +204,8 @@ class ParVISampler:
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50):
+                 whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
+                 friction_ramp=1.0):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -208,6 +221,9 @@ class ParVISampler:
         friction = check_friction(friction)
         if isinstance(friction_every, bool) or not isinstance(friction_every, (int, np.integer)) or friction_every < 1:
             raise ValueError(f"friction_every must be an integer >= 1, got {friction_every!r}")
+        if isinstance(friction_ramp, bool) or not isinstance(friction_ramp, numbers.Real) \
+                or not 0.0 < friction_ramp <= 1.0:
+            raise ValueError(f"friction_ramp must be a number in (0, 1], got {friction_ramp!r}")
         if time_step not in ("global", "local"):
             raise ValueError(f"time_step must be 'global' or 'local', got {time_step!r}")
         if time_step == "local" and dt is not None:
@@ -250,6 +266,7 @@ class ParVISampler:
         self.courant = courant if courant is not None else LOCAL_COURANT if time_step == "local" else DEFAULTS["courant"]
         self.friction = friction
         self.friction_every = int(friction_every)
+        self.friction_ramp = float(friction_ramp)
         self._drag = None  # (Q, rates) of a matrix friction (friction="critical"), renewed in run()
         self.time_step = time_step
         self.rule = rule
@@ -278,7 +295,7 @@ class ParVISampler:
                                max_steps=self.max_steps, whiten=None if self.whiten is None else
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
                                whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
-                               friction_every=self.friction_every)
+                               friction_every=self.friction_every, friction_ramp=self.friction_ramp)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -368,6 +385,17 @@ class ParVISampler:
         elif self._drag is None:
             self._drag = (np.eye(self.dim), np.ones(self.dim))
 
+    def _drag_at(self, step):
+        """``(friction, drag)`` of ``step``: the rule's, times ``friction_ramp^(1 - step / ramp)`` over the first
+        half of the run (``ramp = steps / 2``; friction.py)."""
+        ramp_steps = 0.5 * self.steps
+        if self.friction_ramp == 1.0 or step >= ramp_steps:
+            return self.friction, self._drag
+        factor = self.friction_ramp ** (1.0 - step / ramp_steps)
+        if self._drag is not None:
+            return self.friction, (self._drag[0], factor * self._drag[1])
+        return factor * self.friction, None
+
     def damping_rate(self):
         """The slowest damping rate of the drag: the friction, or the smallest rate of the critical drag."""
         return float(np.min(self._drag[1])) if self._drag is not None else float(self.friction)
@@ -445,14 +473,15 @@ class ParVISampler:
         while step < limit:
             step += 1
             dt_p1 = dt if np.isscalar(dt) else dt[:, None]  # (M, 1) local steps or one number
-            v = damp(v, dt_p1, self.friction, self._drag) + (0.5 * dt_p1 / m) * ev.forces
+            friction, drag = self._drag_at(step)
+            v = damp(v, dt_p1, friction, drag) + (0.5 * dt_p1 / m) * ev.forces
             if rho is not None:
                 rho = rho + np.ravel(dt_p1) * model.density_rate(r, v, rho)
             r = r + dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
             ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
-            v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, self.friction, self._drag)
+            v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
             fallback += ev.fallback
             sim_time += float(np.median(dt))
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
@@ -526,5 +555,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     * ``time_step="local"`` — every particle advanced with its own CFL step (local time stepping), so
       that a stiff particle does not set the step of all; the resting states, hence the stationary
       density, are those of the default ``"global"`` step (theory.py, eqs. L1-L3).
+    * ``friction="critical"`` — a drag critical along each principal direction of the target's curvature
+      seen by the particles, renewed every ``friction_every`` steps; ``friction_ramp < 1`` starts any
+      friction lower; friction never changes the stationary density (theory.py, eqs. F1-F3).
+
+    :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()
