@@ -242,6 +242,9 @@ def main(argv=None):
                         help="SPH-ParVI variants, each its own method sph-<name>: tait, plog, pinv (the paper's) or "
                              "a sampler variant (tokens default, whiten, local, critical, name=number joined by '+', "
                              "e.g. whiten+local+critical); default: default tait plog pinv")
+    parser.add_argument("--baselines", nargs="*", choices=BASELINES, default=BASELINES,
+                        help="the baseline samplers to run (default all: svgd ula mala emcee; SVGD, O(M^2), takes "
+                             "~20 min per run at M = 2000 with 1000 evaluations here)")
     parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
     args = parser.parse_args(argv)
     try:
@@ -254,7 +257,7 @@ def main(argv=None):
     sizes = args.sizes or ([100, 500] if args.quick else [100, 500, 2000])
     repeats = args.repeats or (2 if args.quick else 3)
     steps = args.steps or (400 if args.quick else 1000)
-    methods = ["iid", *sph, *BASELINES]
+    methods = ["iid", *sph, *args.baselines]
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"load average {os.getloadavg()}; sizes {sizes}, repeats {repeats}, steps {steps}", flush=True)
     rows = []
