@@ -31,7 +31,7 @@ def table(rows):
         if isinstance(group[0].get("friction"), float):
             friction = f"{group[0]['friction']:.3g}"
         lines.append(f"| {target} | {variant} | {','.join(str(r['seed']) for r in group)} | {each} | {mean} | "
-                     f"{worst} | {np.median(times):.3g} | {sum(bool(r.get('converged')) for r in group)}/"
+                     f"{worst} | {np.median(times) if times else float('nan'):.3g} | {sum(bool(r.get('converged')) for r in group)}/"
                      f"{len(group)} | {friction} | {group[0]['git']} | "
                      f"{min(r['load'] for r in group):.1f}-{max(r['load'] for r in group):.1f} |")
     return lines
