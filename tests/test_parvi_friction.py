@@ -116,3 +116,27 @@ def test_damping_is_the_exact_matrix_exponential_and_never_adds_energy(d, seed, 
         np.testing.assert_allclose(out[a], scipy.linalg.expm(-0.5 * step * b_cc) @ v_pc[a], rtol=1e-10, atol=1e-12)
     assert np.all(np.linalg.norm(out, axis=1) <= np.linalg.norm(v_pc, axis=1) * (1 + 1e-12))
     np.testing.assert_allclose(damp(v_pc, dt, 0.0, None), v_pc)  # friction 0: the paper's fluid
+
+
+def test_sphrelax_sample_runs_a_variant(tmp_path, capsys):
+    from ase_sphrelax.cli import main
+
+    out = tmp_path / "run"
+    assert main(["sample", "--target", "correlated", "--n", "150", "--steps", "60", "--variant",
+                 "whiten+local+critical", "--out", str(out), "--no-progress"]) == 0
+    info = __import__("json").loads((out / "trace.json").read_text())["info"]
+    assert info["whiten"] == "covariance" and info["time_step"] == "local" and info["friction"] == "critical"
+    assert len(info["friction_rates"]) == 2
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--variant", "whiten+fast"], "--variant: variant 'whiten+fast': unknown token 'fast'"),
+    (["--variant", "critical", "--friction", "2"], "both set the friction"),
+])
+def test_sphrelax_sample_bad_variant_is_one_line(tmp_path, capsys, args, message):
+    from ase_sphrelax.cli import main
+
+    assert main(["sample", "--target", "gaussian", "--out", str(tmp_path), "--steps", "1", "--no-progress"]
+                + args) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
