@@ -7,11 +7,11 @@ import scipy.linalg
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import ase_sphrelax
 from ase_sphrelax.sampling.friction import critical_drag, damp
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options
 from ase_sphrelax.sampling.targets import gaussian_target
 from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from test_parvi_steps import assert_one_line_error_before_work
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -23,16 +23,7 @@ from ase_sphrelax.sampling.theory import predicted_gaussian_moments
     (dict(friction="critical", friction_every=0), "friction_every must be an integer >= 1, got 0"),
 ])
 def test_bad_friction_is_one_line_before_work(kwargs, message):
-    calls = []
-    target = gaussian_target(np.zeros(2), np.eye(2))
-
-    def score(x):
-        calls.append(len(x))
-        return target.score(x)
-
-    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")) as info:
-        ase_sphrelax.sample(score=score, n=50, dim=2, steps=5, **kwargs)
-    assert "\n" not in str(info.value) and not calls
+    assert_one_line_error_before_work(kwargs, message)
 
 
 @pytest.mark.parametrize("spec, message", [
