@@ -35,7 +35,8 @@ Methods, all started from the same initial points N(0, I) (seeded per repeat), a
 Equal evaluations: every method gets ``steps`` evaluations of the score or density per particle (MALA,
 which needs both per step, runs ``steps / 2`` steps). Equal wall time: each baseline after SPH-ParVI
 default's wall time (same target, M and repeat): a slower one's recorded state at that time, a faster one run
-again with its steps scaled by the ratio of the wall times (at most 20x, ``--wall-factor``). M = 2000 runs
+again with its steps scaled by the ratio of the wall times (at most 20x, ``--wall-factor``) and the step sizes tuned
+for the run's evaluations. M = 2000 runs
 2 repeats (``--repeats-large``). Metrics against a reference
 sample (20000 i.i.d. points, or a long NUTS run for the logistic posterior): energy distance, sliced
 Wasserstein (200 directions), mean error, relative covariance error, and for the 8-Gaussian ring the
@@ -145,7 +146,9 @@ def score_all(x, target, ref, ref_stats):
 
 def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.0):
     """The baseline's samples after SPH-ParVI default's wall time: a slower baseline's recorded state at
-    that time; a faster one run again with its steps scaled by the wall-time ratio (at most ``max_factor``)."""
+    that time; a faster one run again with its steps scaled by the wall-time ratio (at most ``max_factor``),
+    with the step sizes tuned for ``steps`` (the run's evaluations; tuning again for every longer run would
+    cost pilots of up to 20x the run's length per target and repeat)."""
     if wall >= sph_wall:
         if name == "emcee":
             return res.samples, steps
@@ -154,7 +157,7 @@ def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.
     longer = int(min(steps * sph_wall / max(wall, 1e-9), max_factor * steps))
     if longer <= steps:
         return res.samples, steps
-    more = run_methods(target, m, seed, longer, [name]).get(name, {})
+    more = run_methods(target, m, seed, longer, [name], tuned_for=steps).get(name, {})
     return (more["result"].samples, longer) if "result" in more else (res.samples, steps)
 
 
@@ -176,9 +179,9 @@ def tuned_steps(target, steps, tuning="pilot"):
 RUN_OPTIONS = dict(tuning="pilot", sph_friction=None, sph=dict(SPH_VARIANTS))  # set by main() from the command line
 
 
-def run_methods(target, m, seed, steps, methods):
+def run_methods(target, m, seed, steps, methods, tuned_for=None):
     x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
-    tuned = tuned_steps(target, steps, RUN_OPTIONS["tuning"])
+    tuned = tuned_steps(target, steps if tuned_for is None else tuned_for, RUN_OPTIONS["tuning"])
     out = {}
     rec = max(steps // 20, 1)
     for name in methods:
