@@ -12,6 +12,8 @@ needs a drag ``-beta v``. It is applied exactly (``v <- v exp(-beta dt / 2)`` ar
 ``friction=0`` is the paper's undamped fluid. With friction and the score force the dynamics
 descends the energy of the model (a Lyapunov function), so it settles at the minimiser whose
 density the theory predicts (:mod:`ase_sphrelax.sampling.theory`).
+``friction="critical"`` (:mod:`.friction`) is a matrix drag, critical along each principal direction of
+the target's curvature seen by the particles; no friction rule moves the resting states (theory.py, F1-F3).
 
 Smoothing length: ``h="adaptive"`` (the default: ``rho_a H_a^d = m eta^d``, about
 ``n_neighbours`` particles per support), a number (constant), or ``h_schedule="anneal"`` from
