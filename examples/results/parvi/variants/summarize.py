@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-FILES = ["results.json", "scan_scalar.json", "scan_critical.json", "scan_critical_median.json", "other_targets.json"]
+FILES = ["results.json", "scan_scalar.json", "scan_critical.json", "scan_critical_median.json", "funnel_m100.json"]
 
 
 def table(rows):
