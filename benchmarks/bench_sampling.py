@@ -102,6 +102,11 @@ def reference_samples(target, n, seed, out):
     return x
 
 
+def evaluation_points(ref, n=5000):
+    """The reference points the distances are measured against: ``n`` of ``ref`` drawn with seed 1."""
+    return ref[np.random.default_rng(1).choice(len(ref), min(len(ref), n), replace=False)]
+
+
 def nuts_reference(target, n, chains=4, warmup=2000):
     """Long NUTS (blackjax, window adaptation), thinned to n points over 4 chains."""
     import blackjax
@@ -276,7 +281,7 @@ def main(argv=None):
         ref = reference_samples(target, 20000 if target.sample else 4000, 0, args.out)
         ref_stats = dict(mean=ref.mean(axis=0) if target.mean is None else target.mean,
                          cov=np.cov(ref, rowvar=False) if target.cov is None else target.cov)
-        ref_eval = ref[np.random.default_rng(1).choice(len(ref), min(len(ref), 5000), replace=False)]
+        ref_eval = evaluation_points(ref)
         if target.sample is None:  # no i.i.d. floor: the distance between the two halves of the reference
             half = len(ref) // 2
             floors[tname] = metrics.energy_distance(ref[:half], ref[half:])

@@ -13,6 +13,7 @@ import argparse
 import json
 import os
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -23,6 +24,8 @@ from ase_sphrelax.sampling import get_target, metrics
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant_options
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[3] / "benchmarks"))
+from bench_sampling import evaluation_points, reference_samples  # noqa: E402  (the benchmark's reference)
 
 
 def main():
@@ -43,10 +46,10 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref = target.sample(20000, np.random.default_rng(10_000))
-            ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
-            iid = metrics.energy_distance(target.sample(args.m, np.random.default_rng(seed + 500)), ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
+            ref = evaluation_points(reference_samples(target, 20000, 0, HERE))
+            iid_points = target.sample(args.m, np.random.default_rng(seed + 500))
+            iid = metrics.energy_distance(iid_points, ref)
+            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))  # the benchmark's start
             for variant in args.variants:
                 row = dict(target=tname, m=args.m, steps=args.steps, seed=seed, variant=variant, tag=args.tag,
                            iid_energy=iid, git=git + ("+dirty" if dirty else ""), load=os.getloadavg()[0])
