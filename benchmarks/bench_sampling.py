@@ -261,6 +261,7 @@ def main(argv=None):
         parser.error(f"--sph-variants: {error}")
     RUN_OPTIONS.update(tuning=args.tuning, sph_friction=args.sph_friction, sph=sph)
     started, load_start = time.time(), os.getloadavg()
+    git_at_start = git_version()  # the code that runs (a commit made while it runs must not relabel it)
     args.out = args.out or (OUT / "quick" if args.quick else OUT)
     sizes = args.sizes or ([100, 500] if args.quick else [100, 500, 2000])
     repeats = args.repeats or (2 if args.quick else 3)
@@ -318,7 +319,7 @@ def main(argv=None):
                                  ((r["method"], r) for r in rows if r["target"] == tname and r["m"] == m
                                   and r["seed"] == seed)), flush=True)
         # after every target: the report so far (a long run can be read while it goes on)
-        meta = dict(git=git_version(), sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
+        meta = dict(git=git_at_start, sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
                     tuning=args.tuning, tuned={t: tuned_steps(get_target(t), steps, args.tuning)
                                                for t in done + [tname]},
                     tuning_ksd={f"{k[0]}/{k[1]}": {m: r["table"] for m, r in v.items()} for k, v in TUNED.items()},
