@@ -18,6 +18,10 @@ Methods, all started from the same initial points N(0, I) (seeded per repeat), a
 * ``sph-tait`` — score force with the Tait EOS (gamma 7, rho0 = the initial mean density);
 * ``sph-plog`` / ``sph-pinv`` — Algorithm 1, external pressure -alpha log(p + eps) / 1/(alpha (p + eps)),
   isothermal (these three variants run on the 2D targets at M <= 500 only);
+* ``sph-<variant>`` — the issue-18 variants named by ``--sph-variants`` (default: ``default tait plog pinv``,
+  the methods above), e.g. ``--sph-variants default whiten local whiten+local+critical``: each name is
+  :func:`ase_sphrelax.sampling.sampler.variant_options` (tokens ``whiten``, ``local``, ``critical``,
+  ``name=number``, joined by ``+``) and appears as its own method ``sph-<name>`` in report.md and results.json;
 * ``svgd`` — RBF kernel with the median heuristic times a factor, Adam, numpy, checked against blackjax;
 * ``ula``, ``mala`` — M parallel chains, final states;
   SVGD's learning rate and bandwidth factor and ULA's and MALA's step sizes are set per target by ONE rule
@@ -31,7 +35,8 @@ Methods, all started from the same initial points N(0, I) (seeded per repeat), a
 Equal evaluations: every method gets ``steps`` evaluations of the score or density per particle (MALA,
 which needs both per step, runs ``steps / 2`` steps). Equal wall time: each baseline after SPH-ParVI
 default's wall time (same target, M and repeat): a slower one's recorded state at that time, a faster one run
-again with its steps scaled by the ratio of the wall times (at most 20x, ``--wall-factor``). M = 2000 runs
+again with its steps scaled by the ratio of the wall times (at most 20x, ``--wall-factor``) and the step sizes tuned
+for the run's evaluations. M = 2000 runs
 2 repeats (``--repeats-large``). Metrics against a reference
 sample (20000 i.i.d. points, or a long NUTS run for the logistic posterior): energy distance, sliced
 Wasserstein (200 directions), mean error, relative covariance error, and for the 8-Gaussian ring the
@@ -42,6 +47,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -53,7 +59,7 @@ from _provenance import git_version  # noqa: E402
 
 from ase_sphrelax.sampling import baselines, get_target, metrics  # noqa: E402
 from ase_sphrelax.sampling import tuning as tuning_rule  # noqa: E402
-from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler  # noqa: E402
+from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant_options  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "examples" / "results" / "parvi"
@@ -70,6 +76,18 @@ SPH_VARIANTS = {
 
 
 VARIANTS_ONLY = ("sph-tait", "sph-plog", "sph-pinv")
+DEFAULT_SPH_VARIANTS = ["default", "tait", "plog", "pinv"]
+BASELINES = ["svgd", "ula", "mala", "emcee"]
+
+
+def sph_methods(names):
+    """``{"sph-<name>": ParVISampler options}`` for ``--sph-variants`` names: the paper's variants of
+    :data:`SPH_VARIANTS` (``tait``, ``plog``, ``pinv``) or a :func:`variant_options` name."""
+    out = {}
+    for name in names:
+        method = f"sph-{name}"
+        out[method] = dict(SPH_VARIANTS[method]) if method in SPH_VARIANTS else variant_options(name)
+    return out
 
 
 def reference_samples(target, n, seed, out):
@@ -82,6 +100,11 @@ def reference_samples(target, n, seed, out):
     x = nuts_reference(target, n)
     np.save(path, x)
     return x
+
+
+def evaluation_points(ref, n=5000):
+    """The reference points the distances are measured against: ``n`` of ``ref`` drawn with seed 1."""
+    return ref[np.random.default_rng(1).choice(len(ref), min(len(ref), n), replace=False)]
 
 
 def nuts_reference(target, n, chains=4, warmup=2000):
@@ -128,7 +151,9 @@ def score_all(x, target, ref, ref_stats):
 
 def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.0):
     """The baseline's samples after SPH-ParVI default's wall time: a slower baseline's recorded state at
-    that time; a faster one run again with its steps scaled by the wall-time ratio (at most ``max_factor``)."""
+    that time; a faster one run again with its steps scaled by the wall-time ratio (at most ``max_factor``),
+    with the step sizes tuned for ``steps`` (the run's evaluations; tuning again for every longer run would
+    cost pilots of up to 20x the run's length per target and repeat)."""
     if wall >= sph_wall:
         if name == "emcee":
             return res.samples, steps
@@ -137,7 +162,7 @@ def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.
     longer = int(min(steps * sph_wall / max(wall, 1e-9), max_factor * steps))
     if longer <= steps:
         return res.samples, steps
-    more = run_methods(target, m, seed, longer, [name]).get(name, {})
+    more = run_methods(target, m, seed, longer, [name], tuned_for=steps).get(name, {})
     return (more["result"].samples, longer) if "result" in more else (res.samples, steps)
 
 
@@ -156,12 +181,12 @@ def tuned_steps(target, steps, tuning="pilot"):
     return {m: (r["value"], r["bandwidth_factor"]) for m, r in TUNED[key].items()}
 
 
-RUN_OPTIONS = dict(tuning="pilot", sph_friction=None)  # set by main() from the command line
+RUN_OPTIONS = dict(tuning="pilot", sph_friction=None, sph=dict(SPH_VARIANTS))  # set by main() from the command line
 
 
-def run_methods(target, m, seed, steps, methods):
+def run_methods(target, m, seed, steps, methods, tuned_for=None):
     x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
-    tuned = tuned_steps(target, steps, RUN_OPTIONS["tuning"])
+    tuned = tuned_steps(target, steps if tuned_for is None else tuned_for, RUN_OPTIONS["tuning"])
     out = {}
     rec = max(steps // 20, 1)
     for name in methods:
@@ -174,8 +199,10 @@ def run_methods(target, m, seed, steps, methods):
                     continue
                 res = baselines.SampleResult(target.sample(m, np.random.default_rng(seed + 500)))
             elif name.startswith("sph"):
+                options = dict(friction=RUN_OPTIONS["sph_friction"])
+                options.update(RUN_OPTIONS["sph"][name])  # a variant's own friction rule wins
                 res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0, steps=steps,
-                                   seed=seed, friction=RUN_OPTIONS["sph_friction"], **SPH_VARIANTS[name]).run()
+                                   seed=seed, **options).run()
             elif name == "svgd":
                 res = baselines.svgd(target.score, x0, steps, lr=tuned["svgd"][0], bandwidth_factor=tuned["svgd"][1],
                                      record_every=rec)
@@ -219,14 +246,27 @@ def main(argv=None):
     parser.add_argument("--sph-friction", type=float, default=None,
                         help="SPH-ParVI friction (default: the sampler's, 1 / target scale; 1 reproduces the "
                              "tables published before 2026-12-02)")
+    parser.add_argument("--sph-variants", nargs="+", default=DEFAULT_SPH_VARIANTS,
+                        help="SPH-ParVI variants, each its own method sph-<name>: tait, plog, pinv (the paper's) or "
+                             "a sampler variant (tokens default, whiten, local, critical, name=number joined by '+', "
+                             "e.g. whiten+local+critical); default: default tait plog pinv")
+    parser.add_argument("--baselines", nargs="*", choices=BASELINES, default=BASELINES,
+                        help="the baseline samplers to run (default all: svgd ula mala emcee; SVGD, O(M^2), takes "
+                             "~20 min per run at M = 2000 with 1000 evaluations here)")
     parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
     args = parser.parse_args(argv)
-    RUN_OPTIONS.update(tuning=args.tuning, sph_friction=args.sph_friction)
+    try:
+        sph = sph_methods(args.sph_variants)
+    except ValueError as error:
+        parser.error(f"--sph-variants: {error}")
+    RUN_OPTIONS.update(tuning=args.tuning, sph_friction=args.sph_friction, sph=sph)
+    started, load_start = time.time(), os.getloadavg()
+    git_at_start = git_version()  # the code that runs (a commit made while it runs must not relabel it)
     args.out = args.out or (OUT / "quick" if args.quick else OUT)
     sizes = args.sizes or ([100, 500] if args.quick else [100, 500, 2000])
     repeats = args.repeats or (2 if args.quick else 3)
     steps = args.steps or (400 if args.quick else 1000)
-    methods = ["iid", "sph-default", "sph-tait", "sph-plog", "sph-pinv", "svgd", "ula", "mala", "emcee"]
+    methods = ["iid", *sph, *args.baselines]
     args.out.mkdir(parents=True, exist_ok=True)
     print(f"load average {os.getloadavg()}; sizes {sizes}, repeats {repeats}, steps {steps}", flush=True)
     rows = []
@@ -242,7 +282,7 @@ def main(argv=None):
         ref = reference_samples(target, 20000 if target.sample else 4000, 0, args.out)
         ref_stats = dict(mean=ref.mean(axis=0) if target.mean is None else target.mean,
                          cov=np.cov(ref, rowvar=False) if target.cov is None else target.cov)
-        ref_eval = ref[np.random.default_rng(1).choice(len(ref), min(len(ref), 5000), replace=False)]
+        ref_eval = evaluation_points(ref)
         if target.sample is None:  # no i.i.d. floor: the distance between the two halves of the reference
             half = len(ref) // 2
             floors[tname] = metrics.energy_distance(ref[:half], ref[half:])
@@ -269,16 +309,24 @@ def main(argv=None):
                     rows.append(row)
                     if seed == 0 and m == 500 and target.dim == 2:
                         examples.setdefault(tname, {})[name] = res.samples
+                this = [r for r in rows if r["target"] == tname and r["m"] == m and r["seed"] == seed]
+                iid_energy = next((r["energy"] for r in this if r["method"] == "iid" and "energy" in r), None)
+                for r in this:  # the issue's measure: energy distance over that of i.i.d. samples of the same size
+                    if iid_energy and "energy" in r:
+                        r["energy_over_iid"] = r["energy"] / iid_energy
                 print(f"{tname:12s} M={m:5d} seed={seed} {time.perf_counter() - t0:7.1f} s "
                       + " ".join(f"{n}={r.get('energy', float('nan')):.2e}" for n, r in
                                  ((r["method"], r) for r in rows if r["target"] == tname and r["m"] == m
                                   and r["seed"] == seed)), flush=True)
         # after every target: the report so far (a long run can be read while it goes on)
-        meta = dict(git=git_version(), sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
+        meta = dict(git=git_at_start, sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
                     tuning=args.tuning, tuned={t: tuned_steps(get_target(t), steps, args.tuning)
                                                for t in done + [tname]},
                     tuning_ksd={f"{k[0]}/{k[1]}": {m: r["table"] for m, r in v.items()} for k, v in TUNED.items()},
                     sph_friction=args.sph_friction if args.sph_friction is not None else "1 / target scale",
+                    sph_variants={k: {o: str(v) for o, v in opts.items()} for k, opts in sph.items()},
+                    command="benchmarks/bench_sampling.py " + shlex.join(sys.argv[1:] if argv is None else argv),
+                    load_average_start=load_start, wall_so_far=time.time() - started,
                     reference_floor=floors, targets_done=done + [tname])
         done.append(tname)
         (args.out / "results.json").write_text(json.dumps(dict(meta=meta, rows=rows), indent=1, default=float))
@@ -297,19 +345,32 @@ def _summary(rows, key):
     return {k: (float(np.mean(v)), float(np.std(v)), len(v)) for k, v in table.items()}
 
 
+def _methods(rows):
+    """The methods of ``rows`` in report order: iid, the SPH-ParVI variants as they appear, the baselines."""
+    present = list(dict.fromkeys(r["method"] for r in rows))
+    sph = [m for m in present if m.startswith("sph-")]
+    return (["iid"] if "iid" in present else []) + sph + [m for m in BASELINES if m in present]
+
+
 def write_report(rows, meta, out):
-    methods = ["iid", "sph-default", "sph-optimal", "sph-tait", "sph-plog", "sph-pinv", "svgd", "ula", "mala", "emcee"]
+    methods = _methods(rows)
+    command = meta.get("command", "benchmarks/bench_sampling.py")
+    wall = meta.get("wall_so_far")
     lines = ["# SPH-ParVI evaluation", "",
-             f"Generated by `benchmarks/bench_sampling.py` (git {meta['git']}); sizes {meta['sizes']}, "
+             f"Generated by `{command}` (git {meta['git']}); sizes {meta['sizes']}, "
              f"{meta['repeats']} repeats (seeds 0..{meta['repeats'] - 1}), {meta['steps']} evaluations per particle, "
-             f"load average {meta['load_average']}.", "",
+             f"load average {meta.get('load_average_start', '?')} at the start, {meta['load_average']} at the last "
+             f"write" + (f", {wall / 60:.1f} min wall time for the targets done ({', '.join(meta['targets_done'])})"
+                         if wall is not None else "") + ".", "",
              "Entries: mean ± standard deviation over the repeats; `div` = the run diverged or left no finite "
              "samples (the error is in results.json); `-` = not applicable.", ""]
     if meta.get("reference_floor"):
         lines += ["Targets without an i.i.d. sampler: energy distance between the two halves of the reference "
                   "(its own noise floor): " + ", ".join(f"{k} {v:.3g}" for k, v in meta["reference_floor"].items()),
                   ""]
-    for key, title in (("energy", "Energy distance to the reference (lower is better)"),
+    for key, title in (("energy_over_iid", "Energy distance relative to i.i.d. samples of the same size and seed "
+                                           "(the issue's measure; mean of the per-seed ratios)"),
+                       ("energy", "Energy distance to the reference (lower is better)"),
                        ("sliced_w", "Sliced Wasserstein-2 (200 directions)"),
                        ("cov_err", "Relative covariance error"), ("mean_err", "Mean error"),
                        ("mode_err", "Mode-weight error, 8-Gaussian ring (total variation)"),
@@ -372,7 +433,7 @@ def plot_scaling(rows, out):
     targets = [t for t in TARGETS if any(k[0] == t for k in summary)]
     fig, axes = plt.subplots(2, (len(targets) + 1) // 2, figsize=(3.2 * ((len(targets) + 1) // 2), 6), squeeze=False)
     for ax, tname in zip(axes.ravel(), targets):
-        for i, meth in enumerate(["iid", "sph-default", "sph-tait", "svgd", "ula", "mala", "emcee"]):
+        for i, meth in enumerate(m for m in _methods(rows) if m not in ("sph-optimal", "sph-plog", "sph-pinv")):
             pts = sorted((k[1], v) for k, v in summary.items() if k[0] == tname and k[2] == meth)
             if pts:
                 ax.errorbar([p[0] for p in pts], [p[1][0] for p in pts], yerr=[p[1][1] for p in pts], label=meth,

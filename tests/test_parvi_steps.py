@@ -22,6 +22,11 @@ def kurtosis(x):
     (dict(time_step="local", dt=0.01), "time_step='local' takes each particle's CFL step: give dt=None"),
 ])
 def test_bad_time_step_is_one_line_before_work(kwargs, message):
+    assert_one_line_error_before_work(kwargs, message)
+
+
+def assert_one_line_error_before_work(kwargs, message):
+    """``sample(**kwargs)`` raises a one-line ValueError matching ``message`` before any score evaluation."""
     calls = []
     target = gaussian_target(np.zeros(2), np.eye(2))
 

@@ -22,6 +22,11 @@ away from the mass everywhere, or that does not match the central differences of
 log-density, is a usage error; the initial particles are placed at the scale (and mode) found from
 the score unless ``--init-scale`` is given.
 
+Variants (issue 18): ``--variant whiten+local+critical`` runs the fluid in whitened coordinates, with
+per-particle time steps and the critical friction (``ase_sphrelax.sampling.sampler.variant_options``:
+``default``, ``whiten``, ``local``, ``critical``, ``name=number`` for friction, courant, whiten_every,
+whiten_until, friction_every, friction_ramp, joined by ``+``); none changes the stationary density.
+
 Length: without ``--steps`` the run stops by its own rule: 600 steps, doubled while it is not
 converged, up to ``--max-steps`` (default 9600). ``--steps N`` alone is a fixed length;
 ``--steps N --max-steps K`` starts the rule at N.
@@ -48,6 +53,12 @@ DEFAULT_MAX_STEPS = 16 * DEFAULT_STEPS
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
 EOS = ("isothermal", "tait")
+
+
+def _friction(text):
+    if text == "critical":
+        return text
+    return float(text)
 
 
 def _h(text):
@@ -79,9 +90,13 @@ def add_arguments(parser):
     parser.add_argument("--max-steps", type=positive(int), default=None,
                         help=f"the stopping rule's cap (default {DEFAULT_MAX_STEPS} without --steps; with --steps N "
                              f"the rule starts at N)")
-    parser.add_argument("--friction", type=float, default=None,
-                        help="drag coefficient (default 1 / the target's scale found from its score: 1 for a unit "
-                             "target)")
+    parser.add_argument("--friction", type=_friction, default=None,
+                        help="drag coefficient, or 'critical' (a drag critical along each principal direction of "
+                             "the target's curvature; default 1 / the target's scale found from its score: 1 for a "
+                             "unit target)")
+    parser.add_argument("--variant", default="default",
+                        help="SPH-ParVI variant: tokens default, whiten, local, critical or name=number, joined by "
+                             "'+' (e.g. whiten+local+critical; default: default)")
     parser.add_argument("--rule", choices=("final", "optimal"), default="final",
                         help="which state to return: final (default) or the paper's optimal state (maximum mean "
                              "density; measured 7-400x worse, see examples/results/parvi)")
@@ -163,7 +178,7 @@ def run(args):
     import warnings
 
     from ..checks import NotConvergedWarning
-    from ..sampling.sampler import ParVIDivergence, ParVISampler
+    from ..sampling.sampler import ParVIDivergence, ParVISampler, variant_options
     from ..sampling.targets import TARGET_NAMES, get_target
 
     with usage_errors():
@@ -184,17 +199,26 @@ def run(args):
         max_steps = None if fixed else args.max_steps or DEFAULT_MAX_STEPS
         if max_steps is not None and max_steps < (args.steps or DEFAULT_STEPS):
             raise UsageError(f"--max-steps must be >= --steps ({args.steps or DEFAULT_STEPS}), got {max_steps}")
-        if args.friction is not None and args.friction < 0:
-            raise UsageError(f"--friction must be >= 0, got {args.friction}")
+        if isinstance(args.friction, float) and args.friction < 0:
+            raise UsageError(f"--friction must be >= 0 or 'critical', got {args.friction}")
+        try:
+            options = variant_options(args.variant)
+        except ValueError as error:
+            raise UsageError(f"--variant: {error}") from None
+        if args.friction is not None:
+            if "friction" in options:
+                raise UsageError(f"--friction {args.friction} and --variant {args.variant!r} both set the friction: "
+                                 f"give one")
+            options["friction"] = args.friction
         sampler = ParVISampler(log_density=log_density, score=score, dim=dim, n=args.n, formulation=args.formulation,
                                eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support,
                                steps=DEFAULT_STEPS if args.steps is None else args.steps, max_steps=max_steps,
-                               friction=args.friction, rule=args.rule, init_scale=args.init_scale, seed=args.seed,
-                               progress=show_progress(args))
+                               rule=args.rule, init_scale=args.init_scale, seed=args.seed,
+                               progress=show_progress(args), **options)
         sampler.look_at_target()  # a score of the wrong sign or of another target: exit 2 before any work
         out = output_folder(args)
         out.mkdir(parents=True, exist_ok=True)
-    summary = dict(target=args.target, score=args.score, steps_fixed=fixed, max_steps=max_steps,
+    summary = dict(target=args.target, score=args.score, variant=args.variant, steps_fixed=fixed, max_steps=max_steps,
                    **provenance(args, "sample"))
     try:
         with warnings.catch_warnings():

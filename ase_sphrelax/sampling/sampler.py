@@ -12,6 +12,8 @@ needs a drag ``-beta v``. It is applied exactly (``v <- v exp(-beta dt / 2)`` ar
 ``friction=0`` is the paper's undamped fluid. With friction and the score force the dynamics
 descends the energy of the model (a Lyapunov function), so it settles at the minimiser whose
 density the theory predicts (:mod:`ase_sphrelax.sampling.theory`).
+``friction="critical"`` (:mod:`.friction`) is a matrix drag, critical along each principal direction of
+the target's curvature seen by the particles; no friction rule moves the resting states (theory.py, F1-F3).
 
 Smoothing length: ``h="adaptive"`` (the default: ``rho_a H_a^d = m eta^d``, about
 ``n_neighbours`` particles per support), a number (constant), or ``h_schedule="anneal"`` from
@@ -46,11 +48,12 @@ from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
 from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, KNNRatioParVIModel, check_k, check_knn_options
 from .convergence import assess_convergence, ensemble_moments
-from .result import CountingTarget, SampleResult
+from .friction import ScoreMemory, check_friction, critical_drag, damp
+from .result import SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
 from .whitening import AffineMap, check_whiten
 
-__all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS"]
+__all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS", "variant_options", "VARIANT_TOKENS"]
 
 #: The default configuration: score force, isothermal EOS with alpha = c0^2 (stationary density p).
 DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", viscosity="linear",
@@ -62,6 +65,39 @@ LOCAL_COURANT = 0.25
 #: once). An experiment (examples/results/parvi/steps/): 1.05 removes the kinetic-energy bursts of the banana
 #: but did not lower the energy distances at 1000 steps; off by default.
 LOCAL_GROWTH = None
+
+
+#: The named ingredients of the issue-18 variants, joined by "+" in :func:`variant_options`.
+VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
+                      critical=dict(friction="critical"))
+#: Numeric options a variant may set as ``name=value`` tokens.
+VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp")
+
+
+def variant_options(spec):
+    """Keyword options of :class:`ParVISampler` for a variant name such as ``"whiten+local+critical"``.
+
+    ``spec`` joins tokens with ``+``: the names of :data:`VARIANT_TOKENS` (``default``, ``whiten``,
+    ``local``, ``critical``) and ``name=value`` for a number of :data:`VARIANT_NUMBERS` (``friction=0.3``).
+    A token of neither kind is a one-line error naming it.
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise ValueError(f"variant must be a non-empty string like 'whiten+local+critical', got {spec!r}")
+    options = {}
+    for token in spec.strip().split("+"):
+        if token in VARIANT_TOKENS:
+            options.update(VARIANT_TOKENS[token])
+            continue
+        name, _, value = token.partition("=")
+        if name not in VARIANT_NUMBERS or not value:
+            raise ValueError(f"variant {spec!r}: unknown token {token!r}; use {', '.join(VARIANT_TOKENS)} or "
+                             f"name=number for {', '.join(VARIANT_NUMBERS)}, joined by '+'")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"variant {spec!r}: {name} needs a number, got {value!r}") from None
+        options[name] = int(number) if name in ("whiten_every", "friction_every") and number.is_integer() else number
+    return options
 
 
 class ParVIDivergence(FloatingPointError):
@@ -101,11 +137,23 @@ class ParVISampler:
         Fixed time step; None: the CFL step (times ``courant``) at every step.
     courant : float or None
         Factor on the CFL step; None: 0.5 (``DEFAULTS``), or :data:`LOCAL_COURANT` with ``time_step="local"``.
-    friction : float or None
+    friction : float, None or "critical"
         Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
         per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
         found). The drag sets the time the fluid takes to settle, ``~ beta s^2``, while the CFL
         step scales with s: ``beta = 1 / s`` makes the number of steps to rest the same at any scale.
+        ``"critical"``: a matrix drag, critical along each principal direction of the particles'
+        Fisher matrix (rates ``2 (alpha k_i)^(1/2)``, k_i a typical particle's curvature of
+        ``-log p`` along it, from the scores the steps compute; :mod:`.friction`), renewed every
+        ``friction_every`` steps; in whitened coordinates the whitened target's. No friction rule
+        changes the stationary density (theory.py, eqs. F1-F3); ``info["friction_rates"]`` has the
+        last rates.
+    friction_every : int
+        Steps between renewals of the ``"critical"`` drag (default 50).
+    friction_ramp : float
+        In (0, 1]; below 1 the drag (any rule) is multiplied by ``friction_ramp^(1 - step / (steps / 2))``
+        over the first half of the run, rising to the rule's own: little friction while the fluid spreads
+        (default 1: no ramp).
     rule : {"final", "optimal"}
     x0 : ndarray (M, d) or None
         Initial particles; default drawn with ``seed`` from N(0, init_scale^2 I) or, without
@@ -175,7 +223,8 @@ class ParVISampler:
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5, time_step="global", neighbours="kernel", k=None):
+                 whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
+                 friction_ramp=1.0, neighbours="kernel", k=None):
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -188,9 +237,12 @@ class ParVISampler:
             raise ValueError(f"h_schedule must be 'constant' or 'anneal', got {h_schedule!r}")
         if h_schedule == "anneal" and isinstance(h, str):
             raise ValueError("h_schedule='anneal' needs a number h (the starting support), got h='adaptive'")
-        if friction is not None and (isinstance(friction, bool) or not isinstance(friction, numbers.Real)
-                                     or not math.isfinite(friction) or friction < 0):
-            raise ValueError(f"friction must be a finite number >= 0, got {friction!r}")
+        friction = check_friction(friction)
+        if isinstance(friction_every, bool) or not isinstance(friction_every, (int, np.integer)) or friction_every < 1:
+            raise ValueError(f"friction_every must be an integer >= 1, got {friction_every!r}")
+        if isinstance(friction_ramp, bool) or not isinstance(friction_ramp, numbers.Real) \
+                or not 0.0 < friction_ramp <= 1.0:
+            raise ValueError(f"friction_ramp must be a number in (0, 1], got {friction_ramp!r}")
         if time_step not in ("global", "local"):
             raise ValueError(f"time_step must be 'global' or 'local', got {time_step!r}")
         if time_step == "local" and dt is not None:
@@ -215,7 +267,7 @@ class ParVISampler:
             log_density = None if log_density is None else self.map.log_density_y(log_density)
             score = None if score is None else self.map.score_y(score)
         self._friction_from_target = friction is None
-        self.target = CountingTarget(log_density, score, dim)
+        self.target = ScoreMemory(log_density, score, dim, n=int(n))
         if neighbours not in ("kernel", "knn", "knn-ratio"):
             raise ValueError(f"neighbours must be 'kernel', 'knn' or 'knn-ratio', got {neighbours!r}")
         if neighbours != "kernel":  # k-nearest-neighbour densities (models/parvi_knn.py; theory.py, eqs. K1-K7, R1-R4)
@@ -242,7 +294,10 @@ class ParVISampler:
         self.dt = check_positive("dt", dt, allow_none=True)
         courant = check_positive("courant", courant, allow_none=True)
         self.courant = courant if courant is not None else LOCAL_COURANT if time_step == "local" else DEFAULTS["courant"]
-        self.friction = None if friction is None else float(friction)
+        self.friction = friction
+        self.friction_every = int(friction_every)
+        self.friction_ramp = float(friction_ramp)
+        self._drag = None  # (Q, rates) of a matrix friction (friction="critical"), renewed in run()
         self.time_step = time_step
         self.rule = rule
         self.init_scale = check_positive("init_scale", init_scale, allow_none=True)
@@ -270,6 +325,7 @@ class ParVISampler:
                                max_steps=self.max_steps, whiten=None if self.whiten is None else
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
                                whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
+                               friction_every=self.friction_every, friction_ramp=self.friction_ramp,
                                neighbours=neighbours, k=getattr(self.model, "k", None))
 
     def look_at_target(self):
@@ -350,6 +406,31 @@ class ParVISampler:
             return dt_p
         return self.courant * self.model.cfl_step(ev)
 
+    def _renew_drag(self):
+        """``friction="critical"``: the drag from the Fisher matrix of the particles' last scores (friction.py)."""
+        if self.friction != "critical":
+            return
+        drag = critical_drag(self.target.last_score, self.model.alpha)
+        if drag is not None:  # no finite, non-zero score: keep the previous drag (or, at the start, rate 1)
+            self._drag = drag
+        elif self._drag is None:
+            self._drag = (np.eye(self.dim), np.ones(self.dim))
+
+    def _drag_at(self, step):
+        """``(friction, drag)`` of ``step``: the rule's, times ``friction_ramp^(1 - step / ramp)`` over the first
+        half of the run (``ramp = steps / 2``; friction.py)."""
+        ramp_steps = 0.5 * self.steps
+        if self.friction_ramp == 1.0 or step >= ramp_steps:
+            return self.friction, self._drag
+        factor = self.friction_ramp ** (1.0 - step / ramp_steps)
+        if self._drag is not None:
+            return self.friction, (self._drag[0], factor * self._drag[1])
+        return factor * self.friction, None
+
+    def damping_rate(self):
+        """The slowest damping rate of the drag: the friction, or the smallest rate of the critical drag."""
+        return float(np.min(self._drag[1])) if self._drag is not None else float(self.friction)
+
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
@@ -380,7 +461,7 @@ class ParVISampler:
         if renewing:  # the first map, from the initial particles; the default friction follows the scale
             old_log_det = self.map.log_det
             r, v, _ = self.map.renew(r, v)
-            if self._friction_from_target:
+            if self._friction_from_target and not isinstance(self.friction, str):
                 self.friction *= math.exp((self.map.log_det - old_log_det) / self.dim)
                 self.parameters["friction"] = self.friction
         r0 = r.copy()
@@ -388,6 +469,7 @@ class ParVISampler:
             model.set_h(self._h_at(0))
         want_energy = model.conservative and self.target.has_density
         ev = model.evaluate(r, v, want_energy=want_energy)
+        self._renew_drag()
         m = ev.mass
         rho = ev.rho.copy() if model.density == "continuity" else None
         scale = max(model.alpha, model.c0**2)  # energy per unit mass of the problem
@@ -422,15 +504,15 @@ class ParVISampler:
         while step < limit:
             step += 1
             dt_p1 = dt if np.isscalar(dt) else dt[:, None]  # (M, 1) local steps or one number
-            decay = math.exp(-0.5 * self.friction * dt) if np.isscalar(dt) else np.exp(-0.5 * self.friction * dt_p1)
-            v = v * decay + (0.5 * dt_p1 / m) * ev.forces
+            friction, drag = self._drag_at(step)
+            v = damp(v, dt_p1, friction, drag) + (0.5 * dt_p1 / m) * ev.forces
             if rho is not None:
                 rho = rho + np.ravel(dt_p1) * model.density_rate(r, v, rho)
             r = r + dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
             ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
-            v = (v + (0.5 * dt_p1 / m) * ev.forces) * decay
+            v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
             fallback += ev.fallback
             sim_time += float(np.median(dt))
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
@@ -444,6 +526,9 @@ class ParVISampler:
                     and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
                 r, v, rho = self.map.renew(r, v, rho)
                 ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
+                self._renew_drag()
+            elif step % self.friction_every == 0:
+                self._renew_drag()
             if step % self.record_every == 0 or step == limit:
                 record(step, dt)
             dt = self._step(ev)
@@ -451,7 +536,7 @@ class ParVISampler:
                 bar.update(1)
             if step == limit:
                 verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
-                                             friction=self.friction)
+                                             friction=self.damping_rate())
                 if not verdict["converged"] and self.max_steps is not None and limit < self.max_steps:
                     limit = min(2 * limit, self.max_steps)  # a new last half, judged afresh
                     if bar is not None:
@@ -461,7 +546,7 @@ class ParVISampler:
             bar.close()
         if verdict is None:  # steps = 0
             verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
-                                         friction=self.friction)
+                                         friction=self.damping_rate())
         r = to_x(r)
         samples = r if self.rule == "final" else best["samples"]
         chosen = step if self.rule == "final" else best["step"]
@@ -473,7 +558,8 @@ class ParVISampler:
         elif not verdict["converged"] and self.rule != "final":
             verdict["reason"] += f"; {returned}"
         info = dict(self.parameters, steps=step, method="sph-parvi", chosen_step=chosen, fallback=fallback, jittered=jittered,
-                    optimal_step=best["step"], final_h_median=float(np.median(ev.h)),
+                    optimal_step=best["step"], friction_rates=None if self._drag is None else self._drag[1].tolist(),
+                    final_h_median=float(np.median(ev.h)),
                     dt_median=float(np.median(dt)), dt_min=float(np.min(dt)),
                     converged=verdict["converged"], convergence_reason=verdict["reason"],
                     convergence=verdict, start_centre=self.start[0].tolist() if self.x0 is None else None,
@@ -505,5 +591,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       Stein identities at rest, density p in the continuum limit, a typical-set shell above a few dimensions
       (theory.py, eqs. K1-K7). Combine with ``whiten="covariance"`` on anisotropic targets.
       ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
+    * ``friction="critical"`` — a drag critical along each principal direction of the target's curvature
+      seen by the particles, renewed every ``friction_every`` steps; ``friction_ramp < 1`` starts any
+      friction lower; friction never changes the stationary density (theory.py, eqs. F1-F3).
+
+    :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
     return ParVISampler(log_density=log_density, score=score, dim=dim, n=n, seed=seed, **kwargs).run()

@@ -233,3 +233,32 @@ def predicted_gaussian_moments(formulation, eos, dim, **kwargs):
     x4 = 3.0 * r4 / (dim * (dim + 2))
     return dict(variance=float(var), kurtosis=float(x4 / var**2),
                 support=float(r_g[np.nonzero(rho)[0][-1]]) if np.any(rho) else 0.0)
+
+
+# -- Friction rules (issue 18, item 1): appended to the module docstring ------------------------------------------
+__doc__ += """
+Friction rules (``friction=``, :mod:`~ase_sphrelax.sampling.friction`; issue 18, item 1). The drag is
+``-m B_a(t) v_a`` with ``B_a`` symmetric positive semi-definite, constant (``beta I``, the default
+``beta = 1 / scale``) or renewed during the run (``"critical"``: ``B = 2 (alpha F)^(1/2)`` from the Fisher
+matrix ``F`` of the particles' scores, the same for all particles), applied exactly as
+``v_a <- exp(-B_a dt_a / 2) v_a`` around each kick. Friction does not change the resting state of a fluid:
+
+* (F1) at rest ``v_a = 0``, so the drag ``-m B_a v_a`` vanishes whatever ``B_a`` is: the resting states are the
+  solutions of ``F_a = 0`` (hydrostatic balance, the derivation above), which contain no friction. So the
+  stationary density is ``rho ∝ p^(alpha / c0^2)``, p itself by default, for every rule; on the discrete map
+  too: ``exp(-B dt / 2)`` leaves ``v = 0`` in place, and a state the map leaves unchanged has a zero
+  half-step velocity, hence ``F_a = 0`` (as in L2);
+* (F2) the flow descends ``H = E + K`` for any such ``B_a(t)``, also when renewed:
+  ``dH/dt = -sum_a m v_a^T B_a v_a <= 0`` (no derivative of B appears); with local steps the factor ``s_a``
+  of L3 multiplies each term. ``exp(-B dt / 2)`` has eigenvalues in (0, 1]: it never adds kinetic energy;
+* (F3) what friction changes is the path and its speed. A mode of angular frequency ``omega`` under a
+  drag rate ``b`` decays like ``exp(-b t / 2)`` when underdamped (``b < 2 omega``) and like
+  ``exp(-omega^2 t / b)`` when overdamped: the fastest decay is at ``b = 2 omega`` (critical). A scalar
+  friction fitted to the stiffest direction is overdamped in the soft ones (the banana's x0, scale 10:
+  creep with rate ``omega^2 / beta``). The critical rule damps each principal direction of ``F`` at
+  ``2 omega_i``, ``omega_i^2 = alpha lambda_i(F)``: the frequency of the fluid's centre of mass in the
+  quadratic fit ``-log p ≈ x^T F x / 2`` (under p, ``F = E_p[-Hess log p]`` exactly, by integration by
+  parts), the slowest collective mode (the breathing and higher modes are faster and decay at least
+  at ``b / 2``). It is taken from the scores the step computes anyway (no extra evaluation), renewed
+  every ``friction_every`` steps, and in whitened coordinates from the whitened target's scores.
+"""
