@@ -16,3 +16,9 @@ OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46
   > examples/results/alaric/fig8_mirror/3d_n26411.log 2>&1
 python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n26411 \
   --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n26411
+# control: the N = 2075 command above after the stored ghost set (it ran beside examples/alaric_fig13_forms.py's repeat)
+OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 1 \
+  --max-steps 3000 --max-wall 540 --out examples/results/alaric/fig8_mirror/3d_n2075_after --overwrite \
+  > examples/results/alaric/fig8_mirror/3d_n2075_after.log 2>&1
+python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n2075_after \
+  --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n2075_after
