@@ -488,7 +488,7 @@ NEWTON_ITERATIONS = 12  # then bisection only
 
 
 def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=100,
-                            store=True):
+                            store=True, solve=None):
     """Solve ``rho_a(H_a) H_a^d = m_a eta^d`` with ``rho_a = sum_b m_b W_ab(H_a)`` for every particle.
 
     With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). ``sigma s(H) / m_a`` with
@@ -520,6 +520,9 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
         Iterations before :class:`SmoothingLengthError`.
     store : bool
         Passed to ``nlist.update`` (False for one-shot bins).
+    solve : int or None
+        Solve only the first ``solve`` points; the others keep ``h0`` and only count as neighbours (e.g. mirror
+        ghosts, whose H is their owner's), their sums in the result are NaN. None: all.
 
     Returns
     -------
@@ -561,6 +564,10 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     t_p = np.empty(n)
     n_p = np.empty(n)
     count_p = np.empty(n)
+    if solve is not None:  # the rest keep h0: inactive from the start, NaN sums
+        active_p[solve:] = False
+        for arr in (s_p, t_p, n_p, count_p):
+            arr[solve:] = np.nan
     equal = bool(np.all(m_p == m_p[0]))
     step_max = kernel.extrapolation_step * tol**0.25 if equal else 0.0
     sigma_over_m_p = sigma / m_p
@@ -593,7 +600,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             + _coincidence_note(r_pc, a, h_p[a]))
     norm_p = sigma / h_p**d
     omega_p = -t_p / (d * s_p)
-    if not np.all(omega_p > 0.0):  # NaN included: H is not a differentiable function of the positions there
+    if not np.all(omega_p[:solve] > 0.0):  # NaN included: H is not a differentiable function of the positions there
         a = int(np.argmax(~(omega_p > 0.0)))
         raise SmoothingLengthError(
             f"particle {a} at {r_pc[a].tolist()}: Omega (Eq. 13) = {omega_p[a]:.3g} at H = {h_p[a]:.6g}: n H^d = "

@@ -39,6 +39,7 @@ def alaric(n, steps, form, seed, boundary="wall"):
                             domain=domain, form=form, boundary=boundary)
     atoms.calc = calc
     nn0 = nn_ratio(atoms)
+    load0 = os.getloadavg()
     t0 = time.perf_counter()
     dyn = ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0)
     dts, walls = [], []
@@ -49,6 +50,8 @@ def alaric(n, steps, form, seed, boundary="wall"):
     except Exception as exc:  # noqa: BLE001 - a failed run is a result
         error = f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - t0
+    loads = dict(load_average_start=load0, load_average_end=os.getloadavg())
+    builds = calc.nlist.builds if calc.nlist is not None else None
     trace = [(e["step"], e["epsilon"]) for e in dyn.trace]
     reached = {f"{thr:g}": _first_below(trace, walls, thr) for thr in (1e-3, 1e-4, 1e-5)}
     eps = eps_of(atoms, calc)
@@ -61,7 +64,8 @@ def alaric(n, steps, form, seed, boundary="wall"):
                 first_below=reached, positions=atoms.positions[:, :2].tolist(),
                 nn_min_over_mean=nn_ratio(atoms),
                 nn_min_over_mean_start=nn0, wall_s=wall, dt_min=float(min(dts)) if dts else None,
-                dt_median=float(np.median(dts)) if dts else None, error=error, trace=trace)
+                dt_median=float(np.median(dts)) if dts else None, error=error, trace=trace, nlist_builds=builds,
+                force_calls=dyn.force_calls, **loads)
 
 
 def _first_below(trace, walls, threshold):
@@ -76,16 +80,18 @@ def wvt(n, steps, seed):
     domain = Circle((0.0, 0.0), 1.0)
     atoms = circle_start(n, seed)
     opt = WVTRelaxation(atoms, uniform_density, 2, steps=steps, weight="r2", domain=domain)
+    load0 = os.getloadavg()
     t0 = time.perf_counter()
     opt.run()
     wall = time.perf_counter() - t0
+    loads = dict(load_average_start=load0, load_average_end=os.getloadavg())
     eps = {}
     for boundary in ("wall", "mirror"):  # Eq. 45 with truncated kernels, and with the mirror ghosts
         probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=boundary)
         atoms.calc = probe
         eps[boundary] = eps_of(atoms, probe)
     return dict(method="WVT r^-2", steps=opt.nsteps, epsilon=eps["wall"], epsilon_mirror=eps["mirror"],
-                nn_min_over_mean=nn_ratio(atoms), wall_s=wall)
+                nn_min_over_mean=nn_ratio(atoms), wall_s=wall, **loads)
 
 
 def main():
@@ -119,7 +125,8 @@ def main():
     (out / "results.json").write_text(json.dumps(dict(command=command, load_average=load, runs=rows), indent=1))
     lines = [f"N = {args.n}, {args.steps} steps, seed {args.seed}. Command: `{command}`. Load average at the end "
              f"{load[0]:.1f} on 2 vCPUs (wall times indicative only).", "",
-             "| method | steps | eps | min NN / mean NN | wall s | note |", "|---|---|---|---|---|---|"]
+             "| method | steps | eps | min NN / mean NN | wall s | load avg start / end | note |",
+             "|---|---|---|---|---|---|---|"]
     for r in rows:
         note = r.get("error") or (f"dt min {r['dt_min']:.2e}, median {r['dt_median']:.2e}" if r.get("dt_min") else "")
         if "epsilon_mirror" in r:
@@ -130,7 +137,13 @@ def main():
             note += "; first eps <= " + ", ".join(f"{k}: step {v['step']} ({v['wall_s']:.0f} s)"
                                                  for k, v in r["first_below"].items() if v)
         lines.append(f"| {r['method']} | {r['steps']} | {r['epsilon']:.2e} | {r['nn_min_over_mean']:.3f} | "
-                     f"{r['wall_s']:.0f} | {note} |")
+                     f"{r['wall_s']:.0f} | {r['load_average_start'][0]:.1f} / {r['load_average_end'][0]:.1f} | {note} |")
+    wvt_rows = [r for r in rows if r["method"].startswith("WVT")]
+    if wvt_rows:
+        lines.append("")
+        lines += [f"{r['method']}: wall time {r['wall_s'] / wvt_rows[0]['wall_s']:.1f}x WVT's (same run, back to back; "
+                  f"threads: NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS', 'unset')})"
+                  for r in rows if r is not wvt_rows[0]]
     (out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -193,6 +193,15 @@ def test_run_continues_after_a_step_cap():
     assert dyn.nsteps == 40
 
 
+def test_wall_time_cap_stops_the_run():
+    atoms = _line(61, 0.5)
+    dyn = ALARICDynamics(atoms, max_wall=1e-9)
+    assert not dyn.run(20)
+    assert dyn.stop_reason == "max_wall" and dyn.nsteps == 0
+    with pytest.raises(ValueError, match="max_wall"):
+        ALARICDynamics(atoms, max_wall=-1.0)
+
+
 def test_start_atoms_and_polish():
     from ase_sphrelax.drivers.alaric_dynamics import polish_least_squares, start_atoms
 

@@ -18,7 +18,7 @@ from ..models import alaric as model
 from ..neighbors import NeighborList
 from .base import SPHCalculator
 
-__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR"]
+__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR", "needed_ghosts"]
 
 PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
@@ -26,6 +26,9 @@ FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target
 # (3D) the pairs at 1e5; ALARICDynamics on Fig. 13 rebuilds at nearly every step with either (0.2: 89 %, 0.1: 100 %
 # of the steps; benchmarks/results/alaric_skin_rebuilds.json, benchmarks/README.md "ALARIC speed")
 SKIN_FACTOR = 0.1
+# boundary="mirror": the stored ghost set reaches this much deeper than needed (times the mean H at the first
+# evaluation), so that it changes only when particles moved that far (_solve_with_ghosts)
+GHOST_SKIN = 0.25
 
 
 @numba.njit(cache=True)
@@ -43,6 +46,25 @@ def _wrapped_points(r_pc, inverse_cc, cell_cc, periodic_c, origin_c, d):
         for c in range(d):
             out[p, c] = frac[0] * cell_cc[0, c] + frac[1] * cell_cc[1, c] + frac[2] * cell_cc[2, c] + origin_c[c]
     return out
+
+
+def needed_ghosts(phi_p, h_p, skin=0.0):
+    """Which particles' mirror ghosts can add to a real particle's density, pressure or viscous force (bool (N,)).
+
+    A ghost of a particle at depth ``delta = -phi > 0`` lies at least ``delta`` outside the domain (a ball: exactly;
+    a convex polygon: beyond the half-plane of the face its ray leaves by), so it is at least ``delta + delta_b``
+    from a real particle ``b`` inside (``delta - phi_b`` from one outside) and within ``max(H_b, H_a)`` of some ``b``
+    only if ``delta < max(max_b (H_b + phi_b), H_a + max_b phi_b)``. A particle outside (``phi >= 0``) always
+    counts (its ghost is inside). ``skin`` widens the test by that depth (the stored set of ``_solve_with_ghosts``).
+
+    Parameters
+    ----------
+    phi_p : ndarray (N,), signed distance to the boundary (positive outside)
+    h_p : ndarray (N,), support radii
+    skin : float
+    """
+    reach = float(np.max(h_p + phi_p))
+    return (phi_p >= 0.0) | (-phi_p < np.maximum(reach, h_p + float(phi_p.max())) + skin)
 
 
 class ALARICCalculator(SPHCalculator):
@@ -90,11 +112,13 @@ class ALARICCalculator(SPHCalculator):
         Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
     boundary : {"wall", "mirror"}
         What the kernels see at the domain's edge. ``"wall"``: nothing (truncated kernels: an edge particle's
-        SPH density is about half the interior's). ``"mirror"``: every particle within the largest ``H`` of the
-        boundary has a mirror image (:func:`ase_sphrelax.models.alaric.mirror_map`) of the same mass that
-        counts in the densities ``rho_a`` of the real particles (ghosts carry no energy of their own); the
-        energy is then a function of the real positions only and the forces its exact gradient (the ghosts'
-        share mapped back through the mirror's Jacobian). Needs a Ball/Circle/Sphere or a convex 2D Polygon
+        SPH density is about half the interior's). ``"mirror"``: every particle whose mirror image
+        (:func:`ase_sphrelax.models.alaric.mirror_map`) can be within reach of a real particle (:func:`needed_ghosts`)
+        has one, of the same mass and the same H, that counts in the densities ``rho_a`` of the real particles
+        (ghosts carry no energy of their own); the energy is then a function of the real positions only and the
+        forces its exact gradient (the ghosts' share mapped back through the mirror's Jacobian). The ghost set is
+        stored with a skin (``GHOST_SKIN``) and kept between neighbour-list rebuilds (ghosts beyond every support
+        add exactly nothing). Needs a Ball/Circle/Sphere or a convex 2D Polygon
         domain and no periodic axes. The wall stays (it pulls back a particle that left the domain).
     wall_length : float or None
         Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
@@ -136,6 +160,7 @@ class ALARICCalculator(SPHCalculator):
         self._wall = None
         self._rho_ref = None
         self._ghosts = None
+        self._ghost_set = None
         self._band = None
         super().__init__(target_density=target_density, dim=dim, **kwargs)
 
@@ -194,6 +219,7 @@ class ALARICCalculator(SPHCalculator):
         self._wall = p.wall_length
         self._rho_ref = None
         self._ghosts = None
+        self._ghost_set = None
         self._band = None
         if p.dim is not None:
             self.configure(p.dim)
@@ -226,6 +252,7 @@ class ALARICCalculator(SPHCalculator):
         self.mass = self.parameters.mass
         self._skin = None
         self._band = None
+        self._ghost_set = None
         self.forget_neighbours()
 
     def viscous_forces(self, v_pc, alpha_p, v_sig):
@@ -281,31 +308,55 @@ class ALARICCalculator(SPHCalculator):
         return self.h_p, self._skin
 
     def _solve_with_ghosts(self, st, x_pd):
-        """The smoothing lengths with mirror ghosts: ghosts for every particle within ``band`` of the boundary,
-        ``band`` at least the largest real ``H`` (widened and solved again when H outgrew it)."""
+        """The smoothing lengths with mirror ghosts.
+
+        The energy sees every ghost within reach of a real particle (:func:`needed_ghosts`: its owner is outside the
+        domain, or deep by less than the reach of the particles at the edge); the stored ghost set adds those
+        within ``self._band`` (the ghost skin) of that, and is kept while it holds every needed ghost, so the
+        neighbour list over particles and ghosts is rebuilt only when the Verlet skin is used up. Ghosts farther
+        than every support add exactly nothing to the densities and forces. A ghost's H is its owner's (not solved).
+        """
         p = self.parameters
         n, d = len(st.r_pc), st.dim
         if np.any(st.pbc[:d]):
             raise ValueError("boundary='mirror' is for open systems (no periodic axis), got pbc="
                              f"{st.atoms.pbc.tolist()}")
+        phi_p = np.asarray(p.domain.phi(x_pd), dtype=float)
         if self._band is None:
-            self._band = 1.5 * float(self.h_p.max())
+            self._band = GHOST_SKIN * float(np.mean(self.h_p))
+        h_p = self.h_p
         while True:
-            owner_g, g_gd, jac_gdd, next_gap = model.mirror_map(p.domain, x_pd, self._band)
+            cache = self._ghost_set
+            need_p = needed_ghosts(phi_p, h_p)
+            if cache is None or cache[1] != self._band or len(cache[0]) != n or np.any(need_p & ~cache[0]):
+                self._ghost_set = cache = (self._ghost_owners(x_pd, phi_p, h_p, need_p), self._band)
+            owner_g = np.nonzero(cache[0])[0]
+            g_gd, jac_gdd = model.mirror_images(p.domain, x_pd[owner_g])
             y_pc = np.zeros((n + len(owner_g), 3))
             y_pc[:n] = st.r_pc
             y_pc[n:, :d] = g_gd - self.origin
-            h0_q = np.concatenate([self.h_p, self.h_p[owner_g]])
+            h0_q = np.concatenate([h_p, h_p[owner_g]])
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1)
-            h_max = float(state.h_p[:n].max())
-            if h_max <= self._band and next_gap >= h_max:  # the ghosts left out are beyond every particle's reach
+                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n)
+            h_p = state.h_p[:n]
+            if not np.any(needed_ghosts(phi_p, h_p) & ~cache[0]):  # H grew beyond the stored set: again
                 break
-            self._band = 1.5 * max(h_max, self._band)
-        self._ghosts = (owner_g, jac_gdd, y_pc, state.h_p)
+        h_q = np.concatenate([h_p, h_p[owner_g]])
+        self._ghosts = (owner_g, jac_gdd, y_pc, h_q)
         return state
+
+    def _ghost_owners(self, x_pd, phi_p, h_p, need_p):
+        """The stored ghost set (bool (N,)): the needed ghosts and those within the ghost skin ``self._band`` of
+        them, except a particle at the mirror's centre (no ray; an error if it is needed)."""
+        centre = model.mirror_centre(self.parameters.domain)
+        at_centre_p = np.all(x_pd == centre, axis=1)
+        if np.any(at_centre_p & need_p):
+            raise ValueError(f"boundary='mirror': a particle at the mirror's centre {centre.tolist()} is within the "
+                             f"ghost band {float(np.max(h_p + phi_p)):.3g} of the boundary (the domain is too small "
+                             f"for the smoothing lengths: too few particles)")
+        return needed_ghosts(phi_p, h_p, self._band) & ~at_centre_p
 
     def points(self, r_pc, atoms):
         """Positions as the target sees them: the first ``dim`` components, wrapped into the cell along periodic axes."""

@@ -61,6 +61,8 @@ def add_arguments(parser):
                         help="LBFGS steps of the least-squares polish (4000)")
     parser.add_argument("--max-steps", type=positive(int), default=None,
                         help="step cap of the dynamics (default 50000; given: a fixed length, exit 0 even unconverged)")
+    parser.add_argument("--max-wall", type=positive(float), default=None,
+                        help="wall-time cap of the dynamics in seconds (a cap like --max-steps: exit 0 even unconverged)")
     parser.add_argument("--eps-min", type=positive(float), default=1e-8, help="stop at epsilon below this (1e-8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the start jitter and split orientations (0)")
     add_output_arguments(parser, "sphrelax_density", "relaxed.extxyz, density.png, trace.json, summary.json")
@@ -156,6 +158,7 @@ def run(args):
                            finish=args.finish if args.form == "log" else "none",
                            polish_steps=args.polish_steps,
                            max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
+                           **({} if args.max_wall is None else dict(max_wall=args.max_wall)),
                            eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
     atoms = result["atoms"]
     calc = result["calculator"]
@@ -198,8 +201,8 @@ def run(args):
     print(f"wrote {out / 'relaxed.extxyz'}, {out / 'density.png'}, {out / 'trace.json'}, {out / 'summary.json'}")
     if result["converged"]:
         return 0
-    if args.max_steps is not None:  # a fixed length was asked for
-        print(f"sphrelax density: warning: not converged (--max-steps was given: exit 0): "
+    if args.max_steps is not None or args.max_wall is not None:  # a fixed length was asked for
+        print(f"sphrelax density: warning: not converged (--max-steps or --max-wall was given: exit 0): "
               f"{result['convergence_reason']}", file=sys.stderr)
         return 0
     print(f"sphrelax density: not converged: {result['convergence_reason']} (exit {EXIT_NOT_CONVERGED})",

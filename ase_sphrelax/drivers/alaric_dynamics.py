@@ -75,6 +75,9 @@ class ALARICDynamics(MolecularDynamics):
         Seed of the split patterns' orientations.
     stage_steps : int or None
         Split (while splits remain) after this many steps in a stage even if it has not converged.
+    max_wall : float or None
+        Wall-time cap in seconds, counted from the start of the first :meth:`run`: the run stops after the step
+        that passes it, with ``stop_reason = "max_wall"`` (a cap like the step cap: not converged).
     logfile, loginterval, trajectory
         As in ASE; the log prints step, time, epsilon, kinetic energy and N.
 
@@ -83,7 +86,7 @@ class ALARICDynamics(MolecularDynamics):
     trace : list of dict
         One entry per check: step, time, epsilon, eps_dot, kinetic energy, N, stage, wall time.
     stop_reason : str or None
-        "epsilon", "epsilon_dot", "max_steps" (after :meth:`run`), None while running.
+        "epsilon", "epsilon_dot", "max_steps" (after :meth:`run`), "max_wall", None while running.
     force_calls : int
         Calculator force evaluations (one per step, plus the first).
     """
@@ -91,7 +94,7 @@ class ALARICDynamics(MolecularDynamics):
     def __init__(self, atoms, timestep=None, friction=2.0, viscosity=True, velocity_stop=True, splits=0,
                  mass_reset=True, eps_min=1e-8, eps_dot_min=1e-8, cfl=0.25, length=None, theta=0.1, alpha0=1.0,
                  alpha_max=1.0, seed=0, stage_steps=None, logfile=None, loginterval=1, trajectory=None,
-                 progress=None):
+                 progress=None, max_wall=None):
         from ..calculators.alaric import ALARICCalculator
 
         calc = atoms.calc
@@ -115,6 +118,7 @@ class ALARICDynamics(MolecularDynamics):
         self.alpha_max = float(alpha_max)
         self.seed = int(seed)
         self.stage_steps = None if stage_steps is None else int(stage_steps)
+        self.max_wall = check_positive("max_wall", max_wall, allow_none=True)
         self._stage_start = 0
         self.progress = progress
         self.calc = calc
@@ -309,6 +313,9 @@ class ALARICDynamics(MolecularDynamics):
         self._wall0 = getattr(self, "_wall0", time.perf_counter())
         yield self.converged()
         while not self.converged():
+            if self.max_wall is not None and time.perf_counter() - self._wall0 >= self.max_wall:
+                self.stop_reason = "max_wall"
+                break
             self.step()
             self.nsteps += 1
             if self.progress is not None:

@@ -38,9 +38,10 @@ paper's targets (vectorised, with gradients).
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-__all__ = ["FORMS", "BOUNDARIES", "mirror_map", "mirror_supported", "resolve_boundary", "Target", "eq46", "eq49",
+__all__ = ["FORMS", "BOUNDARIES", "mirror_map", "mirror_images", "mirror_centre", "mirror_supported", "resolve_boundary", "Target", "eq46", "eq49",
            "uniform", "PROFILES", "epsilon", "reset_mass", "density_diagnostics", "convergence_verdict",
            "zero_region_mask"]
 
@@ -86,7 +87,7 @@ def _radial_hits(domain, s_gd):
     v = domain.loops[0]
     e = np.roll(v, -1, axis=0) - v
     n_kd = np.stack([e[:, 1], -e[:, 0]], axis=1) / np.linalg.norm(e, axis=1)[:, None]  # outward (ccw loop)
-    p_k = np.einsum("kd,kd->k", n_kd, v - _mirror_centre(domain))
+    p_k = np.einsum("kd,kd->k", n_kd, v - mirror_centre(domain))
     ns_gk = s_gd @ n_kd.T
     with np.errstate(divide="ignore"):
         t_gk = np.where(ns_gk > 0.0, p_k[None, :] / np.where(ns_gk > 0.0, ns_gk, 1.0), np.inf)
@@ -94,7 +95,8 @@ def _radial_hits(domain, s_gd):
     return t_gk[np.arange(len(k_g)), k_g], n_kd[k_g]
 
 
-def _mirror_centre(domain):
+def mirror_centre(domain):
+    """The centre ``o`` of the radial mirror (:func:`mirror_map`): a ball's centre, a convex polygon's area centroid."""
     from ..domains.analytic import Ball
 
     if isinstance(domain, Ball):
@@ -138,27 +140,62 @@ def mirror_map(domain, x_pd, band):
     if not mirror_supported(domain):
         raise ValueError(f"boundary='mirror' needs a Ball (Circle, Sphere) or a 2D Polygon of one convex loop, got "
                          f"{domain!r}")
-    d = x_pd.shape[1]
     depth_p = np.abs(np.asarray(domain.phi(x_pd), dtype=float))
-    centre = _mirror_centre(domain)
+    centre = mirror_centre(domain)
     at_centre_p = np.all(x_pd == centre, axis=1)  # no ray: its mirror is undefined
     if np.any(at_centre_p & (depth_p < band)):
         raise ValueError(f"boundary='mirror': a particle at the mirror's centre {centre.tolist()} is within the ghost "
                          f"band {band:.3g} of the boundary (the domain is too small for the smoothing lengths: too "
                          f"few particles)")
     near_q = np.nonzero((depth_p < 2.0 * band) & ~at_centre_p)[0]
-    s_qd = x_pd[near_q] - centre
-    t_q, n_qd = _radial_hits(domain, s_qd)
-    g_qd = centre + (2.0 * t_q - 1.0)[:, None] * s_qd
+    g_qd, jac_qdd = mirror_images(domain, x_pd[near_q])
     inside_band = depth_p[near_q] < band
     rest = g_qd[~inside_band]
     next_gap = float(np.min(np.asarray(domain.phi(rest), dtype=float))) if len(rest) else np.inf
-    owner_g, g_gd = near_q[inside_band], g_qd[inside_band]
-    s_gd, t_g, n_gd = s_qd[inside_band], t_q[inside_band], n_qd[inside_band]
+    return near_q[inside_band], g_qd[inside_band], jac_qdd[inside_band], next_gap
+
+
+def mirror_images(domain, x_gd):
+    """The radial mirror images ``g = o + (2 t - 1) s`` of the points ``x_gd`` (none at the mirror's centre ``o``)
+    and their Jacobians ``J = dg/dx = 2 dc/dx - I`` (:func:`mirror_map`), as ``(g_gd, jac_gdd)``.
+
+    A ball's images take one compiled pass; a convex polygon's the vectorised ray hits of :func:`_radial_hits`."""
+    from ..domains.analytic import Ball
+
+    x_gd = np.ascontiguousarray(x_gd, dtype=float)
+    if isinstance(domain, Ball):
+        return _ball_images(x_gd, np.asarray(domain.center, dtype=float), float(domain.radius))
+    d = x_gd.shape[1]
+    centre = mirror_centre(domain)
+    s_gd = x_gd - centre
+    t_g, n_gd = _radial_hits(domain, s_gd)
+    g_gd = centre + (2.0 * t_g - 1.0)[:, None] * s_gd
     ns_g = np.einsum("gd,gd->g", n_gd, s_gd)
     eye = np.eye(d)
     dc_gdd = t_g[:, None, None] * (eye - s_gd[:, :, None] * n_gd[:, None, :] / ns_g[:, None, None])
-    return owner_g, g_gd, 2.0 * dc_gdd - eye, next_gap
+    return g_gd, 2.0 * dc_gdd - eye
+
+
+@numba.njit(cache=True)
+def _ball_images(x_gd, centre_d, radius):
+    """:func:`mirror_images` for a ball: ``t = R / |s|``, ``n = s / |s|``, ``J = 2 t (I - n n^T) - I``."""
+    n, d = x_gd.shape
+    g_gd = np.empty((n, d))
+    jac_gdd = np.empty((n, d, d))
+    for a in range(n):
+        r2 = 0.0
+        for c in range(d):
+            r2 += (x_gd[a, c] - centre_d[c]) ** 2
+        r = np.sqrt(r2)
+        t = radius / r
+        for c in range(d):
+            s = x_gd[a, c] - centre_d[c]
+            g_gd[a, c] = centre_d[c] + (2.0 * t - 1.0) * s
+            nc = s / r
+            for k in range(d):
+                jac_gdd[a, c, k] = 2.0 * t * ((1.0 if c == k else 0.0) - nc * (x_gd[a, k] - centre_d[k]) / r) - (
+                    1.0 if c == k else 0.0)
+    return g_gd, jac_gdd
 
 
 class Target:

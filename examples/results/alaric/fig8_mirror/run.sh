@@ -8,3 +8,17 @@ sphrelax density --profile eq46 --delta 0.01 --dim 2 --n 3772 --split 1 --max-st
 # 77 * 7^3 = 26 411 (not run: several seconds per step at the load of 2026-12-02).
 sphrelax density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 1 --max-steps 3000 \
   --out examples/results/alaric/fig8_mirror/3d_n2075 --overwrite > examples/results/alaric/fig8_mirror/3d_n2075.log 2>&1
+# 3D with the paper's N = 77 * 7^3 = 26 411 (not a multiple of 5: no splitting stage), after the stored ghost set
+# (commit 5981ca4); one thread, niced, with a wall-time cap of 90 min (the run is cut there, not converged, unless its
+# epsilon or epsilon_dot criterion stops it first). The pairing and bottom-of-the-well checks: examples/alaric_fig8_nn.py.
+OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46 --delta 0.01 --dim 3 --n 26411 \
+  --split 0 --max-steps 20000 --max-wall 5400 --out examples/results/alaric/fig8_mirror/3d_n26411 --overwrite \
+  > examples/results/alaric/fig8_mirror/3d_n26411.log 2>&1
+python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n26411 \
+  --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n26411
+# control: the N = 2075 command above after the stored ghost set (it ran beside examples/alaric_fig13_forms.py's repeat)
+OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 1 \
+  --max-steps 3000 --max-wall 540 --out examples/results/alaric/fig8_mirror/3d_n2075_after --overwrite \
+  > examples/results/alaric/fig8_mirror/3d_n2075_after.log 2>&1
+python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n2075_after \
+  --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n2075_after

@@ -1,0 +1,48 @@
+"""Fig. 8's checks beside epsilon, from a `sphrelax density` output folder: pairing (smallest nearest-neighbour
+distance over the mean) and the bottom of the well (the particle closest to the centre, particles within r < 0.15).
+
+    python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n26411 [--json FILE --key NAME]
+
+Prints one JSON object; with ``--json`` it is also stored under ``--key`` in FILE (other keys kept).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+from ase.io import read
+from scipy.spatial import cKDTree
+
+
+def fig8_checks(folder):
+    folder = Path(folder)
+    summary = json.loads((folder / "summary.json").read_text())
+    dim = int(summary["dim"])
+    x = read(folder / "relaxed.extxyz").positions[:, :dim]  # in the target's frame (centre at 0)
+    dist, _ = cKDTree(x).query(x, k=2)
+    r = np.linalg.norm(x, axis=1)
+    return dict(epsilon=summary["epsilon"], epsilon_teo_min=summary["epsilon_teo_min"], steps=summary["steps"],
+                stop=summary["stop_reason"], converged=summary["converged"], boundary=summary["boundary"],
+                n=len(x), nn_min_over_mean=float(dist[:, 1].min() / dist[:, 1].mean()), r_min=float(r.min()),
+                particles_within_0_15=int(np.count_nonzero(r < 0.15)), wall_time_s=summary["wall_time_s"])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folder")
+    ap.add_argument("--json", default=None)
+    ap.add_argument("--key", default=None)
+    args = ap.parse_args()
+    row = fig8_checks(args.folder)
+    print(json.dumps(row, indent=1))
+    if args.json:
+        path = Path(args.json)
+        table = json.loads(path.read_text()) if path.exists() else {}
+        table[args.key or Path(args.folder).name] = row
+        path.write_text(json.dumps(table, indent=1))
+
+
+if __name__ == "__main__":
+    main()
