@@ -211,11 +211,14 @@ def _sees_one_face(x, tri, t):
     return bool(np.all(coplanar_t | (dist_t > H * (1.0 + 1e-9))))
 
 
-def test_gamma_3d_on_tetrahedron_face_regression():
-    """A point ~1e-16 off a face's plane (issue 17 item 1): the point term came from one rounding of the plane
-    offset (0: chi = 1/2) and the face's solid angle from another (-3e-17: -1/2), so gamma was 1, not 1/2."""
+@pytest.mark.parametrize("x_units", [[1.3709634413226972, -1.1527844571916064, -0.023747898514303284],
+                                     [-1.0846301272960572, -0.8122096365035651, -0.6031602362003777]])
+def test_gamma_3d_on_tetrahedron_face_regression(x_units):
+    """Points ~1e-16 off a face's plane (issue 17 item 1; examples/bipi_gamma_accuracy.py's on-face points, in
+    units of h): the point term came from one rounding of the plane offset (0: chi = 1/2) and the face's solid
+    angle from another (-1e-16: -1/2), so gamma was 1, not 1/2."""
     tri = SHAPES["tetrahedron"]
-    x = np.array([0.5483853765290789, -0.46111378287664256, -0.009499159405721314])
+    x = np.array(x_units) * H
     t = int(np.argmin(np.abs(np.einsum("tc,tc->t", x - tri.vertices_tkc[:, 0], tri.normal_tc))))
     assert _sees_one_face(x, tri, t)
     n_c = tri.normal_tc[t]
