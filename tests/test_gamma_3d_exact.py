@@ -197,3 +197,54 @@ def test_reference_quadrature_known_values():
     half = 0.5 + P.polyval(0.3, P.polyint(marginal))
     assert abs(reference(x, tri, 1.0)[0] - half) < 1e-13
     assert reference(np.zeros(3), tri, 1.0)[0] == 1.0
+
+
+HALF_SPACE_GRAD = 2.0 * math.pi * P.polyval(1.0, PSI)  # |grad gamma| h on a plane: int_plane W dA = 2 pi int_0^1 W r dr
+
+
+def _sees_one_face(x, tri, t):
+    """True when every triangle within ``h`` of ``x`` lies in the plane of triangle ``t`` (x then sees one flat face)."""
+    v_tkc = tri.vertices_tkc
+    dist_t = np.linalg.norm(trimesh.triangles.closest_point(v_tkc, np.repeat(x[None], len(v_tkc), axis=0)) - x, axis=1)
+    n_c = tri.normal_tc[t]
+    coplanar_t = (np.abs(tri.normal_tc @ n_c - 1.0) < 1e-12) & (np.abs((v_tkc[:, 0] - v_tkc[t, 0]) @ n_c) < 1e-12)
+    return bool(np.all(coplanar_t | (dist_t > H * (1.0 + 1e-9))))
+
+
+@pytest.mark.parametrize("x_units", [[1.3709634413226972, -1.1527844571916064, -0.023747898514303284],
+                                     [-1.0846301272960572, -0.8122096365035651, -0.6031602362003777]])
+def test_gamma_3d_on_tetrahedron_face_regression(x_units):
+    """Points ~1e-16 off a face's plane (issue 17 item 1; examples/bipi_gamma_accuracy.py's on-face points, in
+    units of h): the point term came from one rounding of the plane offset (0: chi = 1/2) and the face's solid
+    angle from another (-1e-16: -1/2), so gamma was 1, not 1/2."""
+    tri = SHAPES["tetrahedron"]
+    x = np.array(x_units) * H
+    t = int(np.argmin(np.abs(np.einsum("tc,tc->t", x - tri.vertices_tkc[:, 0], tri.normal_tc))))
+    assert _sees_one_face(x, tri, t)
+    n_c = tri.normal_tc[t]
+    for shift in (-1e-15, 0.0, 1e-15):
+        gamma, grad = gamma_and_gradient((x + shift * n_c)[None], tri, H)
+        assert abs(gamma[0] - 0.5) < TOL, (shift, gamma[0] - 0.5)
+        assert np.abs(grad[0] * H - HALF_SPACE_GRAD * n_c).max() < TOL, (shift, grad[0] * H)
+
+
+@settings(max_examples=60, **SETTINGS)
+@given(shape=st.sampled_from(sorted(SHAPES)), k=st.integers(0, 100), s=st.floats(-0.5, 1.5), q=st.floats(-0.5, 1.5))
+def test_gamma_3d_on_face_planes(shape, k, s, q):
+    """Points projected (in floating point, so within ~1e-16 of it) onto the plane of a face, inside the face or
+    beyond it: gamma = 1/2 and grad gamma the half space's where the support sees only that face; elsewhere gamma
+    is the mean of gamma at +-2e-7 h along the normal (gamma is C^1: error ~ (2e-7)^2 |gamma''|) and in [0, 1]."""
+    tri = SHAPES[shape]
+    t = k % len(tri.vertices_tkc)
+    v = tri.vertices_tkc[t]
+    n_c = tri.normal_tc[t]
+    p = v[0] + s * (v[1] - v[0]) + q * (v[2] - v[0])
+    x = p - ((p - v[0]) @ n_c) * n_c
+    gamma, grad = gamma_and_gradient(x[None], tri, H)
+    assert -1e-14 <= gamma[0] <= 1.0 + 1e-14
+    if _sees_one_face(x, tri, t) and 0.0 <= s and 0.0 <= q and s + q <= 1.0:
+        assert abs(gamma[0] - 0.5) < TOL, (shape, x, gamma[0] - 0.5)
+        assert np.abs(grad[0] * H - HALF_SPACE_GRAD * n_c).max() < TOL, (shape, x, grad[0] * H)
+    eta = 2e-7 * H
+    g = gamma_and_gradient(np.array([x + eta * n_c, x - eta * n_c]), tri, H)[0]
+    assert abs(gamma[0] - 0.5 * (g[0] + g[1])) < TOL, (shape, x, gamma[0] - 0.5 * (g[0] + g[1]))

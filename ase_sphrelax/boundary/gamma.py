@@ -40,7 +40,7 @@ from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
 from .segments import BoundarySegments
-from .surface_integrals import EDGE_COLUMNS, edge_frames, plane_offset, triangle_terms
+from .surface_integrals import EDGE_COLUMNS, edge_frames, triangle_terms
 from .triangles import BoundaryTriangles
 
 __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
@@ -108,9 +108,17 @@ def _chi_segment(px, py, seg, e, next_s, prev_s, inv_h):
 
 
 @numba.njit(cache=True, inline="always")
-def _chi_triangle(px, py, pz, tri, nrm, pseudo, t, close2):
+def _chi_triangle(px, py, pz, tri, pseudo, t, delta, close2):
+    """Point term of a particle whose nearest triangle is t (see the module docstring).
+
+    ``delta`` is the particle's offset to the plane of t exactly as
+    :func:`~ase_sphrelax.boundary.surface_integrals.triangle_terms` computed it for this pair (from
+    the nearest edge line): on the face (``delta == 0``, where that triangle subtends no solid angle)
+    ``chi`` is 1/2, and only there. A second offset rounded differently (e.g. from the nearest
+    vertex) can be 0 where ``delta`` is -3e-17, whose triangle then subtends -1/2: ``gamma`` 1, not 1/2.
+    """
     d2, qx, qy, qz, feature = closest_on_triangle(px, py, pz, tri[t])
-    side = plane_offset(px, py, pz, tri, nrm, t)
+    side = delta
     if feature == 6 and side == 0.0:
         return 0.5
     if d2 < close2:
@@ -151,6 +159,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, centr
         w0 = w1 = w2 = 0.0
         best = np.inf
         k_best = -1
+        delta_best = 0.0
         for k in range(start_p[p], start_p[p + 1]):
             s = point_k[k]
             e = elem_k[k]
@@ -181,6 +190,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, centr
             if dist_k[k] < best:
                 best = dist_k[k]
                 k_best = k
+                delta_best = d
         sum_p[p] = total
         grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
         near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
@@ -191,7 +201,8 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, centr
         if kind == 0:
             chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
         else:
-            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, nrm, pseudo, elem_k[k_best], close2)
+            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best,
+                                     close2)
 
 
 class BoundaryTerms:
