@@ -34,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["triangle_terms", "plane_offset", "edge_frames", "EDGE_COLUMNS"]
+__all__ = ["triangle_terms", "edge_frames", "EDGE_COLUMNS"]
 
 EDGE_COLUMNS = 16  # columns of edge_frames
 INV_INT = 1.0 / np.maximum(np.arange(64), 1.0)  # 1 / k: the recursions multiply instead of dividing (kernels below degree 60)
@@ -119,20 +119,6 @@ def _edge_offset(px, py, pz, frames, t, i):
         dax, day, daz = dbx, dby, dbz
     along = dax * cx + day * cy + daz * cz
     return dax - along * cx, day - along * cy, daz - along * cz
-
-
-@numba.njit(cache=True, inline="always")
-def plane_offset(px, py, pz, tri, nrm, t):
-    """The offset ``(x_a - x_t)·n_t`` from the vertex nearest to the particle (rounding ~ its distance)."""
-    best = np.inf
-    k_best = 0
-    for k in range(3):
-        d2 = (px - tri[t, 3 * k]) ** 2 + (py - tri[t, 3 * k + 1]) ** 2 + (pz - tri[t, 3 * k + 2]) ** 2
-        if d2 < best:
-            best = d2
-            k_best = k
-    return ((px - tri[t, 3 * k_best]) * nrm[t, 0] + (py - tri[t, 3 * k_best + 1]) * nrm[t, 1]
-            + (pz - tri[t, 3 * k_best + 2]) * nrm[t, 2])
 
 
 @numba.njit(cache=True, inline="always")
