@@ -1,19 +1,14 @@
 """examples/alaric_figures.py runs on tiny cases (Figs. 1 and 9; Figs. 12 and 16 take minutes even when quick)."""
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
+from examples_loader import load_example
 
-SCRIPT = Path(__file__).resolve().parents[1] / "examples" / "alaric_figures.py"
 
 
 @pytest.fixture(scope="module")
 def figures():
-    spec = importlib.util.spec_from_file_location("alaric_figures", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_example("alaric_figures")
 
 
 def test_figure1_quick_writes_its_files_and_the_maps_agree(figures, tmp_path):

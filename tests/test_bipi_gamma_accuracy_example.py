@@ -1,9 +1,8 @@
 """examples/bipi_gamma_accuracy.py: its independent references hit known values and agree with gamma_and_gradient."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
+from examples_loader import load_example
 
 pytest.importorskip("shapely")
 pytest.importorskip("trimesh")
@@ -13,11 +12,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarn
 
 @pytest.fixture(scope="module")
 def example():
-    path = Path(__file__).resolve().parents[1] / "examples" / "bipi_gamma_accuracy.py"
-    spec = importlib.util.spec_from_file_location("bipi_gamma_accuracy", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_example("bipi_gamma_accuracy")
 
 
 def test_references_known_values(example):

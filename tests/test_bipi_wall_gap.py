@@ -4,11 +4,10 @@ The wedge tank is 102.5 dx wide at dx = 0.02: the cell centres at x = 2.05 lie o
 ``initial_fill`` drops them (within dx/8 of the boundary) and walls strictly outside skipped them too,
 leaving a 2 dx gap there. ``add_walls`` now takes the centres the fill dropped.
 """
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
+from examples_loader import load_example
 
 from ase_sphrelax.boundary import BoundarySegments
 from ase_sphrelax.domains import Polygon
@@ -16,11 +15,7 @@ from ase_sphrelax.drivers.bipi_packer import DROP_FRACTION, FLUID, WALL, add_wal
 
 
 def _example():
-    path = Path(__file__).resolve().parents[1] / "examples" / "bipi_sph.py"
-    spec = importlib.util.spec_from_file_location("bipi_sph", path)
-    example = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(example)
-    return example
+    return load_example("bipi_sph")
 
 
 def _side_gaps(both, dx):
