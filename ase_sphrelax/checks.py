@@ -73,7 +73,7 @@ def check_positive(name, value, allow_none=False):
 
 
 def finite_array(name, value, n, shape=(), positive=False):
-    """``value`` as a float array of shape (n, *shape), a scalar broadcast; one-line errors naming ``name``.
+    """``value`` as a float array of shape ``(n, *shape)``, a scalar broadcast; one-line errors naming ``name``.
 
     Raises ValueError for a wrong shape, NaN or inf, or (``positive=True``) a value <= 0.
     """

@@ -74,7 +74,7 @@ class ScoreMemory(CountingTarget):
 def critical_drag(score_pc, alpha):
     """``(q_cc, rate_c)``: the principal directions (columns) of the Fisher matrix ``mean_a s_a s_a^T`` of
     ``score_pc`` (M, d) and the damping rates ``2 (alpha k_i)^(1/2)`` of the critical friction, ``k_i =
-    median_a (s_a . e_i)^2 / MEDIAN_CHI2_1`` (see the module docstring; non-finite rows ignored; curvatures
+    median_a (s_a·e_i)^2 / MEDIAN_CHI2_1`` (see the module docstring; non-finite rows ignored; curvatures
     floored at :data:`FISHER_FLOOR` times the largest). None when no score is finite or all vanish."""
     g_pc = np.asarray(score_pc, dtype=float)
     g_pc = g_pc[np.all(np.isfinite(g_pc), axis=1)]
