@@ -162,6 +162,10 @@ def main():
              "| measure | " + " | ".join(r["set"] for r in rows) + " |", "|---" * (len(rows) + 1) + "|"]
     for key, label in keys:
         lines.append(f"| {label} | " + " | ".join(f"{r[key]:.3g}" for r in rows) + " |")
+    ref = rows[0]  # ALARIC (mirror): each set's value over ALARIC's, per measure (> 1: ALARIC lower)
+    for key, label in keys[:-1]:
+        lines.append(f"| ratio to {ref['set']}: {label} | "
+                     + " | ".join(f"{r[key] / ref[key]:.3g}" for r in rows) + " |")
     lines.append("| interior particles | " + " | ".join(str(r["interior_particles"]) for r in rows) + " |")
     lines.append("| particles within 0.1 spacing of the circle | "
                  + " | ".join(str(r["edge_particles_within_0p1_spacing"]) for r in rows) + " |")
