@@ -80,8 +80,13 @@ def gaps(x_p):
     return sorted_gaps, order_gaps
 
 
-def run(variant, steps):
+def run(variant, steps, perturb=0.0, seed=0):
+    """One run: (summary dict, per-step rows (steps + 1, len(COLUMNS))). ``perturb``: the start's positions moved by
+    ``perturb`` times the mean spacing times a standard normal number each (seed ``seed``), 0 for Table 1's start."""
     atoms, origin, _ = start_atoms(N_PARTICLES, 1)
+    if perturb:
+        atoms.positions[:, 0] += perturb * (PERIOD / N_PARTICLES) * np.random.default_rng(seed).standard_normal(
+            N_PARTICLES)
     density, gradient = model.eq46(0.0)
     cls = FlooredOmegaCalculator if variant == "F_floor" else ALARICCalculator
     atoms.calc = cls(target_density=density, target_gradient=gradient, dim=1, origin=origin, form="log")
@@ -150,7 +155,7 @@ def run(variant, steps):
         largest_rise=float(rise.max()), step_of_largest_rise=i_rise,
         rows_around_largest_rise=[dict(zip(COLUMNS, row.tolist())) for row in r[max(0, i_rise - 4): i_rise + 3]])
     summary = dict(
-        variant=variant, settings=VARIANTS[variant], package=str(ase_sphrelax.__file__), steps=dyn.nsteps,
+        variant=variant, settings=VARIANTS[variant], perturb=perturb, seed=seed, package=str(ase_sphrelax.__file__), steps=dyn.nsteps,
         stop=dyn.stop_reason, error=error, eps=float(col["epsilon"][-1]),
         eps_last_check=dyn.trace[-1]["epsilon"] if dyn.trace else None, time=float(dt.sum()),
         dt_min=float(dt.min()), dt_median=float(np.median(dt)), step_of_dt_min=i_min,
@@ -174,21 +179,27 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variant", choices=sorted(VARIANTS), default="F")
     ap.add_argument("--steps", type=int, default=10000)
+    ap.add_argument("--perturb", type=float, default=0.0, help="start positions moved by this times the spacing "
+                    "times a standard normal number (0: Table 1's equispaced start)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of --perturb")
+    ap.add_argument("--no-csv", action="store_true", help="write the summary only")
     ap.add_argument("--name", default=None, help="file stem (default: the variant)")
     ap.add_argument("--out", default="examples/results/alaric/table1_F/isolate")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = args.name or args.variant
-    summary, rows = run(args.variant, args.steps)
+    summary, rows = run(args.variant, args.steps, args.perturb, args.seed)
     summary["command"] = (f"OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH={os.environ.get('PYTHONPATH', '')} "
                           f"python examples/alaric_table1_f_isolate.py --variant {args.variant} --steps {args.steps} "
+                          f"--perturb {args.perturb} --seed {args.seed}{' --no-csv' if args.no_csv else ''} "
                           f"--name {name} --out {args.out}")
     (out / f"{name}.json").write_text(json.dumps(summary, indent=1))
-    with gzip.open(out / f"{name}.csv.gz", "wt") as fh:
-        fh.write(",".join(COLUMNS) + "\n")
-        for row in rows:
-            fh.write(",".join(f"{v:.6g}" for v in row) + "\n")
+    if not args.no_csv:
+        with gzip.open(out / f"{name}.csv.gz", "wt") as fh:
+            fh.write(",".join(COLUMNS) + "\n")
+            for row in rows:
+                fh.write(",".join(f"{v:.6g}" for v in row) + "\n")
     print(json.dumps({k: v for k, v in summary.items() if k not in ("rows_around_dt_min", "trace")}))
 
 
