@@ -155,7 +155,8 @@ def run(variant, steps, perturb=0.0, seed=0):
         largest_rise=float(rise.max()), step_of_largest_rise=i_rise,
         rows_around_largest_rise=[dict(zip(COLUMNS, row.tolist())) for row in r[max(0, i_rise - 4): i_rise + 3]])
     summary = dict(
-        variant=variant, settings=VARIANTS[variant], perturb=perturb, seed=seed, package=str(ase_sphrelax.__file__), steps=dyn.nsteps,
+        variant=variant, settings=VARIANTS[variant], perturb=perturb, seed=seed, package=str(ase_sphrelax.__file__),
+        steps=dyn.nsteps,
         stop=dyn.stop_reason, error=error, eps=float(col["epsilon"][-1]),
         eps_last_check=dyn.trace[-1]["epsilon"] if dyn.trace else None, time=float(dt.sum()),
         dt_min=float(dt.min()), dt_median=float(np.median(dt)), step_of_dt_min=i_min,
@@ -175,8 +176,31 @@ def run(variant, steps, perturb=0.0, seed=0):
     return summary, r
 
 
+def summarize(folder):
+    """``folder/table.md``: one row per summary JSON there (the perturbed-start repeats)."""
+    folder = Path(folder)
+    lines = ["| file | variant | perturb, seed | steps | stop | eps (last check) | simulated time | dt min | "
+             "crossed pairs | smallest gap / spacing | smallest Omega | U + K rises (at Omega < 0.05) | CPU s |",
+             "|---" * 13 + "|"]
+    runs = [json.loads(f.read_text()) | dict(file=f.name) for f in sorted(folder.glob("*.json"))]
+    runs.sort(key=lambda d: (d["variant"], d["seed"]))
+    for d in runs:
+        e = d["energy"]
+        lines.append(f"| `{d['file']}` | {d['variant']} | {d['perturb']:g}, {d['seed']} | {d['steps']} | {d['stop']} | "
+                     f"{d['eps_last_check']:.3g} | {d['time']:.3g} | {d['dt_min']:.2g} | {d['crossed_max']} | "
+                     f"{d['gap_min_over_spacing']:.2g} | {d['omega_min']:.2g} | {e['rise_total']:.3g} "
+                     f"({e['rise_total_at_omega_below_0p05']:.3g}) | {d['cpu_s']:.0f} |")
+    for variant in sorted({d["variant"] for d in runs}):
+        of = [d for d in runs if d["variant"] == variant]
+        ok = [d["steps"] for d in of if d["stop"] in ("epsilon", "epsilon_dot")]
+        lines.append(f"\n{variant}: {len(ok)} of {len(of)} converged" + (f" (steps {min(ok)}-{max(ok)})" if ok else ""))
+    (folder / "table.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--summarize", default=None, metavar="DIR", help="only write DIR/table.md from DIR/*.json")
     ap.add_argument("--variant", choices=sorted(VARIANTS), default="F")
     ap.add_argument("--steps", type=int, default=10000)
     ap.add_argument("--perturb", type=float, default=0.0, help="start positions moved by this times the spacing "
@@ -186,6 +210,9 @@ def main():
     ap.add_argument("--name", default=None, help="file stem (default: the variant)")
     ap.add_argument("--out", default="examples/results/alaric/table1_F/isolate")
     args = ap.parse_args()
+    if args.summarize:
+        summarize(args.summarize)
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     name = args.name or args.variant
