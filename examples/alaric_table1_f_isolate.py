@@ -24,6 +24,9 @@ Per-step rows go to ``OUT/NAME.csv.gz``, the summary (with the rows around the s
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 python examples/alaric_table1_f_isolate.py \\
         --variant F --out examples/results/alaric/table1_F/isolate [--steps 10000] [--name NAME]
 
+``--perturb P --seed S`` moves each start position by P times the mean spacing times a standard normal number (the
+repeats in ``table1_F/perturbed``, with ``--no-csv``); ``--summarize DIR`` writes ``DIR/table.md`` from its JSONs.
+
 The same script runs with an older package (``git archive REV ase_sphrelax | tar -x -C /tmp/REV`` and
 ``PYTHONPATH=/tmp/REV``): it uses only ``start_atoms``, ``eq46``, the calculator's results and the driver's observers.
 """
