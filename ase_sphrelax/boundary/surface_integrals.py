@@ -416,11 +416,11 @@ def triangle_row_terms(px, py, pz, elem_k, k0, k1, tri, nrm, frames, edge_tk, in
     The two triangles of an edge need the same ``d`` (the distance to the edge's line), the same
     intervals and ``rho`` at their ends, ``asinh`` difference and ``E_i``, ``J_i``; only ``e``, ``|delta|``
     and ``phi`` are their own. So each edge of the row (``edge_tk``: ids shared by the triangles of an
-    edge; ``stamp_e``/``slot_e`` mark the edges seen in this ``visit``) is integrated once, in the
-    orientation of its first triangle, and both triangles' terms are added from it; the second runs
-    along the edge the other way, at ``-x``, where ``rho``, the ``asinh`` difference and ``E_i``, ``J_i``
-    of an interval are the same numbers (they are even in ``x``, computed symmetrically). The same
-    formulas as :func:`triangle_terms`, summed in another order (agreement to rounding).
+    edge; ``stamp_e``/``slot_e`` mark the edges seen in this ``visit``) is integrated once, along the
+    direction of its first triangle, and both triangles' terms are added from it. The integrands are even
+    in ``x`` (``phi`` is odd), so the second triangle, which runs along the edge the other way, has the
+    same integrals over the same intervals. The same formulas as :func:`triangle_terms`, summed in another
+    order and with ``d`` from the offset ``w`` itself (agreement to rounding: ``tests/test_bipi_edge_sharing.py``).
 
     Writes ``g_k[q]``, ``gr_k[q]``, ``d_k[q]`` (gamma_at, int W dS, delta) for pair ``k0 + q``.
     """
@@ -481,14 +481,10 @@ def triangle_row_terms(px, py, pz, elem_k, k0, k1, tri, nrm, frames, edge_tk, in
         use_a = pair_c[qa, PC_ACTIVE] != 0.0 and ea != 0.0
         use_b = False
         eb = 0.0
-        flip = False
         if qb >= 0:
             tb = elem_k[k0 + qb]
             eb = (wx * frames[tb, ib, 12] + wy * frames[tb, ib, 13] + wz * frames[tb, ib, 14]) / frames[tb, ib, 15] * inv_h
             use_b = pair_c[qb, PC_ACTIVE] != 0.0 and eb != 0.0
-            # the second triangle runs from the first's v_i+1 (a consistently oriented surface) or from its v_i
-            flip = not (tri[tb, 3 * ib] == tri[ta, 3 * ia] and tri[tb, 3 * ib + 1] == tri[ta, 3 * ia + 1]
-                        and tri[tb, 3 * ib + 2] == tri[ta, 3 * ia + 2])
         if not (use_a or use_b):
             continue
         k1a = (ia + 1) % 3
@@ -564,10 +560,7 @@ def triangle_row_terms(px, py, pz, elem_k, k0, k1, tri, nrm, frames, edge_tk, in
                 pair_c[qa, PC_GAM] += g
                 pair_c[qa, PC_JF] += f
             if use_b:
-                if flip:
-                    g, f = _interval_sum(-x1, r1, -x0, r0, das, mom, n_mom, j, eb, pair_c, qb, lp, lq, a0)
-                else:
-                    g, f = _interval_sum(x0, r0, x1, r1, das, mom, n_mom, j, eb, pair_c, qb, lp, lq, a0)
+                g, f = _interval_sum(x0, r0, x1, r1, das, mom, n_mom, j, eb, pair_c, qb, lp, lq, a0)
                 pair_c[qb, PC_GAM] += g
                 pair_c[qb, PC_JF] += f
     for q in range(k1 - k0):
