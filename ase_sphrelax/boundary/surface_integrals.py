@@ -174,6 +174,40 @@ def _polynomial_part(row, r):
 
 
 @numba.njit(cache=True, inline="always")
+def _edge_cuts(xa, xb, d2, breaks, q_max, with_gamma, cuts):
+    """The interval end points along an edge, sorted into ``cuts``: ``xa``, where ``rho`` crosses a break
+    radius (and ``q_max`` unless ``with_gamma``), ``xb``; returns their number."""
+    nb = breaks.shape[0] - 1
+    n_cut = 0
+    cuts[n_cut] = xa
+    n_cut += 1
+    for j in range(1, nb + 2):
+        radius = breaks[j] if j <= nb else q_max
+        if radius > q_max or (j == nb + 1 and with_gamma):
+            continue
+        b2 = radius * radius - d2
+        if b2 > 0.0:
+            xc = math.sqrt(b2)
+            if xa < xc < xb:
+                cuts[n_cut] = xc
+                n_cut += 1
+            if xa < -xc < xb:
+                cuts[n_cut] = -xc
+                n_cut += 1
+    cuts[n_cut] = xb
+    n_cut += 1
+    # insertion sort (a handful of points)
+    for m in range(1, n_cut):
+        v = cuts[m]
+        q = m - 1
+        while q >= 0 and cuts[q] > v:
+            cuts[q + 1] = cuts[q]
+            q -= 1
+        cuts[q + 1] = v
+    return n_cut
+
+
+@numba.njit(cache=True, inline="always")
 def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p1_one, sigma, q_max, cuts):
     """Boundary terms of particle p and triangle ``t`` (packed vertices ``tri[t]``, inward ``nrm[t]``).
 
@@ -226,7 +260,6 @@ def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p
     else:
         kf_inf = _laurent(lp[_piece(breaks, q_max)], q_max) - p1_d
         kg_inf = 0.0
-    nb = breaks.shape[0] - 1
     cols = lp.shape[1]
     a2 = ad * ad
     gam = 0.0
@@ -252,33 +285,7 @@ def triangle_terms(px, py, pz, tri, nrm, frames, t, inv_h, breaks, lp, lq, a0, p
         e2 = e * e
         d2 = a2 + e2
         d = math.sqrt(d2) if d2 > 1e-280 else math.hypot(ad, e)
-        # interval end points: xa, the break crossings, xb
-        n_cut = 0
-        cuts[n_cut] = xa
-        n_cut += 1
-        for j in range(1, nb + 2):
-            radius = breaks[j] if j <= nb else q_max
-            if radius > q_max or (j == nb + 1 and with_gamma):
-                continue
-            b2 = radius * radius - d2
-            if b2 > 0.0:
-                xc = math.sqrt(b2)
-                if xa < xc < xb:
-                    cuts[n_cut] = xc
-                    n_cut += 1
-                if xa < -xc < xb:
-                    cuts[n_cut] = -xc
-                    n_cut += 1
-        cuts[n_cut] = xb
-        n_cut += 1
-        # insertion sort (a handful of points)
-        for m in range(1, n_cut):
-            v = cuts[m]
-            q = m - 1
-            while q >= 0 and cuts[q] > v:
-                cuts[q + 1] = cuts[q]
-                q -= 1
-            cuts[q + 1] = v
+        n_cut = _edge_cuts(xa, xb, d2, breaks, q_max, with_gamma, cuts)
         for m in range(n_cut - 1):
             x0 = cuts[m]
             x1 = cuts[m + 1]
@@ -471,7 +478,6 @@ def triangle_row_terms(px, py, pz, elem_k, k0, k1, tri, nrm, frames, edge_tk, in
         pair_c[q, PC_GAM] = 0.0
         pair_c[q, PC_JF] = 0.0
         pair_c[q, PC_ACTIVE] = 1.0 if ad < 1.0 else 0.0
-    nb = breaks.shape[0] - 1
     for s in range(n_slots):
         qa, ia, qb, ib = slot_pair[s, 0], slot_pair[s, 1], slot_pair[s, 2], slot_pair[s, 3]
         ta = elem_k[k0 + qa]
@@ -495,29 +501,7 @@ def triangle_row_terms(px, py, pz, elem_k, k0, k1, tri, nrm, frames, edge_tk, in
         whx, why, whz = wx * inv_h, wy * inv_h, wz * inv_h
         d2 = whx * whx + why * why + whz * whz
         d = math.sqrt(d2) if d2 > 1e-280 else math.hypot(math.hypot(whx, why), whz)
-        # interval end points: xa, the break crossings, xb
-        n_cut = 0
-        cuts[n_cut] = xa
-        n_cut += 1
-        for j in range(1, nb + 1):
-            b2 = breaks[j] * breaks[j] - d2
-            if b2 > 0.0:
-                xc = math.sqrt(b2)
-                if xa < xc < xb:
-                    cuts[n_cut] = xc
-                    n_cut += 1
-                if xa < -xc < xb:
-                    cuts[n_cut] = -xc
-                    n_cut += 1
-        cuts[n_cut] = xb
-        n_cut += 1
-        for m in range(1, n_cut):  # insertion sort (a handful of points)
-            v = cuts[m]
-            c = m - 1
-            while c >= 0 and cuts[c] > v:
-                cuts[c + 1] = cuts[c]
-                c -= 1
-            cuts[c + 1] = v
+        n_cut = _edge_cuts(xa, xb, d2, breaks, 1.0, True, cuts)
         for m in range(n_cut - 1):
             x0 = cuts[m]
             x1 = cuts[m + 1]
