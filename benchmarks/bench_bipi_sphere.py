@@ -286,7 +286,8 @@ def main(argv=None):
                 summary["medians"][f"ratio {threads}t"] = dict(cpu=base["cpu"] / new["cpu"], wall=base["wall"] / new["wall"])
     for key, value in summary["medians"].items():
         extra = "".join(f", {k} {value[k]}" for k in ("iterations", "gradc_final", "layer") if k in value)
-        print(f"{key}: CPU {value['cpu']:.2f} s, wall {value['wall']:.2f} s{extra}")
+        unit = "" if key.startswith("ratio") else " s"
+        print(f"{key}: CPU {value['cpu']:.2f}{unit}, wall {value['wall']:.2f}{unit}{extra}")
     print(f"load average {os.getloadavg()}")
     Path(args.out).write_text(json.dumps(summary, indent=1))
 
