@@ -12,10 +12,15 @@ times. ``--profile``: CPU time per part (the particle-triangle query, the triang
 pair sums, the rest of a step) from wrappers around functions both checkouts have. ``--momentum M``: this
 checkout packs with ``BIPIPacker(momentum=M, momentum_stages=...)`` (default Step 2c; not the paper's rule;
 the baseline keeps the paper's). ``--step-rules``: Step 2c alone, from the saved end of the case's paper-rule
-Step 2a + 2b, once per variant of the step (momentum, J), with ``|grad C|_avg`` per iteration.
+Step 2a + 2b, once per variant of the step (momentum, J), with ``|grad C|_avg`` per iteration. ``--lead``: the
+whole case on this checkout only, four processes: the paper's rule and momentum 0.9 in Step 2c, each on 1 and 2
+numba threads (CPU and wall time of each; about 4 minutes on a quiet machine). ``--pair-cost CALLS``: CPU ns per
+(particle, triangle) pair of the boundary integrals, baseline and this checkout alternating.
 
     python benchmarks/bench_bipi_sphere.py --baseline /path/to/old/checkout [--rounds 2] [--caps 40 80]
         [--threads 1 2] [--full] [--profile] [--momentum M [--momentum-stages 2a 2c]] [--only-current] [--out FILE]
+    python benchmarks/bench_bipi_sphere.py --lead [--out FILE]
+    python benchmarks/bench_bipi_sphere.py --pair-cost 5 --baseline /path/to/old/checkout [--rounds 2]
     python benchmarks/bench_bipi_sphere.py --step-rules '{"momentum": 0.9}' '{"J": 2.0}' [--cap-2c 1000]
 
 Writes benchmarks/results/bench_bipi_sphere.json (one record per process, medians per checkout and thread count).
@@ -125,6 +130,63 @@ print(json.dumps(out), flush=True)
 """
 
 
+PAIR_COST = """
+import json, os, sys, time, warnings
+warnings.simplefilter("ignore")
+import numpy as np
+from ase_sphrelax.boundary import BoundaryIntegrals, BoundaryTriangles
+from ase_sphrelax.domains import Sphere
+from ase_sphrelax.drivers.bipi_packer import initial_fill
+from ase_sphrelax.neighbors import NeighborList
+b = BoundaryTriangles.from_domain(Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(3))
+dx, h = 0.05, 0.2
+r = initial_fill(b, dx).positions + np.random.default_rng(0).normal(scale=0.003, size=(4032, 3))
+nlist = NeighborList(h, skin=0.1 * h)
+nlist.update(r, np.zeros((3, 3)), [False] * 3, store=True)
+times, query = [], []
+for call in range(int(sys.argv[1]) + 1):
+    integrals = BoundaryIntegrals(b, h)  # fresh: no particle reused from a previous call
+    integrals.query.pairs(nlist, r, h)  # builds the candidates
+    c = time.process_time()
+    pairs = integrals.query.pairs(nlist, r, h)  # as in compute: from the candidates
+    q = time.process_time() - c
+    c = time.process_time()
+    out = integrals.compute(nlist, r, band=0.025)
+    total = time.process_time() - c
+    if call:  # the first call compiles
+        times.append(total)
+        query.append(q)
+m = pairs.n_pairs
+times, query = np.array(times), np.array(query)
+print(json.dumps(dict(checkout=os.environ.get("PYTHONPATH"), threads=int(os.environ["NUMBA_NUM_THREADS"]), n_pairs=int(m),
+                      ns_per_pair=float(np.median(times - query)) * 1e9 / m, compute_ms=float(np.median(times)) * 1e3,
+                      query_ms=float(np.median(query)) * 1e3, gamma_sum=float(out.gamma_p.sum()),
+                      load=os.getloadavg())), flush=True)
+"""
+
+
+def pair_cost(checkouts, rounds, calls, out_path):
+    """CPU ns per (particle, triangle) pair of ``BoundaryIntegrals.compute`` minus its query (timed alone, from the
+    kept candidates as in compute), on the case's 4032
+    Step-1 particles jittered by N(0, 0.003) (fresh instance per call, so no particle is reused), band 0.025,
+    one thread, median of ``calls`` calls per process; the checkouts alternate in fresh processes."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1")
+    records = []
+    print(f"load average {os.getloadavg()}", flush=True)
+    for _ in range(rounds):
+        for checkout in checkouts:
+            out = subprocess.run([sys.executable, "-c", PAIR_COST, str(calls)], env=dict(env, PYTHONPATH=checkout),
+                                 cwd=checkout, capture_output=True, text=True, check=True).stdout
+            records.append(json.loads(out.strip().splitlines()[-1]))
+            print(records[-1], flush=True)
+    medians = {c: median([r["ns_per_pair"] for r in records if r["checkout"] == c]) for c in checkouts}
+    print(f"load average {os.getloadavg()}; ns per pair (medians): {medians}")
+    Path(out_path).write_text(json.dumps(dict(records=records, medians_ns_per_pair=medians,
+                                              date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                                              command="python benchmarks/bench_bipi_sphere.py " + " ".join(sys.argv[1:])),
+                                         indent=1))
+
+
 def step_rules(variants, cap, out_path):
     """Step 2c alone from the saved start of the case's paper-rule Step 2a + 2b, once per variant
     (``{"momentum": beta}`` or ``{"J": J}``), this checkout, one thread: |grad C|_avg per iteration."""
@@ -158,10 +220,16 @@ def main(argv=None):
     parser.add_argument("--momentum", type=float, default=0.0,
                         help="BIPIPacker(momentum=...) for this checkout (0: the paper's rule; the baseline always runs 0)")
     parser.add_argument("--momentum-stages", nargs="+", default=["2c"], choices=["2a", "2c"])
+    parser.add_argument("--lead", action="store_true",
+                        help="the whole case on this checkout: 1-thread CPU and 2-thread wall for the paper's rule and for "
+                        "momentum 0.9 in Step 2c (4 processes; with --baseline also the baseline's paper rule)")
     parser.add_argument("--only-current", action="store_true", help="time this checkout only (no baseline runs)")
     parser.add_argument("--step-rules", nargs="+", metavar="JSON",
                         help='instead: Step 2c alone from the saved paper-rule start, per variant, e.g. \'{"momentum": 0.9}\'')
     parser.add_argument("--cap-2c", type=int, default=1000, help="with --step-rules: the 2c cap")
+    parser.add_argument("--pair-cost", type=int, metavar="CALLS", default=0,
+                        help="instead: CPU ns per (particle, triangle) pair of the integrals, median of CALLS calls "
+                        "per process, baseline and this checkout alternating (--rounds rounds)")
     parser.add_argument("--out", default=None, help="result file (default results/bench_bipi_sphere.json, "
                         "results/bench_bipi_sphere_step_rules.json with --step-rules)")
     args = parser.parse_args(argv)
@@ -169,37 +237,57 @@ def main(argv=None):
     if args.step_rules:
         step_rules(args.step_rules, args.cap_2c, args.out or str(results / "bench_bipi_sphere_step_rules.json"))
         return
+    if args.pair_cost:
+        checkouts = [str(ROOT)] if args.only_current else [args.baseline, str(ROOT)]
+        pair_cost(checkouts, args.rounds, args.pair_cost, args.out or str(results / "bench_bipi_sphere_pair_cost.json"))
+        return
     args.out = args.out or str(results / "bench_bipi_sphere.json")
-    if args.baseline is None and not args.only_current:
+    if args.baseline is None and not args.only_current and not args.lead:
         parser.error("--baseline is needed unless --only-current or --step-rules")
+    if args.lead:  # the whole case, this checkout, 1 and 2 threads, the paper's rule and momentum 0.9 in Step 2c
+        args.full, args.threads, args.rounds, args.momentum_stages = True, [1, 2], 1, ["2c"]
+        args.only_current = args.only_current or args.baseline is None
     caps = [5000, 1000] if args.full else args.caps
     checkouts = [str(ROOT)] if args.only_current else [args.baseline, str(ROOT)]
+    momenta = [0.0, 0.9] if args.lead else [args.momentum]
     records = []
     print(f"load average {os.getloadavg()}, nice {os.nice(0)}", flush=True)
     # each child runs in its checkout: ``python -c`` puts the working directory first on sys.path, ahead of PYTHONPATH
     for _ in range(args.rounds):
-        for threads in args.threads:
-            for checkout in checkouts:
-                env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS=str(threads), PYTHONPATH=checkout)
-                momentum = args.momentum if checkout == str(ROOT) else 0.0
-                out = subprocess.run([sys.executable, "-c", CHILD, *map(str, caps), "1" if args.profile else "0",
-                                      str(momentum), ",".join(args.momentum_stages)],
-                                     env=env, cwd=checkout, capture_output=True, text=True, check=True).stdout
-                records.append(json.loads(out.strip().splitlines()[-1]))
-                print(records[-1], flush=True)
+        for momentum in momenta:
+            for threads in args.threads:
+                for checkout in checkouts:
+                    if momentum > 0 and checkout != str(ROOT):
+                        continue  # the baseline runs the paper's rule only
+                    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS=str(threads), PYTHONPATH=checkout)
+                    m = momentum if checkout == str(ROOT) else 0.0  # the baseline may have no momentum
+                    out = subprocess.run([sys.executable, "-c", CHILD, *map(str, caps), "1" if args.profile else "0",
+                                          str(m), ",".join(args.momentum_stages)],
+                                         env=env, cwd=checkout, capture_output=True, text=True, check=True).stdout
+                    records.append(json.loads(out.strip().splitlines()[-1]))
+                    print(records[-1], flush=True)
     summary = dict(records=records, caps=caps, date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
                    command="python benchmarks/bench_bipi_sphere.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                    medians={})
-    for threads in args.threads:
-        for checkout in checkouts:
-            mine = [r for r in records if r["checkout"] == checkout and r["threads"] == threads]
-            summary["medians"][f"{checkout} {threads}t"] = dict(cpu=median([r["cpu"] for r in mine]),
-                                                                wall=median([r["wall"] for r in mine]))
-        if not args.only_current:
-            base, new = (summary["medians"][f"{c} {threads}t"] for c in checkouts)
-            summary["medians"][f"ratio {threads}t"] = dict(cpu=base["cpu"] / new["cpu"], wall=base["wall"] / new["wall"])
+    for momentum in momenta:
+        tag = f" momentum {momentum}" if momentum > 0 else ""
+        for threads in args.threads:
+            for checkout in checkouts:
+                if momentum > 0 and checkout != str(ROOT):
+                    continue
+                mine = [r for r in records if r["checkout"] == checkout and r["threads"] == threads
+                        and r["momentum"] == (momentum if checkout == str(ROOT) else 0.0)]
+                summary["medians"][f"{checkout} {threads}t{tag}"] = dict(
+                    cpu=median([r["cpu"] for r in mine]), wall=median([r["wall"] for r in mine]),
+                    iterations=f"{mine[0]['it_2a']} + {mine[0]['it_2c']}", gradc_final=mine[0]["gradc_final"],
+                    layer=f"{mine[0]['layer_mean']:.5f} / {mine[0]['layer_min']:.5f} ({mine[0]['n_layer']})")
+            if not args.only_current and momentum == 0.0:
+                base, new = (summary["medians"][f"{c} {threads}t"] for c in checkouts)
+                summary["medians"][f"ratio {threads}t"] = dict(cpu=base["cpu"] / new["cpu"], wall=base["wall"] / new["wall"])
     for key, value in summary["medians"].items():
-        print(f"{key}: CPU {value['cpu']:.2f}, wall {value['wall']:.2f}")
+        extra = "".join(f", {k} {value[k]}" for k in ("iterations", "gradc_final", "layer") if k in value)
+        unit = "" if key.startswith("ratio") else " s"
+        print(f"{key}: CPU {value['cpu']:.2f}{unit}, wall {value['wall']:.2f}{unit}{extra}")
     print(f"load average {os.getloadavg()}")
     Path(args.out).write_text(json.dumps(summary, indent=1))
 

@@ -40,7 +40,7 @@ from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery
 from .radial import RadialTables
 from .segments import BoundarySegments
-from .surface_integrals import EDGE_COLUMNS, edge_frames, triangle_terms
+from .surface_integrals import EDGE_COLUMNS, edge_frames, edge_ids, row_scratch, triangle_row_terms, triangle_terms
 from .triangles import BoundaryTriangles
 
 __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
@@ -138,34 +138,63 @@ def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a
 
 
 @numba.njit(cache=True, nogil=True)
-def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, centroid, next_s, prev_s, pseudo, inv_h, breaks,
-          fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k, grad_k, delta_k, sum_p,
-          grad_pc, near_pc, chi_p, first, last):
+def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
+          pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k,
+          grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
 
     ``rule``: 0 normal, 1 centroid, 2 ball (:data:`BAND_RULES`). The kernel tables are those of
     :class:`~ase_sphrelax.boundary.radial.RadialTables` (segments use fc, gc, a; triangles lp, lq,
     a[0], p1_one). Particles with ``skip_p[p]`` (when ``skip_p`` is not empty) are left untouched:
     their values come from the cache of unmoved particles (:meth:`BoundaryIntegrals.compute`).
+
+    Triangles: a particle's terms come edge by edge
+    (:func:`~ase_sphrelax.boundary.surface_integrals.triangle_row_terms`): each edge near it is integrated
+    once for both its triangles (``edge_tk``: edge ids shared by the triangles of an edge).
     """
     h = 1.0 / inv_h
     cuts = np.empty(2 * breaks.shape[0] + 5)
     use_skip = skip_p.shape[0] > 0
+    longest = 1
+    for p in range(first, last):
+        longest = max(longest, start_p[p + 1] - start_p[p])
+    slot_w, slot_pair, pair_c, row_cuts, mom = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
+    row_g = np.empty(longest)
+    row_gr = np.empty(longest)
+    row_d = np.empty(longest)
+    stamp_e = np.full(n_edges if kind == 1 else 1, -1, dtype=np.int64)  # the visit whose slot holds edge e
+    slot_e = np.empty(stamp_e.shape[0], dtype=np.int64)
+    visit = -1
     for p in range(first, last):
         if use_skip and skip_p[p]:
             continue
+        k0 = start_p[p]
+        k1 = start_p[p + 1]
+        run = k0
+        while kind == 1 and run < k1:  # per point: every pair of this particle's row has the same (see BoundaryPairs)
+            s = point_k[run]
+            end = run + 1
+            while end < k1 and point_k[end] == s:
+                end += 1
+            visit += 1
+            triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
+                               breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
+                               row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
+            run = end
         total = 0.0
         g0 = g1 = g2 = 0.0
         w0 = w1 = w2 = 0.0
         best = np.inf
         k_best = -1
         delta_best = 0.0
-        for k in range(start_p[p], start_p[p + 1]):
+        for k in range(k0, k1):
             s = point_k[k]
             e = elem_k[k]
             x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-            g, gr, d = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                      1.0, cuts)
+            if kind == 1:
+                g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
+            else:
+                g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
             total += g
             g0 += gr * nrm[e, 0]
             g1 += gr * nrm[e, 1]
@@ -290,10 +319,12 @@ class BoundaryIntegrals:
             self._next, self._prev = b.next_s, b.prev_s
             self._pseudo = np.zeros((1, 7, 3))
             self._frames = np.zeros((1, 3, EDGE_COLUMNS))
+            self._edge_tk, self._n_edges = np.zeros((1, 3), dtype=np.int64), 1
         else:
             self._next = self._prev = np.zeros(1, dtype=np.int64)
             self._pseudo = b.pseudo_normal_tfc
             self._frames = edge_frames(b.packed_tk)  # per-edge geometry, once (not per pair)
+            self._edge_tk, self._n_edges = edge_ids(self._frames)  # edges shared by two triangles: integrated once
         self._inside_points = None
         self._inside_p = None
         self.inside_tests = 0
@@ -377,7 +408,7 @@ class BoundaryIntegrals:
             sum_p[same_p] = 0.0
         # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
         run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
-                              nrm, self._frames, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
+                              nrm, self._frames, self._edge_tk, self._n_edges, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
                               close2, float(band), BAND_RULES.index(band_rule), bool(terms), skip_p,
                               gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p), nthreads=thread_count(m))
         unknown = chi_p == UNKNOWN
