@@ -162,29 +162,38 @@ def _solve_pair(a, b, r2, d, ih_s, m_s, active_s, equal_masses):
     return ((mb * fa, mb * qa * sa, mb * qa2 * ca, fa, na), (ma * fb, ma * qb * sb, ma * qb2 * cb, fb, nb), ())
 
 
-# Powers of u = 1 - q that the power-sum pass gathers: u^0 (the neighbour count) to u^POWER_DEGREE.
+# Powers of u = 1 - q whose sums can enter the moments: u^0 (the neighbour count) to u^POWER_DEGREE.
 POWER_DEGREE = 8
+# The power-sum pass gathers the count and a window of POWER_WINDOW consecutive powers u^low .. u^(low + 6): eight
+# sums per point (one 64-byte row), the powers whose coefficients are zero for every moment left out (Wendland C4
+# in 2D and 3D: u^0 and u^1 enter no moment, low = 2; in 1D low = 1; C2: low = 1).
+POWER_WINDOW = 7
 
 
 @numba.njit(cache=True, inline="always")
-def _power_pair(a, b, r2, d, ih_s, active_s):
-    """Both partners' sums of u^j, ``u = 1 - q`` (``q = r / H`` with the partner's own H), j = 0..8 (u^0 = 1
-    within H: the neighbour count); zeros beyond H and for an inactive particle. With a one-piece
-    polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
+def _power_pair(a, b, r2, d, ih_s, active_s, low):
+    """Both partners' neighbour counts and sums of ``u^j``, ``u = 1 - q`` (``q = r / H`` with the partner's own H),
+    ``j = low .. low + 6`` (``low`` 1 or 2, a constant); zeros beyond H and for an inactive particle. With a
+    one-piece polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
     (:func:`_power_moments`): no kernel evaluation per pair."""
     r = math.sqrt(r2)
     qa = r * ih_s[a] if active_s[a] else 1.0
     qb = r * ih_s[b] if active_s[b] else 1.0
     ua = 0.0 if qa >= 1.0 else 1.0 - qa
     ub = 0.0 if qb >= 1.0 else 1.0 - qb
+    ca = 1.0 if qa < 1.0 else 0.0
+    cb = 1.0 if qb < 1.0 else 0.0
     a2 = ua * ua
     a3 = a2 * ua
     a4 = a2 * a2
     b2 = ub * ub
     b3 = b2 * ub
     b4 = b2 * b2
-    return ((1.0 if qa < 1.0 else 0.0, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
-            (1.0 if qb < 1.0 else 0.0, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
+    if low == 1:
+        return ((ca, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3),
+                (cb, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3), ())
+    return ((ca, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
+            (cb, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
 
 
 @numba.njit(cache=True, inline="always")
@@ -287,9 +296,9 @@ def _build_interaction(name, dim_points):
     if name == "solve":  # equal masses; sums: M_0 .. M_4, count
         return PairInteraction(_solve_pair, dict(sums=Output((6,))), inputs=("ih_s", "active_s"),
                                constants=dict(equal_masses=True, m_s=None), dim=dim_points)
-    if name == "solve_powers":  # equal masses, a one-piece kernel; sums: u^0 .. u^8 (_power_moments)
-        return PairInteraction(_power_pair, dict(sums=Output((POWER_DEGREE + 1,))), inputs=("ih_s", "active_s"),
-                               dim=dim_points)
+    if name.startswith("solve_powers"):  # equal masses, a one-piece kernel; count, u^low .. u^(low + 6)
+        return PairInteraction(_power_pair, dict(sums=Output((POWER_WINDOW + 1,))), inputs=("ih_s", "active_s"),
+                               constants=dict(low=int(name[-1])), dim=dim_points)
     if name == "solve_masses":  # sums: s, t, M_2, n, count
         return PairInteraction(_solve_pair, dict(sums=Output((5,))), inputs=("ih_s", "m_s", "active_s"),
                                constants=dict(equal_masses=False), dim=dim_points)
@@ -376,42 +385,102 @@ _POWER_MOMENTS: dict = {}
 
 
 def _power_moments(kernel):
-    """``E`` (5, POWER_DEGREE + 1) with ``sum_b q^k f^(k)(q) = sum_j E[k, j] sum_b u^j`` (``u = 1 - q``, the sums
-    over the partners within H), or None when the kernel is not one polynomial of degree <= POWER_DEGREE on
-    [0, 1).
+    """``(E, low)``: ``sum_b q^k f^(k)(q) = E[k, 0] count + sum_(j >= 1) E[k, j] sum_b u^(low + j - 1)``
+    (``u = 1 - q``, the sums over the partners within H, the count = ``sum_b u^0``), ``E`` of shape
+    (5, POWER_WINDOW + 1), the window's start ``low`` 1 or 2; None when the kernel is not one polynomial of
+    degree <= POWER_DEGREE on [0, 1), or its moments need powers outside one window.
 
     ``q^k f^(k)(q) = (1 - u)^k d^k f/dq^k`` is a polynomial in u of the kernel's degree, with the
     coefficients of the kernel's definition in powers of u (:attr:`Kernel.coef`): near the cut-off the
-    terms are small powers of u, as in the kernel's closed forms.
+    terms are small powers of u, as in the kernel's closed forms. The powers whose coefficient is zero in
+    every moment are not gathered (their terms added zeros: the moments are the same bit for bit).
     """
     if kernel.key not in _POWER_MOMENTS:
-        table = None
+        result = None
         if len(kernel.breaks) == 3 and kernel.breaks[1] == 1.0 and kernel.coef.shape[1] <= POWER_DEGREE + 1:
-            table = np.zeros((5, POWER_DEGREE + 1))
+            full = np.zeros((5, POWER_DEGREE + 1))
             for k in range(5):
                 poly = P.polymul(P.polypow([1.0, -1.0], k), _derivative_in_q(kernel.coef[0], k))
-                table[k, : len(poly)] = poly
-        _POWER_MOMENTS[kernel.key] = table
+                full[k, : len(poly)] = poly
+            used = np.nonzero(np.any(full[:, 1:] != 0.0, axis=0))[0] + 1
+            low = int(used.min()) if used.size else 1
+            if low in (1, 2) and (not used.size or used.max() < low + POWER_WINDOW):
+                table = np.zeros((5, POWER_WINDOW + 1))
+                table[:, 0] = full[:, 0]
+                top = min(low + POWER_WINDOW, POWER_DEGREE + 1)
+                table[:, 1: 1 + top - low] = full[:, low:top]
+                result = (table, low)
+        _POWER_MOMENTS[kernel.key] = result
     return _POWER_MOMENTS[kernel.key]
+
+
+@numba.njit(cache=True, inline="always")
+def _power_row(sums_pj, table_kj, m, f0, p):
+    """``s, t, M_2, M_3, M_4, n, count`` of point p with the self terms, for equal masses ``m``, from its power
+    sums (a row of :func:`_power_pair`'s)."""
+    s = t = w = x = y = nn = 0.0
+    for k in range(5):
+        total = 0.0
+        for j in range(sums_pj.shape[1]):
+            total += table_kj[k, j] * sums_pj[p, j]
+        if k == 0:
+            total += f0  # the self term: f(0) = f0, and q^k f^(k) = 0 at q = 0 for k >= 1
+            nn = total
+            s = m * total
+        elif k == 1:
+            t = m * total
+        elif k == 2:
+            w = m * total
+        elif k == 3:
+            x = m * total
+        else:
+            y = m * total
+    return s, t, w, x, y, nn, sums_pj[p, 0]
 
 
 @numba.njit(cache=True)
 def _moments_from_powers(sums_pj, table_kj, m, f0):
     """Rows ``s, t, M_2, M_3, M_4, n, count`` (7, N) with the self terms, for equal masses ``m``, from the power
-    sums (N, POWER_DEGREE + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
+    sums (N, POWER_WINDOW + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
     n = sums_pj.shape[0]
     out_kp = np.empty((7, n))
     for p in range(n):
-        for k in range(5):
-            total = 0.0
-            for j in range(sums_pj.shape[1]):
-                total += table_kj[k, j] * sums_pj[p, j]
-            if k == 0:
-                total += f0  # the self term: f(0) = f0, and q^k f^(k) = 0 at q = 0 for k >= 1
-                out_kp[5, p] = total
-            out_kp[k, p] = m * total
-        out_kp[6, p] = sums_pj[p, 0]
+        row = _power_row(sums_pj, table_kj, m, f0, p)
+        for k in range(7):
+            out_kp[k, p] = row[k]
     return out_kp
+
+
+_NO_ROWS = np.empty(0)
+_NO_SUMS = np.empty((0, POWER_WINDOW + 1))
+_NO_TABLE = np.zeros((5, POWER_WINDOW + 1))
+
+
+def _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
+    """One density pass of the H solve: ``(sums_pj, table_kj, rows)``.
+
+    Equal masses and a one-piece kernel (Wendland): the power sums (N, POWER_WINDOW + 1) of :func:`_power_pair`
+    and their table (:func:`_power_moments`), ``rows`` None (the update forms each particle's moments,
+    :func:`_power_row`); otherwise ``(None, None, rows)``, the kernel's derivatives per pair
+    (:func:`_solve_pair`), ``rows`` as :func:`_solve_sums` returns them.
+    """
+    reach = float(h_p.max())
+    found = _power_moments(kernel) if equal else None
+    if found is not None:
+        table, low = found
+        sums = _interaction(f"solve_powers{low}", r_pc.shape[1]).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+        return sums, table, None
+    if equal:  # m_p constant: s = m sum f, n = sum f
+        sums = _interaction("solve", r_pc.shape[1]).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
+        n_p = sums[:, 0] + kernel.f0
+        m = m_p[0]
+        return None, None, (m * n_p, m * sums[:, 1], m * sums[:, 2], m * sums[:, 3], m * sums[:, 4], n_p, sums[:, 5])
+    sums = _interaction("solve_masses", r_pc.shape[1]).compute(
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel).sums
+    return None, None, (sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2], None, None, sums[:, 3] + kernel.f0,
+                        sums[:, 4])
 
 
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
@@ -421,21 +490,10 @@ def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     Equal masses and a one-piece kernel (Wendland): one pass of power sums (:func:`_power_pair`,
     :func:`_power_moments`); otherwise the kernel's derivatives per pair (:func:`_solve_pair`).
     """
-    reach = float(h_p.max())
-    table = _power_moments(kernel) if equal else None
-    if table is not None:
-        sums = _interaction("solve_powers", r_pc.shape[1]).compute(
-            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+    sums, table, rows = _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
+    if rows is None:
         return tuple(_moments_from_powers(sums, table, float(m_p[0]), kernel.f0))
-    if equal:  # m_p constant: s = m sum f, n = sum f
-        sums = _interaction("solve", r_pc.shape[1]).compute(
-            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
-        n_p = sums[:, 0] + kernel.f0
-        m = m_p[0]
-        return m * n_p, m * sums[:, 1], m * sums[:, 2], m * sums[:, 3], m * sums[:, 4], n_p, sums[:, 5]
-    sums = _interaction("solve_masses", r_pc.shape[1]).compute(
-        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel).sums
-    return sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2], None, None, sums[:, 3] + kernel.f0, sums[:, 4]
+    return rows
 
 
 def density_sums(nlist, r_pc, masses, h, kernel):
@@ -575,11 +633,16 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     h_first = float(h_p.max())
     for iteration in range(1, max_iter + 1):
         nlist.update(r_pc, cell, pbc, cutoff=h_p, store=store)
-        s_a, t_a, w_a, x_a, y_a, n_a, c_a = _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
-        if x_a is None:
-            x_a = y_a = t_a  # not read: no extrapolation with unequal masses
-        bad = _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p,
-                                     active_p, sigma_over_m_p, target, tol, iteration > NEWTON_ITERATIONS, step_max)
+        sums_pj, table_kj, rows = _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
+        if rows is None:  # power sums: each particle's moments are formed in the update (no (7, N) rows)
+            moments = (sums_pj, table_kj, float(m_p[0]), float(kernel.f0)) + (_NO_ROWS,) * 7
+        else:
+            s_a, t_a, w_a, x_a, y_a, n_a, c_a = rows
+            if x_a is None:
+                x_a = y_a = t_a  # not read: no extrapolation with unequal masses
+            moments = (_NO_SUMS, _NO_TABLE, 0.0, 0.0, s_a, t_a, w_a, x_a, y_a, n_a, c_a)
+        bad = _smoothing_length_step(moments, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p, sigma_over_m_p,
+                                     target, tol, iteration > NEWTON_ITERATIONS, step_max)
         if bad >= 0:
             raise SmoothingLengthError(f"particle {bad} at {r_pc[bad].tolist()}: the kernel sum is not finite at H = "
                                        f"{h_p[bad]:.6g} (non-finite positions or masses?)")
@@ -608,25 +671,30 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
 
 
-def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
-                           sigma_over_m_p, target, tol, bisect_only, step_max):
+def _smoothing_length_step(moments, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p, sigma_over_m_p, target, tol,
+                           bisect_only, step_max):
     """One update of every active particle's H from its sums (in place; the particles in chunks on the
-    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1."""
+    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1. ``moments``:
+    ``(sums_pj, table_kj, m, f0)`` and seven empty rows (power sums), or an empty ``sums_pj``, a table, two
+    zeros and the rows ``s, t, M_2, M_3, M_4, n, count``."""
     nthreads = thread_count(h_p.shape[0])
     bad_t = np.full(nthreads, -1, dtype=np.int64)
-    run_chunks(_smoothing_length_chunk, h_p.shape[0], (s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
-                                                        h_p, lo_p, hi_p, active_p, sigma_over_m_p, float(target),
-                                                        float(tol), bool(bisect_only), float(step_max), bad_t),
+    run_chunks(_smoothing_length_chunk, h_p.shape[0], moments + (s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
+                                                                 sigma_over_m_p, float(target), float(tol),
+                                                                 bool(bisect_only), float(step_max), bad_t),
                per_thread=[(t,) for t in range(nthreads)])
     bad = bad_t[bad_t >= 0]
     return int(bad.min()) if bad.size else -1
 
 
 @numba.njit(cache=True, nogil=True)
-def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
-                            sigma_over_m_p, target, tol, bisect_only, step_max, bad_t, thread, first, last):
+def _smoothing_length_chunk(sums_pj, table_kj, m, f0, s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
+                            h_p, lo_p, hi_p, active_p, sigma_over_m_p, target, tol, bisect_only, step_max, bad_t,
+                            thread, first, last):
     """:func:`_smoothing_length_step` for the particles ``[first, last)``: ``bad_t[thread]`` = the first
-    particle with a non-finite sum, else left at -1.
+    particle with a non-finite sum, else left at -1. Particle a's sums: :func:`_power_row` of ``sums_pj``
+    when it has rows (power sums, the pass of :func:`_solve_pass` fused with the update), else
+    ``s_a[a], t_a[a], ...``.
 
     The root of ``G(l) = ln(sigma s / m) - ln(eta^d)``, ``l = ln H``, is found by Halley steps, with the
     moments ``M_k = sum_b m_b q^k f^(k)(q)`` of one density pass (``s = M_0``, ``t = M_1``):
@@ -645,12 +713,16 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
     A step outside the bracket, by more than a factor 2, or not finite is replaced by bisection
     (doubling/halving while one side is open); ``bisect_only`` after :data:`NEWTON_ITERATIONS`.
     """
+    powers = sums_pj.shape[0] > 0
     log_target = math.log(target)
     for a in range(first, last):
         if not active_p[a]:
             continue
-        s, t, w = s_a[a], t_a[a], w_a[a]
-        s_p[a], t_p[a], n_p[a], count_p[a] = s, t, n_a[a], c_a[a]
+        if powers:
+            s, t, w, x, y, nn, c = _power_row(sums_pj, table_kj, m, f0, a)
+        else:
+            s, t, w, x, y, nn, c = s_a[a], t_a[a], w_a[a], x_a[a], y_a[a], n_a[a], c_a[a]
+        s_p[a], t_p[a], n_p[a], count_p[a] = s, t, nn, c
         h = h_p[a]
         g = target - sigma_over_m_p[a] * s
         if not math.isfinite(g) or not math.isfinite(t) or not math.isfinite(w):
@@ -674,7 +746,6 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
                 active_p[a] = False
                 continue
             if abs(step) <= step_max:
-                x, y = x_a[a], y_a[a]
                 d1 = -t
                 d2 = t + w
                 d3 = -(t + 3.0 * w + x)
@@ -685,7 +756,7 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
                     residual = (math.log(sigma_over_m_p[a] * s_new) - log_target) * s_new / t_new
                     if abs(residual) <= tol:
                         h_p[a] = h * math.exp(step)
-                        s_p[a], t_p[a], n_p[a] = s_new, t_new, n_a[a] * (s_new / s)
+                        s_p[a], t_p[a], n_p[a] = s_new, t_new, nn * (s_new / s)
                         active_p[a] = False
                         continue
             ok = abs(step) < 0.6931471805599453  # at most a factor 2
@@ -701,7 +772,7 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
 
 
 # -- forces ----------------------------------------------------------------------------------------
-def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
+def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False, dims=None):
     """Symmetric grad-h pressure forces (Eq. 9/34) from per-particle ``pr = P / (Omega rho^2)``.
 
     Parameters
@@ -714,10 +785,14 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
         ``P_a / (Omega_a rho_a^2)`` (with a fixed h and no grad-h terms, ``Omega = 1``).
     kernel : Kernel
     want_virial : bool
+    dims : int or None
+        The pairs see the first ``dims`` coordinates of ``r_pc`` (default all ``D``): ``dims = d`` for ASE
+        positions of a d < 3 system (zeros beyond d) gives the same forces without their zero columns, and a
+        cheaper pass (2D, 1e5 particles: 2 instead of 3 force components written per pair).
 
     Returns
     -------
-    f_pc : ndarray (N, D)
+    f_pc : ndarray (N, D), or (N, dims)
         ``m_a dv_a/dt`` (forces, not accelerations).
     virial_cc : ndarray (3, 3)
         ``sum_pairs r_ab (x) F_ab`` as ``dE/d(strain)`` for ``E = sum m u(rho)`` (zeros unless asked).
@@ -733,8 +808,11 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
         params, inputs, name = dict(m2=float(m_p[0]) ** 2), dict(ih_s=1.0 / h_p, c_s=c_p), name + "_equal"
     else:
         params, inputs = {}, dict(ih_s=1.0 / h_p, m_s=m_p, c_s=c_p)
-    out = _interaction(name, r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs, kernel=kernel,
-                                                    reach=float(h_p.max()))
+    dims = r_pc.shape[1] if dims is None else int(dims)
+    if not 1 <= dims <= r_pc.shape[1]:
+        raise ValueError(f"dims must be 1 .. {r_pc.shape[1]} (the columns of r_pc), got {dims}")
+    out = _interaction(name, dims).compute(nlist, r_pc, params=params, inputs=inputs, kernel=kernel,
+                                           reach=float(h_p.max()))
     virial = np.zeros((3, 3))
     if want_virial:
         v = out.virial
