@@ -339,7 +339,7 @@ class ALARICCalculator(SPHCalculator):
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n)
+                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n, dims=d)
             h_p = state.h_p[:n]
             if not np.any(needed_ghosts(phi_p, h_p) & ~cache[0]):  # H grew beyond the stored set: again
                 break
@@ -388,7 +388,7 @@ class ALARICCalculator(SPHCalculator):
         else:
             full = state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel,
                                                        eta=self.eta, h0=self.h_p, tol=p.h_tol,
-                                                       store=self._evaluations > 1)
+                                                       store=self._evaluations > 1, dims=d)
         self.h_p = state.h_p
         n_p = state.n_p  # unit masses: rho = n
         if self.mass is None:
