@@ -307,10 +307,14 @@ def ab_comparison(baseline, dims, n, rounds):
 
     def child(root, dim):
         code = (f"import sys, json; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+                f"import ase_sphrelax; print(ase_sphrelax.__file__); "
                 f"from bench_alaric import ab_child; print(json.dumps(ab_child({dim}, {n})))")
+        # cwd = the checkout: "python -c" puts the working directory first on sys.path
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                             env=dict(env, PYTHONPATH=root))
-        return json.loads(out.stdout.strip().splitlines()[-1])
+                             env=dict(env, PYTHONPATH=root), cwd=root)
+        row = json.loads(out.stdout.strip().splitlines()[-1])
+        row["measured"] = out.stdout.strip().splitlines()[0]
+        return row
 
     rows = []
     for dim in dims:
