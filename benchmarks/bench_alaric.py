@@ -409,6 +409,13 @@ def dynamics_comparison(n, steps, factors, rounds, boundary, seed):
                 summary=summary)
 
 
+def _finish(results, out):
+    """Stamp the load average after the run, print it and write the results."""
+    results["load_after"] = os.getloadavg()
+    print(f"load average {os.getloadavg()}")
+    write_json(out, results)
+
+
 def _sizes(text):
     return [int(float(s)) for s in text.split(",") if s]
 
@@ -455,10 +462,7 @@ def main():
                   f"{1e3 * row['baseline_cpu_s']:.1f} ms CPU (medians), this / baseline "
                   f"{row['this_over_baseline']:.3f} (median of rounds; range {min(row['per_round']):.3f}-"
                   f"{max(row['per_round']):.3f}); same results bit for bit: {row['same_digests']}")
-        results["load_after"] = os.getloadavg()
-        print(f"load average {os.getloadavg()}")
-        write_json(args.out, results)
-        return
+        return _finish(results, args.out)
     if args.dynamics:
         results["dynamics"] = dynamics_comparison(args.dyn_n, args.dyn_steps,
                                                   [float(f) for f in args.dyn_factors.split(",")], args.dyn_rounds,
@@ -467,10 +471,7 @@ def main():
             print(f"skin factor {row['factor']}: median CPU {row['cpu_s']:.2f} s (x{row['cpu_over_first']:.3f}, "
                   f"per-round median x{row['cpu_over_first_median_of_rounds']:.3f}), wall {row['wall_s']:.2f} s, "
                   f"builds {row['builds']} / {row['evaluations']}, eps {row['epsilon']:.3e}")
-        results["load_after"] = os.getloadavg()
-        print(f"load average {os.getloadavg()}")
-        write_json(args.out, results)
-        return
+        return _finish(results, args.out)
     for n in _sizes(args.sizes):
         for dim in dims:
             for nthreads in [int(t) for t in args.threads.split(",")]:
