@@ -162,54 +162,85 @@ def _solve_pair(a, b, r2, d, ih_s, m_s, active_s, equal_masses):
     return ((mb * fa, mb * qa * sa, mb * qa2 * ca, fa, na), (ma * fb, ma * qb * sb, ma * qb2 * cb, fb, nb), ())
 
 
-# Powers of u = 1 - q that the power-sum pass gathers: u^0 (the neighbour count) to u^POWER_DEGREE.
+# Powers of u = 1 - q whose sums can enter the moments: u^0 (the neighbour count) to u^POWER_DEGREE.
 POWER_DEGREE = 8
+# The power-sum pass gathers the count and a window of POWER_WINDOW consecutive powers u^low .. u^(low + 6): eight
+# sums per point (one 64-byte row), the powers whose coefficients are zero for every moment left out (Wendland C4
+# in 2D and 3D: u^0 and u^1 enter no moment, low = 2; in 1D low = 1; C2: low = 1).
+POWER_WINDOW = 7
 
 
 @numba.njit(cache=True, inline="always")
-def _power_pair(a, b, r2, d, ih_s, active_s):
-    """Both partners' sums of u^j, ``u = 1 - q`` (``q = r / H`` with the partner's own H), j = 0..8 (u^0 = 1
-    within H: the neighbour count); zeros beyond H and for an inactive particle. With a one-piece
-    polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
-    (:func:`_power_moments`): no kernel evaluation per pair."""
+def _power_pair(a, b, r2, d, ih_s, active_s, low, all_active):
+    """Both partners' neighbour counts and sums of ``u^j``, ``u = 1 - q`` (``q = r / H`` with the partner's own H),
+    ``j = low .. low + 6`` (``low`` 1 or 2, a constant); zeros beyond H and for an inactive particle. With a
+    one-piece polynomial kernel every moment ``sum_b q^k f^(k)(q)`` is a fixed combination of these sums
+    (:func:`_power_moments`): no kernel evaluation per pair. ``all_active`` (a constant; ``active_s`` then None):
+    every particle active, as in the first pass of each solve (no flags gathered or read)."""
     r = math.sqrt(r2)
-    qa = r * ih_s[a] if active_s[a] else 1.0
-    qb = r * ih_s[b] if active_s[b] else 1.0
+    if all_active:
+        qa = r * ih_s[a]
+        qb = r * ih_s[b]
+    else:
+        qa = r * ih_s[a] if active_s[a] else 1.0
+        qb = r * ih_s[b] if active_s[b] else 1.0
     ua = 0.0 if qa >= 1.0 else 1.0 - qa
     ub = 0.0 if qb >= 1.0 else 1.0 - qb
+    ca = 1.0 if qa < 1.0 else 0.0
+    cb = 1.0 if qb < 1.0 else 0.0
     a2 = ua * ua
     a3 = a2 * ua
     a4 = a2 * a2
     b2 = ub * ub
     b3 = b2 * ub
     b4 = b2 * b2
-    return ((1.0 if qa < 1.0 else 0.0, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
-            (1.0 if qb < 1.0 else 0.0, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
+    if low == 1:
+        return ((ca, ua, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3),
+                (cb, ub, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3), ())
+    return ((ca, a2, a3, a4, a4 * ua, a4 * a2, a4 * a3, a4 * a4),
+            (cb, b2, b3, b4, b4 * ub, b4 * b2, b4 * b3, b4 * b4), ())
 
 
-@numba.njit(cache=True, inline="always")
 def _voigt(k, d):
-    """k d d^T (Voigt xx yy zz yz xz xy of the first three components of d)."""
-    d0 = d[0]
-    d1 = d[1] if len(d) > 1 else 0.0
-    d2 = d[2] if len(d) > 2 else 0.0
+    """k d d^T (Voigt xx yy zz yz xz xy of the first three components of d; zeros for missing components)."""
+    d0, d1, d2 = (tuple(d) + (0.0, 0.0))[:3]
     return (k * d0 * d0, k * d1 * d1, k * d2 * d2, k * d1 * d2, k * d0 * d2, k * d0 * d1)
 
 
+@overload(_voigt, inline="always")
+def _voigt_overload(k, d):
+    n = len(d)  # the tuple's length is known at compile time: missing components are zeros, not indexed
+    pick = [f"d[{i}]" if i < n else "0.0" for i in range(3)]
+    source = (f"def impl(k, d):\n    d0 = {pick[0]}\n    d1 = {pick[1]}\n    d2 = {pick[2]}\n"
+              "    return (k * d0 * d0, k * d1 * d1, k * d2 * d2, k * d1 * d2, k * d0 * d2, k * d0 * d1)\n")
+    namespace = {}
+    exec(source, namespace)  # noqa: S102 (a fixed template over the tuple length)
+    return namespace["impl"]
+
+
 # The pressure pair is written out flat (no helper for the shared slope sum): in these loops a nested inline
-# helper, or one per-point array more per pair, cost 2-4x (measured on 1e5 points in 2D). Its four variants
-# are this one source with ``equal_masses`` and ``with_virial`` bound.
+# helper, or one per-point array more per pair, cost 2-4x (measured on 1e5 points in 2D). Two sources (per-particle
+# masses, equal masses), each with and without the virial (``with_virial`` bound).
 @numba.njit(cache=True, inline="always")
-def _pressure_pair(a, b, r2, d, m2, ih_s, m_s, c_s, equal_masses, with_virial):
+def _pressure_pair(a, b, r2, d, ih_s, m_s, c_s, with_virial):
     """The symmetric grad-h force (see :func:`pressure_forces`): F_a = k d, F_b = -k d with
-    k = m_a m_b (c_a f'(r/H_a) + c_b f'(r/H_b)) / r, c = P/(Omega rho^2) sigma/H^(d+1); with equal masses
-    m_a m_b = ``m2`` (one per-point array fewer per pair); with the pair virial k d d^T."""
+    k = m_a m_b (c_a f'(r/H_a) + c_b f'(r/H_b)) / r, c = P/(Omega rho^2) sigma/H^(d+1); with the pair
+    virial k d d^T."""
     r = math.sqrt(r2)
     g = c_s[a] * kernel_profile(r * ih_s[a])[1] + c_s[b] * kernel_profile(r * ih_s[b])[1]
-    if equal_masses:
-        k = m2 * g / r if r2 > 0.0 else 0.0
-    else:
-        k = m_s[a] * m_s[b] * g / r if r2 > 0.0 else 0.0
+    k = m_s[a] * m_s[b] * g / r if r2 > 0.0 else 0.0
+    if with_virial:
+        return scaled(k, d), scaled(-k, d), _voigt(k, d)
+    return scaled(k, d), scaled(-k, d), ()
+
+
+@numba.njit(cache=True, inline="always")
+def _pressure_pair_equal(a, b, r2, d, m2, hc_s, with_virial):
+    """:func:`_pressure_pair` with equal masses (``m_a m_b = m2``) and each point's ``1/H`` and ``c`` in one row of
+    ``hc_s`` (N, 2): one cache line per partner (2D, 1e5 points: 3-9 % less time than two arrays)."""
+    r = math.sqrt(r2)
+    g = hc_s[a, 1] * kernel_profile(r * hc_s[a, 0])[1] + hc_s[b, 1] * kernel_profile(r * hc_s[b, 0])[1]
+    k = m2 * g / r if r2 > 0.0 else 0.0
     if with_virial:
         return scaled(k, d), scaled(-k, d), _voigt(k, d)
     return scaled(k, d), scaled(-k, d), ()
@@ -272,11 +303,10 @@ def _pressure_interaction(dim_points, equal_masses, with_virial):
     if with_virial:
         outputs["virial"] = Output((6,), per_point=False)
     if equal_masses:
-        data = dict(params=("m2",), inputs=("ih_s", "c_s"), constants=dict(m_s=None))
-    else:
-        data = dict(inputs=("ih_s", "m_s", "c_s"), constants=dict(m2=None))
-    data["constants"].update(equal_masses=equal_masses, with_virial=with_virial)
-    return PairInteraction(_pressure_pair, outputs, symmetric=True, dim=dim_points, **data)
+        return PairInteraction(_pressure_pair_equal, outputs, symmetric=True, dim=dim_points, params=("m2",),
+                               inputs=("hc_s",), constants=dict(with_virial=with_virial))
+    return PairInteraction(_pressure_pair, outputs, symmetric=True, dim=dim_points, inputs=("ih_s", "m_s", "c_s"),
+                           constants=dict(with_virial=with_virial))
 
 
 def _build_interaction(name, dim_points):
@@ -287,8 +317,11 @@ def _build_interaction(name, dim_points):
     if name == "solve":  # equal masses; sums: M_0 .. M_4, count
         return PairInteraction(_solve_pair, dict(sums=Output((6,))), inputs=("ih_s", "active_s"),
                                constants=dict(equal_masses=True, m_s=None), dim=dim_points)
-    if name == "solve_powers":  # equal masses, a one-piece kernel; sums: u^0 .. u^8 (_power_moments)
-        return PairInteraction(_power_pair, dict(sums=Output((POWER_DEGREE + 1,))), inputs=("ih_s", "active_s"),
+    if name.startswith("solve_powers"):  # equal masses, a one-piece kernel; count, u^low .. u^(low + 6)
+        low, every = int(name[len("solve_powers")]), name.endswith("_all")
+        constants = dict(low=low, all_active=every) | (dict(active_s=None) if every else {})
+        return PairInteraction(_power_pair, dict(sums=Output((POWER_WINDOW + 1,))),
+                               inputs=("ih_s",) if every else ("ih_s", "active_s"), constants=constants,
                                dim=dim_points)
     if name == "solve_masses":  # sums: s, t, M_2, n, count
         return PairInteraction(_solve_pair, dict(sums=Output((5,))), inputs=("ih_s", "m_s", "active_s"),
@@ -334,6 +367,15 @@ def _per_particle(name, value, n, positive=True):
     return arr
 
 
+def _check_dims(dims, r_pc):
+    """The coordinates the pairs see: ``dims`` (1 .. r_pc's columns) or, None, all of them."""
+    if dims is None:
+        return r_pc.shape[1]
+    if not (isinstance(dims, (int, np.integer)) and 1 <= dims <= r_pc.shape[1]):
+        raise ValueError(f"dims must be an integer 1 .. {r_pc.shape[1]} (the columns of r_pc) or None, got {dims!r}")
+    return int(dims)
+
+
 # -- density --------------------------------------------------------------------------------------
 class DensitySums:
     """Per-particle results of a density pass with smoothing lengths ``h_p``.
@@ -376,42 +418,114 @@ _POWER_MOMENTS: dict = {}
 
 
 def _power_moments(kernel):
-    """``E`` (5, POWER_DEGREE + 1) with ``sum_b q^k f^(k)(q) = sum_j E[k, j] sum_b u^j`` (``u = 1 - q``, the sums
-    over the partners within H), or None when the kernel is not one polynomial of degree <= POWER_DEGREE on
-    [0, 1).
+    """``(E, low)``: ``sum_b q^k f^(k)(q) = E[k, 0] count + sum_(j >= 1) E[k, j] sum_b u^(low + j - 1)``
+    (``u = 1 - q``, the sums over the partners within H, the count = ``sum_b u^0``), ``E`` of shape
+    (5, POWER_WINDOW + 1), the window's start ``low`` 1 or 2; None when the kernel is not one polynomial of
+    degree <= POWER_DEGREE on [0, 1), or its moments need powers outside one window.
 
     ``q^k f^(k)(q) = (1 - u)^k d^k f/dq^k`` is a polynomial in u of the kernel's degree, with the
     coefficients of the kernel's definition in powers of u (:attr:`Kernel.coef`): near the cut-off the
-    terms are small powers of u, as in the kernel's closed forms.
+    terms are small powers of u, as in the kernel's closed forms. The powers whose coefficient is zero in
+    every moment are not gathered (their terms added zeros: the moments are the same bit for bit).
     """
     if kernel.key not in _POWER_MOMENTS:
-        table = None
+        result = None
         if len(kernel.breaks) == 3 and kernel.breaks[1] == 1.0 and kernel.coef.shape[1] <= POWER_DEGREE + 1:
-            table = np.zeros((5, POWER_DEGREE + 1))
+            full = np.zeros((5, POWER_DEGREE + 1))
             for k in range(5):
                 poly = P.polymul(P.polypow([1.0, -1.0], k), _derivative_in_q(kernel.coef[0], k))
-                table[k, : len(poly)] = poly
-        _POWER_MOMENTS[kernel.key] = table
+                full[k, : len(poly)] = poly
+            used = np.nonzero(np.any(full[:, 1:] != 0.0, axis=0))[0] + 1
+            low = int(used.min()) if used.size else 1
+            if low in (1, 2) and (not used.size or used.max() < low + POWER_WINDOW):
+                table = np.zeros((5, POWER_WINDOW + 1))
+                table[:, 0] = full[:, 0]
+                top = min(low + POWER_WINDOW, POWER_DEGREE + 1)
+                table[:, 1: 1 + top - low] = full[:, low:top]
+                result = (table, low)
+        _POWER_MOMENTS[kernel.key] = result
     return _POWER_MOMENTS[kernel.key]
+
+
+@numba.njit(cache=True, inline="always")
+def _table_dot(table_kj, k, v0, v1, v2, v3, v4, v5, v6, v7):
+    """``sum_j table[k, j] v_j`` over the window (POWER_WINDOW + 1 = 8 sums), added in the order of j."""
+    total = 0.0
+    total += table_kj[k, 0] * v0
+    total += table_kj[k, 1] * v1
+    total += table_kj[k, 2] * v2
+    total += table_kj[k, 3] * v3
+    total += table_kj[k, 4] * v4
+    total += table_kj[k, 5] * v5
+    total += table_kj[k, 6] * v6
+    total += table_kj[k, 7] * v7
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def _power_row(sums_pj, table_kj, m, f0, p):
+    """``s, t, M_2, M_3, M_4, n, count`` of point p with the self terms, for equal masses ``m``, from its power
+    sums (a row of :func:`_power_pair`'s, POWER_WINDOW + 1 = 8 of them; written out: a loop over the window
+    inside the H update cost 2.7 ms at 1e5 in 2D, more than the whole update)."""
+    v0, v1, v2, v3 = sums_pj[p, 0], sums_pj[p, 1], sums_pj[p, 2], sums_pj[p, 3]
+    v4, v5, v6, v7 = sums_pj[p, 4], sums_pj[p, 5], sums_pj[p, 6], sums_pj[p, 7]
+    nn = _table_dot(table_kj, 0, v0, v1, v2, v3, v4, v5, v6, v7) + f0  # the self term: f(0) = f0, q^k f^(k) = 0
+    t = m * _table_dot(table_kj, 1, v0, v1, v2, v3, v4, v5, v6, v7)
+    w = m * _table_dot(table_kj, 2, v0, v1, v2, v3, v4, v5, v6, v7)
+    x = m * _table_dot(table_kj, 3, v0, v1, v2, v3, v4, v5, v6, v7)
+    y = m * _table_dot(table_kj, 4, v0, v1, v2, v3, v4, v5, v6, v7)
+    return m * nn, t, w, x, y, nn, v0
 
 
 @numba.njit(cache=True)
 def _moments_from_powers(sums_pj, table_kj, m, f0):
     """Rows ``s, t, M_2, M_3, M_4, n, count`` (7, N) with the self terms, for equal masses ``m``, from the power
-    sums (N, POWER_DEGREE + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
+    sums (N, POWER_WINDOW + 1): one pass, no temporaries, no BLAS (slow under load on these machines)."""
     n = sums_pj.shape[0]
     out_kp = np.empty((7, n))
     for p in range(n):
-        for k in range(5):
-            total = 0.0
-            for j in range(sums_pj.shape[1]):
-                total += table_kj[k, j] * sums_pj[p, j]
-            if k == 0:
-                total += f0  # the self term: f(0) = f0, and q^k f^(k) = 0 at q = 0 for k >= 1
-                out_kp[5, p] = total
-            out_kp[k, p] = m * total
-        out_kp[6, p] = sums_pj[p, 0]
+        row = _power_row(sums_pj, table_kj, m, f0, p)
+        for k in range(7):
+            out_kp[k, p] = row[k]
     return out_kp
+
+
+_NO_ROWS = np.empty(0)
+_NO_SUMS = np.empty((0, POWER_WINDOW + 1))
+_NO_TABLE = np.zeros((5, POWER_WINDOW + 1))
+
+
+def _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel, dims=None):
+    """One density pass of the H solve: ``(sums_pj, table_kj, rows)``.
+
+    Equal masses and a one-piece kernel (Wendland): the power sums (N, POWER_WINDOW + 1) of :func:`_power_pair`
+    and their table (:func:`_power_moments`), ``rows`` None (the update forms each particle's moments,
+    :func:`_power_row`); otherwise ``(None, None, rows)``, the kernel's derivatives per pair
+    (:func:`_solve_pair`), ``rows`` as :func:`_solve_sums` returns them. The pairs see the first ``dims``
+    coordinates (default all).
+    """
+    reach = float(h_p.max())
+    dims = r_pc.shape[1] if dims is None else dims
+    found = _power_moments(kernel) if equal else None
+    if found is not None:
+        table, low = found
+        if active_p.all():  # the first pass: no flags to gather and read
+            sums = _interaction(f"solve_powers{low}_all", dims).compute(
+                nlist, r_pc, inputs=dict(ih_s=1.0 / h_p), reach=reach).sums
+        else:
+            sums = _interaction(f"solve_powers{low}", dims).compute(
+                nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+        return sums, table, None
+    if equal:  # m_p constant: s = m sum f, n = sum f
+        sums = _interaction("solve", dims).compute(
+            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
+        n_p = sums[:, 0] + kernel.f0
+        m = m_p[0]
+        return None, None, (m * n_p, m * sums[:, 1], m * sums[:, 2], m * sums[:, 3], m * sums[:, 4], n_p, sums[:, 5])
+    sums = _interaction("solve_masses", dims).compute(
+        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel).sums
+    return None, None, (sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2], None, None, sums[:, 3] + kernel.f0,
+                        sums[:, 4])
 
 
 def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
@@ -421,21 +535,10 @@ def _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel):
     Equal masses and a one-piece kernel (Wendland): one pass of power sums (:func:`_power_pair`,
     :func:`_power_moments`); otherwise the kernel's derivatives per pair (:func:`_solve_pair`).
     """
-    reach = float(h_p.max())
-    table = _power_moments(kernel) if equal else None
-    if table is not None:
-        sums = _interaction("solve_powers", r_pc.shape[1]).compute(
-            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach).sums
+    sums, table, rows = _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
+    if rows is None:
         return tuple(_moments_from_powers(sums, table, float(m_p[0]), kernel.f0))
-    if equal:  # m_p constant: s = m sum f, n = sum f
-        sums = _interaction("solve", r_pc.shape[1]).compute(
-            nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, active_s=active_p), reach=reach, kernel=kernel).sums
-        n_p = sums[:, 0] + kernel.f0
-        m = m_p[0]
-        return m * n_p, m * sums[:, 1], m * sums[:, 2], m * sums[:, 3], m * sums[:, 4], n_p, sums[:, 5]
-    sums = _interaction("solve_masses", r_pc.shape[1]).compute(
-        nlist, r_pc, inputs=dict(ih_s=1.0 / h_p, m_s=m_p, active_s=active_p), reach=reach, kernel=kernel).sums
-    return sums[:, 0] + m_p * kernel.f0, sums[:, 1], sums[:, 2], None, None, sums[:, 3] + kernel.f0, sums[:, 4]
+    return rows
 
 
 def density_sums(nlist, r_pc, masses, h, kernel):
@@ -482,13 +585,41 @@ def initial_smoothing_length(r_pc, cell, pbc, dim, eta):
 
 
 NEWTON_ITERATIONS = 12  # then bisection only
+
+
+# reciprocals: a multiplication instead of a division in the H update (rounding differs from x / 3 in the last bit)
+_THIRD = 1.0 / 3.0
+_SIXTH = 1.0 / 6.0
+_SEVENTH = 1.0 / 7.0
+_TWENTYFOURTH = 1.0 / 24.0
+
+
+# The accepted Taylor step of the H update (_smoothing_length_chunk) is small (|dl| <= step_max, 2e-3 for C4 and
+# tol 1e-8): its exp and log1p by series, exact to rounding, cost a fraction of the library calls; larger
+# arguments take the library's. One logarithm per particle is left (G).
+@numba.njit(cache=True, inline="always")
+def _exp_small(x):
+    """``exp(x)``: Horner series to ``x^8`` for ``|x| <= 0.03`` (truncation below 1e-19 relative), else math.exp."""
+    if abs(x) > 0.03:
+        return math.exp(x)
+    return 1.0 + x * (1.0 + x * 0.5 * (1.0 + x * _THIRD * (1.0 + x * 0.25 * (1.0 + x * 0.2 * (
+        1.0 + x * _SIXTH * (1.0 + x * _SEVENTH * (1.0 + x * 0.125)))))))
+
+
+@numba.njit(cache=True, inline="always")
+def _log1p_small(e):
+    """``ln(1 + e)``: series to ``e^8`` for ``|e| <= 0.01`` (truncation below 1e-18 relative), else math.log1p."""
+    if abs(e) > 0.01:
+        return math.log1p(e)
+    return e * (1.0 - e * (1.0 / 2.0 - e * (1.0 / 3.0 - e * (1.0 / 4.0 - e * (1.0 / 5.0 - e * (
+        1.0 / 6.0 - e * (1.0 / 7.0 - e / 8.0)))))))
 # A Halley step |d ln H| <= kernel.extrapolation_step tol^(1/4) may be accepted without a further density pass
 # (_smoothing_length_step); the factor is part of each kernel's definition (ase_sphrelax.kernels, Wendland C4:
 # 0.22, with the measurement behind it; 0 for kernels whose profile is not C^4).
 
 
 def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0=None, tol=1e-8, max_iter=100,
-                            store=True, solve=None):
+                            store=True, solve=None, dims=None):
     """Solve ``rho_a(H_a) H_a^d = m_a eta^d`` with ``rho_a = sum_b m_b W_ab(H_a)`` for every particle.
 
     With equal masses this is ALARIC's Eq. 31-32 (``n_a H_a^d = eta^d``). ``sigma s(H) / m_a`` with
@@ -523,6 +654,9 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     solve : int or None
         Solve only the first ``solve`` points; the others keep ``h0`` and only count as neighbours (e.g. mirror
         ghosts, whose H is their owner's), their sums in the result are NaN. None: all.
+    dims : int or None
+        The pairs see the first ``dims`` coordinates of ``r_pc`` (default all): the kernel's dimension for ASE
+        positions of a d < 3 system (zeros beyond d), the same sums with fewer operations per pair.
 
     Returns
     -------
@@ -538,6 +672,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     r_pc = np.asarray(r_pc, dtype=float)
     n = r_pc.shape[0]
     d = kernel.dim
+    dims = _check_dims(dims, r_pc)
     eta = default_eta(kernel) if eta is None else float(eta)
     m_p = _per_particle("masses", masses, n)
     target = eta**d
@@ -575,11 +710,16 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     h_first = float(h_p.max())
     for iteration in range(1, max_iter + 1):
         nlist.update(r_pc, cell, pbc, cutoff=h_p, store=store)
-        s_a, t_a, w_a, x_a, y_a, n_a, c_a = _solve_sums(nlist, r_pc, h_p, m_p, equal, active_p, kernel)
-        if x_a is None:
-            x_a = y_a = t_a  # not read: no extrapolation with unequal masses
-        bad = _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p,
-                                     active_p, sigma_over_m_p, target, tol, iteration > NEWTON_ITERATIONS, step_max)
+        sums_pj, table_kj, rows = _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel, dims)
+        if rows is None:  # power sums: each particle's moments are formed in the update (no (7, N) rows)
+            moments = (sums_pj, table_kj, float(m_p[0]), float(kernel.f0)) + (_NO_ROWS,) * 7
+        else:
+            s_a, t_a, w_a, x_a, y_a, n_a, c_a = rows
+            if x_a is None:
+                x_a = y_a = t_a  # not read: no extrapolation with unequal masses
+            moments = (_NO_SUMS, _NO_TABLE, 0.0, 0.0, s_a, t_a, w_a, x_a, y_a, n_a, c_a)
+        bad = _smoothing_length_step(moments, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p, sigma_over_m_p,
+                                     target, tol, iteration > NEWTON_ITERATIONS, step_max)
         if bad >= 0:
             raise SmoothingLengthError(f"particle {bad} at {r_pc[bad].tolist()}: the kernel sum is not finite at H = "
                                        f"{h_p[bad]:.6g} (non-finite positions or masses?)")
@@ -608,25 +748,30 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     return DensitySums(h_p.copy(), norm_p * s_p, norm_p * n_p, omega_p, count_p.copy(), iterations=iteration)
 
 
-def _smoothing_length_step(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
-                           sigma_over_m_p, target, tol, bisect_only, step_max):
+def _smoothing_length_step(moments, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p, sigma_over_m_p, target, tol,
+                           bisect_only, step_max):
     """One update of every active particle's H from its sums (in place; the particles in chunks on the
-    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1."""
+    threads, :func:`_smoothing_length_chunk`); the first particle with a non-finite sum, or -1. ``moments``:
+    ``(sums_pj, table_kj, m, f0)`` and seven empty rows (power sums), or an empty ``sums_pj``, a table, two
+    zeros and the rows ``s, t, M_2, M_3, M_4, n, count``."""
     nthreads = thread_count(h_p.shape[0])
     bad_t = np.full(nthreads, -1, dtype=np.int64)
-    run_chunks(_smoothing_length_chunk, h_p.shape[0], (s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
-                                                        h_p, lo_p, hi_p, active_p, sigma_over_m_p, float(target),
-                                                        float(tol), bool(bisect_only), float(step_max), bad_t),
+    run_chunks(_smoothing_length_chunk, h_p.shape[0], moments + (s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
+                                                                 sigma_over_m_p, float(target), float(tol),
+                                                                 bool(bisect_only), float(step_max), bad_t),
                per_thread=[(t,) for t in range(nthreads)])
     bad = bad_t[bad_t >= 0]
     return int(bad.min()) if bad.size else -1
 
 
 @numba.njit(cache=True, nogil=True)
-def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p, h_p, lo_p, hi_p, active_p,
-                            sigma_over_m_p, target, tol, bisect_only, step_max, bad_t, thread, first, last):
+def _smoothing_length_chunk(sums_pj, table_kj, m, f0, s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, count_p,
+                            h_p, lo_p, hi_p, active_p, sigma_over_m_p, target, tol, bisect_only, step_max, bad_t,
+                            thread, first, last):
     """:func:`_smoothing_length_step` for the particles ``[first, last)``: ``bad_t[thread]`` = the first
-    particle with a non-finite sum, else left at -1.
+    particle with a non-finite sum, else left at -1. Particle a's sums: :func:`_power_row` of ``sums_pj``
+    when it has rows (power sums, the pass of :func:`_solve_pass` fused with the update), else
+    ``s_a[a], t_a[a], ...``.
 
     The root of ``G(l) = ln(sigma s / m) - ln(eta^d)``, ``l = ln H``, is found by Halley steps, with the
     moments ``M_k = sum_b m_b q^k f^(k)(q)`` of one density pass (``s = M_0``, ``t = M_1``):
@@ -645,12 +790,16 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
     A step outside the bracket, by more than a factor 2, or not finite is replaced by bisection
     (doubling/halving while one side is open); ``bisect_only`` after :data:`NEWTON_ITERATIONS`.
     """
+    powers = sums_pj.shape[0] > 0
     log_target = math.log(target)
     for a in range(first, last):
         if not active_p[a]:
             continue
-        s, t, w = s_a[a], t_a[a], w_a[a]
-        s_p[a], t_p[a], n_p[a], count_p[a] = s, t, n_a[a], c_a[a]
+        if powers:
+            s, t, w, x, y, nn, c = _power_row(sums_pj, table_kj, m, f0, a)
+        else:
+            s, t, w, x, y, nn, c = s_a[a], t_a[a], w_a[a], x_a[a], y_a[a], n_a[a], c_a[a]
+        s_p[a], t_p[a], n_p[a], count_p[a] = s, t, nn, c
         h = h_p[a]
         g = target - sigma_over_m_p[a] * s
         if not math.isfinite(g) or not math.isfinite(t) or not math.isfinite(w):
@@ -666,26 +815,28 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
         step = 0.0
         if ok:
             big_g = math.log(sigma_over_m_p[a] * s) - log_target
-            g1 = -t / s
-            g2 = (t + w) / s - g1 * g1
+            inv_s = 1.0 / s  # one division: they cost more than the logarithm here (2D, 1e5: 6 ms an update)
+            g1 = -t * inv_s
+            g2 = (t + w) * inv_s - g1 * g1
             den = 2.0 * g1 * g1 - big_g * g2
             step = -2.0 * big_g * g1 / den if den > 0.0 else -big_g / g1
             if abs(step) <= tol:
                 active_p[a] = False
                 continue
             if abs(step) <= step_max:
-                x, y = x_a[a], y_a[a]
                 d1 = -t
                 d2 = t + w
                 d3 = -(t + 3.0 * w + x)
                 d4 = t + 7.0 * w + 6.0 * x + y
-                s_new = s + step * (d1 + step * (0.5 * d2 + step * (d3 / 6.0 + step * d4 / 24.0)))
-                t_new = -(d1 + step * (d2 + step * (0.5 * d3 + step * d4 / 6.0)))
+                grow = step * (d1 + step * (0.5 * d2 + step * (d3 * _SIXTH + step * d4 * _TWENTYFOURTH)))
+                s_new = s + grow
+                t_new = -(d1 + step * (d2 + step * (0.5 * d3 + step * d4 * _SIXTH)))
                 if s_new > 0.0 and t_new < 0.0 and math.isfinite(s_new) and math.isfinite(t_new):
-                    residual = (math.log(sigma_over_m_p[a] * s_new) - log_target) * s_new / t_new
+                    # ln(sigma s_new / m) - ln eta^d = G + ln(1 + grow / s): no second logarithm
+                    residual = (big_g + _log1p_small(grow * inv_s)) * s_new / t_new
                     if abs(residual) <= tol:
-                        h_p[a] = h * math.exp(step)
-                        s_p[a], t_p[a], n_p[a] = s_new, t_new, n_a[a] * (s_new / s)
+                        h_p[a] = h * _exp_small(step)
+                        s_p[a], t_p[a], n_p[a] = s_new, t_new, nn * (s_new * inv_s)
                         active_p[a] = False
                         continue
             ok = abs(step) < 0.6931471805599453  # at most a factor 2
@@ -701,7 +852,7 @@ def _smoothing_length_chunk(s_a, t_a, w_a, x_a, y_a, n_a, c_a, s_p, t_p, n_p, co
 
 
 # -- forces ----------------------------------------------------------------------------------------
-def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
+def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False, dims=None):
     """Symmetric grad-h pressure forces (Eq. 9/34) from per-particle ``pr = P / (Omega rho^2)``.
 
     Parameters
@@ -714,10 +865,14 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
         ``P_a / (Omega_a rho_a^2)`` (with a fixed h and no grad-h terms, ``Omega = 1``).
     kernel : Kernel
     want_virial : bool
+    dims : int or None
+        The pairs see the first ``dims`` coordinates of ``r_pc`` (default all ``D``): ``dims = d`` for ASE
+        positions of a d < 3 system (zeros beyond d) gives the same forces without their zero columns, and a
+        cheaper pass (2D, 1e5 particles: 2 instead of 3 force components written per pair).
 
     Returns
     -------
-    f_pc : ndarray (N, D)
+    f_pc : ndarray (N, D), or (N, dims)
         ``m_a dv_a/dt`` (forces, not accelerations).
     virial_cc : ndarray (3, 3)
         ``sum_pairs r_ab (x) F_ab`` as ``dE/d(strain)`` for ``E = sum m u(rho)`` (zeros unless asked).
@@ -730,11 +885,15 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False):
     c_p = pr_p * kernel.sigma / h_p ** (kernel.dim + 1)
     name = "pressure_virial" if want_virial else "pressure"
     if np.all(m_p == m_p[0]):  # equal masses: m^2 as a parameter, one array fewer per pair
-        params, inputs, name = dict(m2=float(m_p[0]) ** 2), dict(ih_s=1.0 / h_p, c_s=c_p), name + "_equal"
+        hc_p = np.empty((n, 2))
+        hc_p[:, 0] = 1.0 / h_p
+        hc_p[:, 1] = c_p
+        params, inputs, name = dict(m2=float(m_p[0]) ** 2), dict(hc_s=hc_p), name + "_equal"
     else:
         params, inputs = {}, dict(ih_s=1.0 / h_p, m_s=m_p, c_s=c_p)
-    out = _interaction(name, r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs, kernel=kernel,
-                                                    reach=float(h_p.max()))
+    dims = _check_dims(dims, r_pc)
+    out = _interaction(name, dims).compute(nlist, r_pc, params=params, inputs=inputs, kernel=kernel,
+                                           reach=float(h_p.max()))
     virial = np.zeros((3, 3))
     if want_virial:
         v = out.virial

@@ -30,6 +30,12 @@ ALARIC evaluation (a subprocess; goal < 2 GB).
 
 Writes benchmarks/results/bench_alaric.json (``--out``).
 
+``--ab-baseline CHECKOUT``: only a before/after comparison: the warm evaluation above (1e5 or the first of
+``--sizes``, 1 thread, CPU time, median of 9 calls per process) of this checkout and of ``CHECKOUT`` (a folder
+holding a baseline's ``ase_sphrelax``, e.g. ``git archive main | tar -x -C /tmp/base``), one fresh process per
+checkout and round, the order alternating, ``--ab-rounds`` rounds per dimension of ``--dims``; medians and the
+median of the per-round ratios, and whether the forces and H are the same bit for bit.
+
 ``--dynamics``: a controlled timing of ALARICDynamics instead (the warm evaluation above reuses its Verlet list;
 the dynamics rebuild it whenever H or the moves outgrow the skin). The same relaxation (2D uniform density in the
 unit circle, ``--dyn-n`` particles from one uniformly random start, ``--dyn-steps`` steps, the default ingredients
@@ -209,7 +215,10 @@ def compare(n, dim, nthreads, rounds, repeats, with_lammps):
 
 
 # -- profile: the parts of one evaluation --------------------------------------------------------------------
-_PARTS = (("solve pass", sph, "_solve_sums"), ("H update", sph, "_smoothing_length_step"),
+# the H solve's density pass: _solve_pass since issue 20's 2D speed work (its moments are formed in the H update),
+# _solve_sums before (a baseline checkout)
+_PARTS = (("solve pass", sph, "_solve_pass" if hasattr(sph, "_solve_pass") else "_solve_sums"),
+          ("H update", sph, "_smoothing_length_step"),
           ("H solve", sph, "solve_smoothing_lengths"), ("force pass", sph, "pressure_forces"),
           ("neighbour check", NeighborList, "update"))
 
@@ -272,6 +281,58 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return float(out.stdout.strip().splitlines()[-1])
+
+
+# -- A/B: this checkout against a baseline, warm evaluations in fresh processes --------------------------------
+def ab_child(dim, n):
+    """One warm evaluation's CPU time in this process (a fresh child, 1 thread): the median of 9 calls after
+    :func:`alaric_case`, and digests of the last call's forces and H (equal digests: the same results bit for bit)."""
+    import hashlib
+
+    numba.set_num_threads(1)
+    move, calc = alaric_case(n, dim)
+    cpu = [clocked(move)[1] for _ in range(9)]
+    res = calc.results
+    digest = {key: hashlib.sha1(np.ascontiguousarray(res[key]).tobytes()).hexdigest()[:12]
+              for key in ("forces", "smoothing_lengths")}
+    return dict(dim=dim, n=len(calc.h_p), cpu_s=statistics.median(cpu), energy=float(res["energy"]), digest=digest,
+                load=os.getloadavg()[0])
+
+
+def ab_comparison(baseline, dims, n, rounds):
+    """``rounds`` rounds of one fresh one-thread process per checkout (this one and ``baseline``, the order
+    alternating), per dimension; medians of the CPU times and of the per-round ratios this / baseline."""
+    here = str(Path(__file__).resolve().parents[1])
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+
+    def child(root, dim):
+        code = (f"import sys, json; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+                f"import ase_sphrelax; print(ase_sphrelax.__file__); "
+                f"from bench_alaric import ab_child; print(json.dumps(ab_child({dim}, {n})))")
+        # cwd = the checkout: "python -c" puts the working directory first on sys.path
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                             env=dict(env, PYTHONPATH=root), cwd=root)
+        row = json.loads(out.stdout.strip().splitlines()[-1])
+        row["measured"] = out.stdout.strip().splitlines()[0]
+        return row
+
+    rows = []
+    for dim in dims:
+        for root in (here, baseline):  # untimed: numba's cache filled or loaded
+            child(root, dim)
+        runs = {"this": [], "baseline": []}
+        for k in range(rounds):
+            order = [("this", here), ("baseline", baseline)]
+            for name, root in (order if k % 2 == 0 else order[::-1]):
+                runs[name].append(child(root, dim))
+            print(f"{dim}D round {k}: this {1e3 * runs['this'][-1]['cpu_s']:.1f} ms, baseline "
+                  f"{1e3 * runs['baseline'][-1]['cpu_s']:.1f} ms CPU, load {runs['this'][-1]['load']:.1f}", flush=True)
+        ratios = [a["cpu_s"] / b["cpu_s"] for a, b in zip(runs["this"], runs["baseline"])]
+        rows.append(dict(dim=dim, n=runs["this"][0]["n"], this_cpu_s=statistics.median(r["cpu_s"] for r in runs["this"]),
+                         baseline_cpu_s=statistics.median(r["cpu_s"] for r in runs["baseline"]),
+                         this_over_baseline=statistics.median(ratios), per_round=ratios,
+                         same_digests=runs["this"][0]["digest"] == runs["baseline"][0]["digest"], runs=runs))
+    return dict(baseline=str(baseline), this=here, rows=rows)
 
 
 # -- dynamics: the skin in ALARICDynamics, fresh processes ---------------------------------------------------
@@ -348,6 +409,13 @@ def dynamics_comparison(n, steps, factors, rounds, boundary, seed):
                 summary=summary)
 
 
+def _finish(results, out):
+    """Stamp the load average after the run, print it and write the results."""
+    results["load_after"] = os.getloadavg()
+    print(f"load average {os.getloadavg()}")
+    write_json(out, results)
+
+
 def _sizes(text):
     return [int(float(s)) for s in text.split(",") if s]
 
@@ -372,6 +440,10 @@ def main():
     parser.add_argument("--dyn-factors", default="0.1,0.2", help="skin factors; ratios are to the first")
     parser.add_argument("--dyn-boundary", default="wall", choices=("wall", "mirror"))
     parser.add_argument("--dyn-seed", type=int, default=0)
+    parser.add_argument("--ab-baseline", default=None, metavar="CHECKOUT",
+                        help="only: warm one-thread evaluations of this checkout against CHECKOUT (its top folder, "
+                             "e.g. from git archive), fresh processes alternating, --ab-rounds rounds per --dims")
+    parser.add_argument("--ab-rounds", type=int, default=5)
     parser.add_argument("--out", default=str(Path(__file__).parent / "results" / "bench_alaric.json"))
     args = parser.parse_args()
     dims = [int(d) for d in args.dims.split(",")]
@@ -383,6 +455,14 @@ def main():
                    load_before=os.getloadavg(),
                    numba_threads_max=numba.config.NUMBA_NUM_THREADS, rows=[])
     print(f"{results['version']}, measuring {results['measured']}; load average {os.getloadavg()}", flush=True)
+    if args.ab_baseline:
+        results["ab"] = ab_comparison(args.ab_baseline, dims, _sizes(args.sizes)[0], args.ab_rounds)
+        for row in results["ab"]["rows"]:
+            print(f"{row['dim']}D N {row['n']}: this {1e3 * row['this_cpu_s']:.1f} ms, baseline "
+                  f"{1e3 * row['baseline_cpu_s']:.1f} ms CPU (medians), this / baseline "
+                  f"{row['this_over_baseline']:.3f} (median of rounds; range {min(row['per_round']):.3f}-"
+                  f"{max(row['per_round']):.3f}); same results bit for bit: {row['same_digests']}")
+        return _finish(results, args.out)
     if args.dynamics:
         results["dynamics"] = dynamics_comparison(args.dyn_n, args.dyn_steps,
                                                   [float(f) for f in args.dyn_factors.split(",")], args.dyn_rounds,
@@ -391,10 +471,7 @@ def main():
             print(f"skin factor {row['factor']}: median CPU {row['cpu_s']:.2f} s (x{row['cpu_over_first']:.3f}, "
                   f"per-round median x{row['cpu_over_first_median_of_rounds']:.3f}), wall {row['wall_s']:.2f} s, "
                   f"builds {row['builds']} / {row['evaluations']}, eps {row['epsilon']:.3e}")
-        results["load_after"] = os.getloadavg()
-        print(f"load average {os.getloadavg()}")
-        write_json(args.out, results)
-        return
+        return _finish(results, args.out)
     for n in _sizes(args.sizes):
         for dim in dims:
             for nthreads in [int(t) for t in args.threads.split(",")]:

@@ -339,7 +339,7 @@ class ALARICCalculator(SPHCalculator):
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n)
+                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n, dims=d)
             h_p = state.h_p[:n]
             if not np.any(needed_ghosts(phi_p, h_p) & ~cache[0]):  # H grew beyond the stored set: again
                 break
@@ -388,7 +388,7 @@ class ALARICCalculator(SPHCalculator):
         else:
             full = state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel,
                                                        eta=self.eta, h0=self.h_p, tol=p.h_tol,
-                                                       store=self._evaluations > 1)
+                                                       store=self._evaluations > 1, dims=d)
         self.h_p = state.h_p
         n_p = state.n_p  # unit masses: rho = n
         if self.mass is None:
@@ -435,8 +435,9 @@ class ALARICCalculator(SPHCalculator):
         return out
 
     def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False, full=None):
-        """(forces, the position-dependent (target and wall) part of them, pair virial); ``full`` the SPH state
-        of the particles and their mirror ghosts (boundary="mirror")."""
+        """(forces (N, 3), the position-dependent (target and wall) part of them (N, 3; the forces themselves
+        unless ``want_virial``), pair virial); ``full`` the SPH state of the particles and their mirror ghosts
+        (boundary="mirror")."""
         p = self.parameters
         m, cs2 = self.mass, p.cs2
         rho_p = m * state.n_p
@@ -455,30 +456,36 @@ class ALARICCalculator(SPHCalculator):
             pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
         if p.background > 0.0:  # P += beta c_s^2 rho (squares: the gradient of beta sum m c_s^2 ln rho)
             pr_p = pr_p + p.background * cs2 / (omega_p * rho_p)
+        d = self.dim
+        # the pairs see the first d coordinates (the rest are zeros): forces (N, d), fewer terms per pair
         if p.boundary == "mirror":  # ghosts carry no energy: pr = 0; their share folds back through J^T
             y_pc, h_q = self._ghosts[2], self._ghosts[3]
             pr_q = np.concatenate([pr_p, np.zeros(len(y_pc) - len(r_pc))])
-            f_qc, virial = sph.pressure_forces(self.nlist, y_pc, m, h_q, pr_q, self.kernel)
-            f_pc = self._fold_ghosts(f_qc, len(r_pc))
+            f_qd, virial = sph.pressure_forces(self.nlist, y_pc, m, h_q, pr_q, self.kernel, dims=d)
+            f_pd = self._fold_ghosts(f_qd, len(r_pc))
         else:
-            f_pc, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel,
-                                               want_virial=want_virial)
-        # the position-dependent part: its own array only for the virial (stress); else added to f_pc in place
-        f_ext_pc = np.zeros_like(f_pc) if want_virial else f_pc
+            f_pd, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel,
+                                               want_virial=want_virial, dims=d)
+        # the position-dependent part: its own array only for the virial (stress); else added to f_pd in place
+        f_ext_pd = np.zeros_like(f_pd) if want_virial else f_pd
         if p.form == "log":
             above = target_p > self._floor
             if np.any(above):
                 sel = slice(None) if np.all(above) else above  # the usual case, all above: views, no masked copies
-                f_ext_pc[sel, : self.dim] += (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
+                f_ext_pd[sel] += (m * cs2 / target_p[sel])[:, None] * self.target.gradients(x_pd[sel])
         elif p.form == "squares":
             grad_pd = self.target.gradients(x_pd)
-            f_ext_pc[:, : self.dim] += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
+            f_ext_pd += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
             phi_p, normal_pc = wall_p
             outside = phi_p > 0.0
-            f_ext_pc[outside] -= (m * cs2 / self._wall) * normal_pc[outside]
-        if f_ext_pc is not f_pc:
-            f_pc += f_ext_pc
-        f_pc[:, self.dim:] = 0.0
-        f_ext_pc[:, self.dim:] = 0.0
+            f_ext_pd[outside] -= (m * cs2 / self._wall) * normal_pc[outside, :d]
+        f_pc = np.zeros((len(r_pc), 3))
+        f_pc[:, :d] = f_pd
+        if f_ext_pd is not f_pd:
+            f_pc[:, :d] += f_ext_pd
+            f_ext_pc = np.zeros((len(r_pc), 3))
+            f_ext_pc[:, :d] = f_ext_pd
+        else:
+            f_ext_pc = f_pc
         return f_pc, f_ext_pc, virial
