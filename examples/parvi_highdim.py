@@ -12,6 +12,9 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
   marginal sd ratios against the NUTS reference (``examples/results/parvi/reference_logistic.npy``);
 * ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D;
 * ``probes``: the whitening map at M = 100, a 2000-step logistic run, the 32-D shell, knn-ratio's pairing;
+* ``renewals``: the controlled experiment of the bounded whitening renewal (whitening.py, theory.py eq. W4):
+  ``knn+whiten`` at M = 100 in 10-D with unbounded and bounded renewals, the particles' covariance in the
+  fluid's coordinates at every renewal, and the energy distance;
 * ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
 
 Usage::
@@ -274,6 +277,50 @@ def part_probes(args):
     _update(args.out, "probes", dict(out, **_stamp()))
 
 
+def part_renewals(args):
+    """``knn+whiten`` on the 10-D Gaussian with the renewal unbounded (``RENEWAL_MAX_CHANGE = None``, the map of
+    the moment) and bounded (the default): at each renewal the extreme eigenvalues of the particles' covariance in
+    the fluid's coordinates before it (1 for a fluid that has not moved away from the map) and of the renewed map's
+    covariance ``L L^T`` (the target's: 0.1-10), the kinetic energy per particle; the final energy distance."""
+    from ase_sphrelax.sampling import whitening
+
+    target = get_target("gaussian10d")
+    ref = target.sample(5000, np.random.default_rng(12345))
+    renew, bound = whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE
+    rows = []
+    for m in args.sizes:
+        for seed in range(args.repeats):
+            iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
+            for label, max_change in (("unbounded", None), ("bounded", bound)):
+                log = []
+
+                def recording(self, y_pc, v_pc, rho_p=None):
+                    cov_y = np.linalg.eigvalsh(np.atleast_2d(np.cov(y_pc, rowvar=False)))
+                    result = renew(self, y_pc, v_pc, rho_p)
+                    map_eig = np.linalg.eigvalsh(self.l_cc @ self.l_cc.T)
+                    log.append([float(cov_y.min()), float(cov_y.max()), float(map_eig.min()), float(map_eig.max()),
+                                0.5 * float(np.einsum("pc,pc->", v_pc, v_pc)) / len(v_pc)])
+                    return result
+
+                whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE = recording, max_change
+                try:
+                    res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS["knn+whiten"])
+                finally:
+                    whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE = renew, bound
+                row = dict(m=m, seed=seed, renewal=label, max_change=max_change, iid_energy=iid, wall=wall,
+                           error=err, renewals=log)
+                if res is not None:
+                    e = metrics.energy_distance(res.samples, ref)
+                    var_ratio = np.diag(np.cov(res.samples, rowvar=False)) / np.diag(target.cov)
+                    row.update(energy=e, ratio_to_iid=e / iid, var_ratio_min=float(var_ratio.min()),
+                               var_ratio_max=float(var_ratio.max()))
+                print(json.dumps({k: v for k, v in row.items() if k != "renewals"}, default=float), flush=True)
+                print("  renewals (cov_y min, max, map min, max, kinetic):",
+                      [" ".join(f"{a:.2g}" for a in entry) for entry in log], flush=True)
+                rows.append(row)
+                _update(args.out, f"renewals_{args.tag}", dict(rows=rows, **_stamp()))
+
+
 def _table(lines, title, columns, rows, lead, cells):
     """Append a markdown table: the ``lead`` keys of each row, then ``cells(row)`` or the row's error."""
     lines += ([title, ""] if title else []) + ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
@@ -316,6 +363,16 @@ def part_tables(args):
                lambda r: [f"{r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f}",
                           f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f}",
                           str(r["sd_within_10pct"]), f"{r['energy']:.3g}", f"{r['wall']:.0f}"])
+    for key in sorted(k for k in data if k.startswith("renewals")):
+        _table(lines, _stamp_line(key, data[key]) + "; `knn+whiten`, 10-D Gaussian",
+               ["M", "seed", "renewal", "cov in y at renewals: min eigenvalue (min over renewals 2..)",
+                "max eigenvalue (max)", "map L L^T eigenvalues (min, max over renewals)", "energy distance",
+                "i.i.d.", "ratio to i.i.d.", "var ratio min-max"], data[key]["rows"], ["m", "seed", "renewal"],
+               lambda r: [f"{min(e[0] for e in r['renewals'][1:]):.2g}",
+                          f"{max(e[1] for e in r['renewals'][1:]):.3g}",
+                          f"{min(e[2] for e in r['renewals']):.2g}, {max(e[3] for e in r['renewals']):.3g}",
+                          f"{r['energy']:.4g}", f"{r['iid_energy']:.4g}", f"**{r['ratio_to_iid']:.2f}**",
+                          f"{r['var_ratio_min']:.2f}-{r['var_ratio_max']:.2f}"])
     if "probes" in data:
         lines += [_stamp_line("probes", data["probes"]), ""]
         lines += [f"* `{key}`: {json.dumps(value, default=float)}" for key, value in data["probes"].items()
@@ -334,7 +391,8 @@ def part_tables(args):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "tables"])
+    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "renewals",
+                                               "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--steps", type=int, default=1000)
@@ -346,7 +404,7 @@ def main(argv=None):
     STARTED.update(git=_git_revision(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
-         timing=part_timing, probes=part_probes, tables=part_tables)[args.part](args)
+         timing=part_timing, probes=part_probes, renewals=part_renewals, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":

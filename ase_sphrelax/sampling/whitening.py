@@ -13,19 +13,41 @@ velocities ``v' = L'^-1 L v``), but a fluid at rest under one map is not at rest
 (its particle arrangement is isotropic in the old y). :class:`ParVISampler` therefore updates the map
 at intervals in the first part of the run only and holds it fixed afterwards, the part in which the
 convergence is judged (see ``whiten_until``).
+
+Bounded renewals (theory.py, eq. W4): the first renewal sets the map from the initial particles; every later
+one may change the covariance the fluid sees by at most a factor :data:`RENEWAL_MAX_CHANGE` along any direction
+(the eigenvalues of the particles' covariance in the current y are clipped to ``[1/g, g]`` before the map is
+renewed). A fluid expanding from a narrow start oscillates in the target's well, and an instantaneous
+covariance can catch a direction at its focus (measured in 10-D at M = 100: eigenvalues 4e-5 of the y
+covariance at a renewal, a map that shrank 100-fold in one direction; ``examples/results/parvi/highdim/``).
+Every renewed map is still an invertible linear change of variables with the state carried over exactly, so
+the stationary density for the final, frozen map is p (W3) whatever the bound.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AffineMap", "check_whiten"]
+__all__ = ["AffineMap", "RENEWAL_MAX_CHANGE", "check_whiten"]
+
+#: The largest factor by which a renewal after the first may change the particles' covariance in the fluid's
+#: coordinates along any direction (eq. W4); None: unbounded (the covariance of the moment).
+RENEWAL_MAX_CHANGE = 2.0
 
 
 class AffineMap:
-    """``x = c + L y`` with ``centre_c`` (d,) and ``l_cc`` (d, d); row-vector arrays ``(M, d)``."""
+    """``x = c + L y`` with ``centre_c`` (d,) and ``l_cc`` (d, d); row-vector arrays ``(M, d)``.
 
-    def __init__(self, centre_c, l_cc):
+    ``renewals`` counts the renewals (:meth:`renew`); ``max_change`` (default :data:`RENEWAL_MAX_CHANGE`) bounds
+    every renewal after the first (eq. W4).
+    """
+
+    def __init__(self, centre_c, l_cc, max_change="default"):
         self.set(centre_c, l_cc)
+        self.renewals = 0
+        self.max_change = RENEWAL_MAX_CHANGE if isinstance(max_change, str) and max_change == "default" \
+            else max_change
+        if self.max_change is not None and not self.max_change >= 1.0:
+            raise ValueError(f"max_change must be None or a number >= 1, got {max_change!r}")
 
     def set(self, centre_c, l_cc):
         self.centre_c = np.array(centre_c, dtype=float)
@@ -50,11 +72,23 @@ class AffineMap:
     def renew(self, y_pc, v_pc, rho_p=None):
         """Set the map to the particles' mean and Cholesky covariance factor; carry the state over exactly.
 
+        After the first renewal the covariance is bounded (eq. W4): with ``C_y = U diag(w) U^T`` the particles'
+        covariance in the current y, the new map is the Cholesky factor of ``L U diag(clip(w, 1/g, g)) U^T L^T``
+        (``g = max_change``; exactly the particles' covariance when no eigenvalue is clipped), so the particles'
+        covariance in the new y has eigenvalues ``w / clip(w, 1/g, g)``: 1, or the part of the change beyond g.
         Returns ``(y', v', rho')`` in the new coordinates (``rho`` scales with ``|det L'| / |det L|``);
         keeps the old map (and returns the state unchanged) when the covariance is not positive definite.
         """
         x_pc = self.to_x(y_pc)
-        cov_cc = np.atleast_2d(np.cov(x_pc, rowvar=False))
+        if self.renewals == 0 or self.max_change is None:
+            cov_cc = np.atleast_2d(np.cov(x_pc, rowvar=False))
+        else:
+            w_c, u_cc = np.linalg.eigh(np.atleast_2d(np.cov(y_pc, rowvar=False)))
+            if not np.all(np.isfinite(w_c)):
+                return y_pc, v_pc, rho_p
+            clipped_cc = (u_cc * np.clip(w_c, 1.0 / self.max_change, self.max_change)) @ u_cc.T
+            cov_cc = self.l_cc @ clipped_cc @ self.l_cc.T
+            cov_cc = 0.5 * (cov_cc + cov_cc.T)
         try:
             new_l_cc = np.linalg.cholesky(cov_cc)
         except np.linalg.LinAlgError:
@@ -63,6 +97,7 @@ class AffineMap:
             return y_pc, v_pc, rho_p
         old_l_cc, old_log_det = self.l_cc, self.log_det
         self.set(x_pc.mean(axis=0), new_l_cc)
+        self.renewals += 1
         v_new = v_pc @ old_l_cc.T @ self.l_inv_cc.T
         rho_new = None if rho_p is None else rho_p * np.exp(self.log_det - old_log_det)
         return self.to_y(x_pc), v_new, rho_new
