@@ -15,6 +15,8 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
 * ``renewals``: the controlled experiment of the bounded whitening renewal (whitening.py, theory.py eq. W4):
   ``knn+whiten`` at M = 100 in 10-D with unbounded and bounded renewals, the particles' covariance in the
   fluid's coordinates at every renewal, and the energy distance;
+* ``ratio_weights``: why ``knn-ratio`` diverges on the logistic posterior and not on the 10-D Gaussian: the
+  spread of ``log p`` over each particle's ball and the score weights ``W_b`` (eq. R3) along the run;
 * ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
 
 Usage::
@@ -321,6 +323,46 @@ def part_renewals(args):
                 _update(args.out, f"renewals_{args.tag}", dict(rows=rows, **_stamp()))
 
 
+def part_ratio_weights(args):
+    """``knn-ratio+whiten+local`` at M = 100 on the 10-D Gaussian and the 32-D logistic posterior: every 50
+    evaluations, the spread ``max_b log p(x_b) - min_b log p(x_b)`` over ``{a} + N_k(a)`` (median and max over a;
+    the importance weights ``q_b = p(x_b)^-1`` vary by its exponential), the score weights ``W_b`` of eq. R3 (the
+    largest, and the fraction of particles below 0.1, which hardly feel their own score), the standard deviation of
+    ``log p`` over the particles and the kinetic energy per particle."""
+    import ase_sphrelax.models.parvi_knn as parvi_knn
+
+    evaluate = parvi_knn.KNNRatioParVIModel.evaluate
+    out = {}
+    for name in ("gaussian10d", "logistic"):
+        target = get_target(name)
+        log = []
+
+        def recording(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
+            ev = evaluate(self, r_pc, v_pc, rho_p, want_energy)
+            self.n_calls = getattr(self, "n_calls", 0) + 1
+            if self.n_calls % 50 == 1:
+                idx_pk, _ = parvi_knn.knn_graph(np.asarray(r_pc), self.k)
+                ball_pk = np.concatenate([ev.log_p[:, None], ev.log_p[idx_pk]], axis=1)
+                spread_p = ball_pk.max(axis=1) - ball_pk.min(axis=1)
+                kinetic = None if v_pc is None else 0.5 * float(np.einsum("pc,pc->", v_pc, v_pc)) / len(v_pc)
+                log.append(dict(evaluation=self.n_calls, ball_spread_median=float(np.median(spread_p)),
+                                ball_spread_max=float(spread_p.max()), weight_max=float(ev.weight.max()),
+                                weight_below_0p1=float(np.mean(ev.weight < 0.1)),
+                                log_p_sd=float(np.std(ev.log_p)), kinetic=kinetic))
+            return ev
+
+        parvi_knn.KNNRatioParVIModel.evaluate = recording
+        try:
+            res, err, conv, wall = _run(target, 100, 0, args.steps, **CONFIGS["knn-ratio+whiten+local"])
+        finally:
+            parvi_knn.KNNRatioParVIModel.evaluate = evaluate
+        out[name] = dict(error=err, wall=wall, log=log)
+        print(name, err, flush=True)
+        for entry in log:
+            print("  ", json.dumps(entry, default=float), flush=True)
+    _update(args.out, "ratio_weights", dict(out, **_stamp()))
+
+
 def _table(lines, title, columns, rows, lead, cells):
     """Append a markdown table: the ``lead`` keys of each row, then ``cells(row)`` or the row's error."""
     lines += ([title, ""] if title else []) + ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
@@ -392,7 +434,7 @@ def part_tables(args):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "renewals",
-                                               "tables"])
+                                               "ratio_weights", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--steps", type=int, default=1000)
@@ -404,7 +446,8 @@ def main(argv=None):
     STARTED.update(git=_git_revision(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
-         timing=part_timing, probes=part_probes, renewals=part_renewals, tables=part_tables)[args.part](args)
+         timing=part_timing, probes=part_probes, renewals=part_renewals,
+         ratio_weights=part_ratio_weights, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":
