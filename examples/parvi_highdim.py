@@ -53,7 +53,8 @@ CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", w
            "knn+whiten(20,0.8)": dict(neighbours="knn", whiten="covariance", whiten_every=20, whiten_until=0.8),
            "knn+whiten+local": dict(neighbours="knn", whiten="covariance", time_step="local"),
            "knn-ratio+whiten": dict(neighbours="knn-ratio", whiten="covariance"),
-           "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local")}
+           "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local"),
+           "knn-ratio+whiten(c0.15)": dict(neighbours="knn-ratio", whiten="covariance", courant=0.15)}
 
 
 def _git_revision():

@@ -198,3 +198,13 @@ def test_ratio_forces_are_finite_with_a_far_tail_neighbour():
     forces = model.evaluate(x).forces
     assert np.all(np.isfinite(forces))
     assert np.abs(_fd_forces(model, x) - forces).max() <= 1e-6 * np.abs(forces).max()
+
+
+def test_variant_names_express_the_knn_variants():
+    """``benchmarks/bench_sampling.py --sph-variants knn+whiten`` runs these options."""
+    from ase_sphrelax.sampling.sampler import variant_options
+    assert variant_options("knn+whiten") == dict(neighbours="knn", whiten="covariance")
+    assert variant_options("knn-ratio+whiten+local+k=12") == dict(neighbours="knn-ratio", whiten="covariance",
+                                                                   time_step="local", k=12)
+    with pytest.raises(ValueError, match="unknown token 'knn2'"):
+        variant_options("knn2")
