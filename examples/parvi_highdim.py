@@ -176,6 +176,8 @@ def part_logistic(args):
                                sd_ratio_median=float(np.median(ratio_c)),
                                sd_within_10pct=int(np.sum(np.abs(ratio_c - 1) <= 0.1)),
                                energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score,
+                               kinetic_final=float(res.trace["kinetic"][-1]),
+                               kinetic_last_half_mean=float(np.mean(res.trace["kinetic"][len(res.trace["kinetic"]) // 2:])),
                                search_rebuilds=res.info.get("search_rebuilds"),
                                search_calls=res.info.get("search_calls"),
                                n_density=res.n_density)
