@@ -15,6 +15,8 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
 * ``renewals``: the controlled experiment of the bounded whitening renewal (whitening.py, theory.py eq. W4):
   ``knn+whiten`` at M = 100 in 10-D with unbounded and bounded renewals, the particles' covariance in the
   fluid's coordinates at every renewal, and the energy distance;
+* ``renewals2d``: the bounded renewal on the 2D targets (``whiten+local+critical`` from standard-normal starting
+  points, as ``benchmarks/bench_sampling.py`` runs it): energy distance relative to i.i.d., unbounded and bounded;
 * ``ratio_weights``: why ``knn-ratio`` diverges on the logistic posterior and not on the 10-D Gaussian: the
   spread of ``log p`` over each particle's ball and the score weights ``W_b`` (eq. R3) along the run;
 * ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
@@ -283,7 +285,7 @@ def part_probes(args):
 
 
 def part_renewals(args):
-    """``knn+whiten`` on the 10-D Gaussian with the renewal unbounded (``RENEWAL_MAX_CHANGE = None``, the map of
+    """``knn+whiten`` on the 10-D Gaussian with the renewal unbounded (``RENEWAL_MAX_SHRINK = None``, the map of
     the moment) and bounded (the default): at each renewal the extreme eigenvalues of the particles' covariance in
     the fluid's coordinates before it (1 for a fluid that has not moved away from the map) and of the renewed map's
     covariance ``L L^T`` (the target's: 0.1-10), the kinetic energy per particle; the final energy distance."""
@@ -291,12 +293,12 @@ def part_renewals(args):
 
     target = get_target("gaussian10d")
     ref = target.sample(5000, np.random.default_rng(12345))
-    renew, bound = whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE
+    renew, bound = whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK
     rows = []
     for m in args.sizes:
         for seed in range(args.repeats):
             iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
-            for label, max_change in (("unbounded", None), ("bounded", bound)):
+            for label, max_shrink in (("unbounded", None), ("bounded", bound)):
                 log = []
 
                 def recording(self, y_pc, v_pc, rho_p=None):
@@ -307,12 +309,12 @@ def part_renewals(args):
                                 0.5 * float(np.einsum("pc,pc->", v_pc, v_pc)) / len(v_pc)])
                     return result
 
-                whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE = recording, max_change
+                whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK = recording, max_shrink
                 try:
                     res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS["knn+whiten"])
                 finally:
-                    whitening.AffineMap.renew, whitening.RENEWAL_MAX_CHANGE = renew, bound
-                row = dict(m=m, seed=seed, renewal=label, max_change=max_change, iid_energy=iid, wall=wall,
+                    whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK = renew, bound
+                row = dict(m=m, seed=seed, renewal=label, max_shrink=max_shrink, iid_energy=iid, wall=wall,
                            error=err, renewals=log)
                 if res is not None:
                     e = metrics.energy_distance(res.samples, ref)
@@ -324,6 +326,32 @@ def part_renewals(args):
                       [" ".join(f"{a:.2g}" for a in entry) for entry in log], flush=True)
                 rows.append(row)
                 _update(args.out, f"renewals_{args.tag}", dict(rows=rows, **_stamp()))
+
+
+def part_renewals2d(args):
+    from ase_sphrelax.sampling import whitening
+    from ase_sphrelax.sampling.sampler import variant_options
+
+    bound = whitening.RENEWAL_MAX_SHRINK
+    rows = []
+    for m in args.sizes:
+        for name in ("gaussian", "correlated", "ring8", "banana", "donut", "funnel"):
+            target = get_target(name)
+            ref = target.sample(5000, np.random.default_rng(12345))
+            iid = metrics.energy_distance(target.sample(m, np.random.default_rng(500)), ref)
+            row = dict(target=name, m=m, steps=args.steps, iid_energy=iid)
+            for label, max_shrink in (("unbounded", None), ("bounded", bound)):
+                whitening.RENEWAL_MAX_SHRINK = max_shrink
+                try:
+                    res, err, conv, wall = _run(target, m, 0, args.steps,
+                                                x0=np.random.default_rng(0).standard_normal((m, 2)),
+                                                **variant_options("whiten+local+critical"))
+                finally:
+                    whitening.RENEWAL_MAX_SHRINK = bound
+                row[label] = err if res is None else metrics.energy_distance(res.samples, ref) / iid
+            print(json.dumps(row, default=float), flush=True)
+            rows.append(row)
+            _update(args.out, f"renewals2d_{args.tag}", dict(rows=rows, **_stamp()))
 
 
 def part_ratio_weights(args):
@@ -437,7 +465,7 @@ def part_tables(args):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "renewals",
-                                               "ratio_weights", "tables"])
+                                               "renewals2d", "ratio_weights", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--steps", type=int, default=1000)
@@ -450,7 +478,7 @@ def main(argv=None):
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
          timing=part_timing, probes=part_probes, renewals=part_renewals,
-         ratio_weights=part_ratio_weights, tables=part_tables)[args.part](args)
+         renewals2d=part_renewals2d, ratio_weights=part_ratio_weights, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":

@@ -177,7 +177,7 @@ class ParVISampler:
         Run the fluid in whitened coordinates ``y = L^-1 (x - c)`` (:mod:`.whitening`; theory.py eqs.
         W1-W3): None (default) does not. ``"covariance"``: ``c`` and ``L`` are the particles' mean and
         Cholesky factor of their covariance, set from the initial particles and renewed every
-        ``whiten_every`` steps up to step ``whiten_until * steps`` (each renewal changing the covariance the
+        ``whiten_every`` steps up to step ``whiten_until * steps`` (each renewal shrinking the covariance the
         fluid sees by at most 2x per direction, eq. W4), then held fixed, so that the last
         part of the run, where the convergence is judged, samples p exactly (for a fixed map the
         resting density is the pull-back of p); affine invariant. A matrix: the map ``x = L y``

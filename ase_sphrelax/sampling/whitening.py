@@ -15,9 +15,9 @@ at intervals in the first part of the run only and holds it fixed afterwards, th
 convergence is judged (see ``whiten_until``).
 
 Bounded renewals (theory.py, eq. W4): the first renewal sets the map from the initial particles; every later
-one may change the covariance the fluid sees by at most a factor :data:`RENEWAL_MAX_CHANGE` along any direction
-(the eigenvalues of the particles' covariance in the current y are clipped to ``[1/g, g]`` before the map is
-renewed). A fluid expanding from a narrow start flattens in some directions while it expands, and the
+one may shrink the covariance the fluid sees by at most a factor :data:`RENEWAL_MAX_SHRINK` along any direction
+(the eigenvalues of the particles' covariance in the current y are raised to at least ``1/g`` before the map is
+renewed); it may grow it freely. A fluid expanding from a narrow start flattens in some directions while it expands, and the
 covariance of the moment made that the map (measured in 10-D at M = 100 with ``neighbours="knn"``: eigenvalues
 4e-5 against 25 of the y covariance at step 50, a map whose smallest eigenvalue fell to 1e-6 - 1e-5 against the
 target's 0.1; ``examples/results/parvi/highdim/``, section 5).
@@ -28,27 +28,27 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AffineMap", "RENEWAL_MAX_CHANGE", "check_whiten"]
+__all__ = ["AffineMap", "RENEWAL_MAX_SHRINK", "check_whiten"]
 
-#: The largest factor by which a renewal after the first may change the particles' covariance in the fluid's
-#: coordinates along any direction (eq. W4); None: unbounded (the covariance of the moment).
-RENEWAL_MAX_CHANGE = 2.0
+#: The largest factor by which a renewal after the first may shrink the particles' covariance in the fluid's
+#: coordinates along any direction (eq. W4; growth is not bounded); None: unbounded (the covariance of the moment).
+RENEWAL_MAX_SHRINK = 2.0
 
 
 class AffineMap:
     """``x = c + L y`` with ``centre_c`` (d,) and ``l_cc`` (d, d); row-vector arrays ``(M, d)``.
 
-    ``renewals`` counts the renewals (:meth:`renew`); ``max_change`` (default :data:`RENEWAL_MAX_CHANGE`) bounds
+    ``renewals`` counts the renewals (:meth:`renew`); ``max_shrink`` (default :data:`RENEWAL_MAX_SHRINK`) bounds
     every renewal after the first (eq. W4).
     """
 
-    def __init__(self, centre_c, l_cc, max_change="default"):
+    def __init__(self, centre_c, l_cc, max_shrink="default"):
         self.set(centre_c, l_cc)
         self.renewals = 0
-        self.max_change = RENEWAL_MAX_CHANGE if isinstance(max_change, str) and max_change == "default" \
-            else max_change
-        if self.max_change is not None and not self.max_change >= 1.0:
-            raise ValueError(f"max_change must be None or a number >= 1, got {max_change!r}")
+        self.max_shrink = RENEWAL_MAX_SHRINK if isinstance(max_shrink, str) and max_shrink == "default" \
+            else max_shrink
+        if self.max_shrink is not None and not self.max_shrink >= 1.0:
+            raise ValueError(f"max_shrink must be None or a number >= 1, got {max_shrink!r}")
 
     def set(self, centre_c, l_cc):
         self.centre_c = np.array(centre_c, dtype=float)
@@ -74,20 +74,20 @@ class AffineMap:
         """Set the map to the particles' mean and Cholesky covariance factor; carry the state over exactly.
 
         After the first renewal the covariance is bounded (eq. W4): with ``C_y = U diag(w) U^T`` the particles'
-        covariance in the current y, the new map is the Cholesky factor of ``L U diag(clip(w, 1/g, g)) U^T L^T``
-        (``g = max_change``; exactly the particles' covariance when no eigenvalue is clipped), so the particles'
-        covariance in the new y has eigenvalues ``w / clip(w, 1/g, g)``: 1, or the part of the change beyond g.
+        covariance in the current y, the new map is the Cholesky factor of ``L U diag(max(w, 1/g)) U^T L^T``
+        (``g = max_shrink``; exactly the particles' covariance when no eigenvalue is below 1/g), so the particles'
+        covariance in the new y has eigenvalues ``w / max(w, 1/g)``: 1, or the part of the shrinking beyond g.
         Returns ``(y', v', rho')`` in the new coordinates (``rho`` scales with ``|det L'| / |det L|``);
         keeps the old map (and returns the state unchanged) when the covariance is not positive definite.
         """
         x_pc = self.to_x(y_pc)
-        if self.renewals == 0 or self.max_change is None:
+        if self.renewals == 0 or self.max_shrink is None:
             cov_cc = np.atleast_2d(np.cov(x_pc, rowvar=False))
         else:
             w_c, u_cc = np.linalg.eigh(np.atleast_2d(np.cov(y_pc, rowvar=False)))
             if not np.all(np.isfinite(w_c)):
                 return y_pc, v_pc, rho_p
-            clipped_cc = (u_cc * np.clip(w_c, 1.0 / self.max_change, self.max_change)) @ u_cc.T
+            clipped_cc = (u_cc * np.maximum(w_c, 1.0 / self.max_shrink)) @ u_cc.T
             cov_cc = self.l_cc @ clipped_cc @ self.l_cc.T
             cov_cc = 0.5 * (cov_cc + cov_cc.T)
         try:
