@@ -436,7 +436,11 @@ def part_tables(args):
                lambda r: [f"{r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f}",
                           f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f}",
                           str(r["sd_within_10pct"]), f"{r['energy']:.3g}", f"{r['wall']:.0f}"])
-    for key in sorted(k for k in data if k.startswith("renewals")):
+    for key in sorted(k for k in data if k.startswith("renewals2d")):
+        _table(lines, _stamp_line(key, data[key]) + "; `whiten+local+critical`, ratio to i.i.d.",
+               ["target", "M", "unbounded", "bounded"], data[key]["rows"], ["target", "m"],
+               lambda r: [f"{r['unbounded']:.3g}", f"{r['bounded']:.3g}"])
+    for key in sorted(k for k in data if k.startswith("renewals") and "renewals" in data[k]["rows"][0]):
         _table(lines, _stamp_line(key, data[key]) + "; `knn+whiten`, 10-D Gaussian",
                ["M", "seed", "renewal", "cov in y at renewals: min eigenvalue (min over renewals 2..)",
                 "max eigenvalue (max)", "map L L^T eigenvalues (min, max over renewals)", "energy distance",
