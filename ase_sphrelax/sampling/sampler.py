@@ -594,7 +594,7 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       any ``k < n`` in any dimension (the kernel default needs M >= 656 in 10-D and cannot run in 32-D); exact
       Stein identities at rest, density p in the continuum limit, a typical-set shell above a few dimensions
       (theory.py, eqs. K1-K7). Combine with ``whiten="covariance"`` on anisotropic targets (the 10-D Gaussian of
-      condition number 100: 0.4-1.2x the energy distance of i.i.d. samples at M = 100 and 500,
+      condition number 100: 0.4-1.1x the energy distance of i.i.d. samples at M = 100 and 500,
       examples/results/parvi/highdim/). ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
     * ``friction="critical"`` — a drag critical along each principal direction of the target's curvature
       seen by the particles, renewed every ``friction_every`` steps; ``friction_ramp < 1`` starts any
