@@ -139,7 +139,7 @@ def part_gaussian10d(args):
     ref = target.sample(5000, np.random.default_rng(12345))
     rows = []
     for m in args.sizes:
-        for seed in range(args.repeats):
+        for seed in range(args.first_seed, args.first_seed + args.repeats):
             iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
             for name in args.configs:
                 res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS[name])
@@ -472,6 +472,7 @@ def main(argv=None):
                                                "renewals2d", "ratio_weights", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--first-seed", type=int, default=0, help="gaussian10d: seeds first-seed .. + repeats - 1")
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--stationary-steps", type=int, nargs="+", default=[3000])
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
