@@ -12,6 +12,13 @@ Parts (each writes/updates ``<out>/results.json``; run them one at a time):
   marginal sd ratios against the NUTS reference (``examples/results/parvi/reference_logistic.npy``);
 * ``timing``: the neighbour search (cKDTree query of k + 1) against brute force in 32-D and 10-D;
 * ``probes``: the whitening map at M = 100, a 2000-step logistic run, the 32-D shell, knn-ratio's pairing;
+* ``renewals``: the controlled experiment of the bounded whitening renewal (whitening.py, theory.py eq. W4):
+  ``knn+whiten`` at M = 100 in 10-D with unbounded and bounded renewals, the particles' covariance in the
+  fluid's coordinates at every renewal, and the energy distance;
+* ``renewals2d``: the bounded renewal on the 2D targets (``whiten+local+critical`` from standard-normal starting
+  points, as ``benchmarks/bench_sampling.py`` runs it): energy distance relative to i.i.d., unbounded and bounded;
+* ``ratio_weights``: why ``knn-ratio`` diverges on the logistic posterior and not on the 10-D Gaussian: the
+  spread of ``log p`` over each particle's ball and the score weights ``W_b`` (eq. R3) along the run;
 * ``tables``: the markdown tables of ``results.json`` (written to ``tables.md``).
 
 Usage::
@@ -48,7 +55,8 @@ CONFIGS = {"knn": dict(neighbours="knn"), "knn+whiten": dict(neighbours="knn", w
            "knn+whiten(20,0.8)": dict(neighbours="knn", whiten="covariance", whiten_every=20, whiten_until=0.8),
            "knn+whiten+local": dict(neighbours="knn", whiten="covariance", time_step="local"),
            "knn-ratio+whiten": dict(neighbours="knn-ratio", whiten="covariance"),
-           "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local")}
+           "knn-ratio+whiten+local": dict(neighbours="knn-ratio", whiten="covariance", time_step="local"),
+           "knn-ratio+whiten(c0.15)": dict(neighbours="knn-ratio", whiten="covariance", courant=0.15)}
 
 
 def _git_revision():
@@ -131,7 +139,7 @@ def part_gaussian10d(args):
     ref = target.sample(5000, np.random.default_rng(12345))
     rows = []
     for m in args.sizes:
-        for seed in range(args.repeats):
+        for seed in range(args.first_seed, args.first_seed + args.repeats):
             iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
             for name in args.configs:
                 res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS[name])
@@ -170,6 +178,8 @@ def part_logistic(args):
                                sd_ratio_median=float(np.median(ratio_c)),
                                sd_within_10pct=int(np.sum(np.abs(ratio_c - 1) <= 0.1)),
                                energy=metrics.energy_distance(x, ref), converged=conv, n_score=res.n_score,
+                               kinetic_final=float(res.trace["kinetic"][-1]),
+                               kinetic_last_half_mean=float(np.mean(res.trace["kinetic"][len(res.trace["kinetic"]) // 2:])),
                                search_rebuilds=res.info.get("search_rebuilds"),
                                search_calls=res.info.get("search_calls"),
                                n_density=res.n_density)
@@ -274,6 +284,116 @@ def part_probes(args):
     _update(args.out, "probes", dict(out, **_stamp()))
 
 
+def part_renewals(args):
+    """``knn+whiten`` on the 10-D Gaussian with the renewal unbounded (``RENEWAL_MAX_SHRINK = None``, the map of
+    the moment) and bounded (the default): at each renewal the extreme eigenvalues of the particles' covariance in
+    the fluid's coordinates before it (1 for a fluid that has not moved away from the map) and of the renewed map's
+    covariance ``L L^T`` (the target's: 0.1-10), the kinetic energy per particle; the final energy distance."""
+    from ase_sphrelax.sampling import whitening
+
+    target = get_target("gaussian10d")
+    ref = target.sample(5000, np.random.default_rng(12345))
+    renew, bound = whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK
+    rows = []
+    for m in args.sizes:
+        for seed in range(args.repeats):
+            iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
+            for label, max_shrink in (("unbounded", None), ("bounded", bound)):
+                log = []
+
+                def recording(self, y_pc, v_pc, rho_p=None):
+                    cov_y = np.linalg.eigvalsh(np.atleast_2d(np.cov(y_pc, rowvar=False)))
+                    result = renew(self, y_pc, v_pc, rho_p)
+                    map_eig = np.linalg.eigvalsh(self.l_cc @ self.l_cc.T)
+                    log.append([float(cov_y.min()), float(cov_y.max()), float(map_eig.min()), float(map_eig.max()),
+                                0.5 * float(np.einsum("pc,pc->", v_pc, v_pc)) / len(v_pc)])
+                    return result
+
+                whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK = recording, max_shrink
+                try:
+                    res, err, conv, wall = _run(target, m, seed, args.steps, **CONFIGS["knn+whiten"])
+                finally:
+                    whitening.AffineMap.renew, whitening.RENEWAL_MAX_SHRINK = renew, bound
+                row = dict(m=m, seed=seed, renewal=label, max_shrink=max_shrink, iid_energy=iid, wall=wall,
+                           error=err, renewals=log)
+                if res is not None:
+                    e = metrics.energy_distance(res.samples, ref)
+                    var_ratio = np.diag(np.cov(res.samples, rowvar=False)) / np.diag(target.cov)
+                    row.update(energy=e, ratio_to_iid=e / iid, var_ratio_min=float(var_ratio.min()),
+                               var_ratio_max=float(var_ratio.max()))
+                print(json.dumps({k: v for k, v in row.items() if k != "renewals"}, default=float), flush=True)
+                print("  renewals (cov_y min, max, map min, max, kinetic):",
+                      [" ".join(f"{a:.2g}" for a in entry) for entry in log], flush=True)
+                rows.append(row)
+                _update(args.out, f"renewals_{args.tag}", dict(rows=rows, **_stamp()))
+
+
+def part_renewals2d(args):
+    from ase_sphrelax.sampling import whitening
+    from ase_sphrelax.sampling.sampler import variant_options
+
+    bound = whitening.RENEWAL_MAX_SHRINK
+    rows = []
+    for m in args.sizes:
+        for name in ("gaussian", "correlated", "ring8", "banana", "donut", "funnel"):
+            target = get_target(name)
+            ref = target.sample(5000, np.random.default_rng(12345))
+            iid = metrics.energy_distance(target.sample(m, np.random.default_rng(500)), ref)
+            row = dict(target=name, m=m, steps=args.steps, iid_energy=iid)
+            for label, max_shrink in (("unbounded", None), ("bounded", bound)):
+                whitening.RENEWAL_MAX_SHRINK = max_shrink
+                try:
+                    res, err, conv, wall = _run(target, m, 0, args.steps,
+                                                x0=np.random.default_rng(0).standard_normal((m, 2)),
+                                                **variant_options("whiten+local+critical"))
+                finally:
+                    whitening.RENEWAL_MAX_SHRINK = bound
+                row[label] = err if res is None else metrics.energy_distance(res.samples, ref) / iid
+            print(json.dumps(row, default=float), flush=True)
+            rows.append(row)
+            _update(args.out, f"renewals2d_{args.tag}", dict(rows=rows, **_stamp()))
+
+
+def part_ratio_weights(args):
+    """``knn-ratio+whiten+local`` at M = 100 on the 10-D Gaussian and the 32-D logistic posterior: every 50
+    evaluations, the spread ``max_b log p(x_b) - min_b log p(x_b)`` over ``{a} + N_k(a)`` (median and max over a;
+    the importance weights ``q_b = p(x_b)^-1`` vary by its exponential), the score weights ``W_b`` of eq. R3 (the
+    largest, and the fraction of particles below 0.1, which hardly feel their own score), the standard deviation of
+    ``log p`` over the particles and the kinetic energy per particle."""
+    import ase_sphrelax.models.parvi_knn as parvi_knn
+
+    evaluate = parvi_knn.KNNRatioParVIModel.evaluate
+    out = {}
+    for name in ("gaussian10d", "logistic"):
+        target = get_target(name)
+        log = []
+
+        def recording(self, r_pc, v_pc=None, rho_p=None, want_energy=False):
+            ev = evaluate(self, r_pc, v_pc, rho_p, want_energy)
+            self.n_calls = getattr(self, "n_calls", 0) + 1
+            if self.n_calls % 50 == 1:
+                idx_pk, _ = parvi_knn.knn_graph(np.asarray(r_pc), self.k)
+                ball_pk = np.concatenate([ev.log_p[:, None], ev.log_p[idx_pk]], axis=1)
+                spread_p = ball_pk.max(axis=1) - ball_pk.min(axis=1)
+                kinetic = None if v_pc is None else 0.5 * float(np.einsum("pc,pc->", v_pc, v_pc)) / len(v_pc)
+                log.append(dict(evaluation=self.n_calls, ball_spread_median=float(np.median(spread_p)),
+                                ball_spread_max=float(spread_p.max()), weight_max=float(ev.weight.max()),
+                                weight_below_0p1=float(np.mean(ev.weight < 0.1)),
+                                log_p_sd=float(np.std(ev.log_p)), kinetic=kinetic))
+            return ev
+
+        parvi_knn.KNNRatioParVIModel.evaluate = recording
+        try:
+            res, err, conv, wall = _run(target, 100, 0, args.steps, **CONFIGS["knn-ratio+whiten+local"])
+        finally:
+            parvi_knn.KNNRatioParVIModel.evaluate = evaluate
+        out[name] = dict(error=err, wall=wall, log=log)
+        print(name, err, flush=True)
+        for entry in log:
+            print("  ", json.dumps(entry, default=float), flush=True)
+    _update(args.out, "ratio_weights", dict(out, **_stamp()))
+
+
 def _table(lines, title, columns, rows, lead, cells):
     """Append a markdown table: the ``lead`` keys of each row, then ``cells(row)`` or the row's error."""
     lines += ([title, ""] if title else []) + ["| " + " | ".join(columns) + " |", "|" + " --- |" * len(columns)]
@@ -316,6 +436,20 @@ def part_tables(args):
                lambda r: [f"{r['mean_err_sd_max']:.2f}, {r['mean_err_sd_median']:.3f}",
                           f"{r['sd_ratio_min']:.2f}, {r['sd_ratio_median']:.2f}, {r['sd_ratio_max']:.2f}",
                           str(r["sd_within_10pct"]), f"{r['energy']:.3g}", f"{r['wall']:.0f}"])
+    for key in sorted(k for k in data if k.startswith("renewals2d")):
+        _table(lines, _stamp_line(key, data[key]) + "; `whiten+local+critical`, ratio to i.i.d.",
+               ["target", "M", "unbounded", "bounded"], data[key]["rows"], ["target", "m"],
+               lambda r: [f"{r['unbounded']:.3g}", f"{r['bounded']:.3g}"])
+    for key in sorted(k for k in data if k.startswith("renewals") and "renewals" in data[k]["rows"][0]):
+        _table(lines, _stamp_line(key, data[key]) + "; `knn+whiten`, 10-D Gaussian",
+               ["M", "seed", "renewal", "cov in y at renewals: min eigenvalue (min over renewals 2..)",
+                "max eigenvalue (max)", "map L L^T eigenvalues (min, max over renewals)", "energy distance",
+                "i.i.d.", "ratio to i.i.d.", "var ratio min-max"], data[key]["rows"], ["m", "seed", "renewal"],
+               lambda r: [f"{min(e[0] for e in r['renewals'][1:]):.2g}",
+                          f"{max(e[1] for e in r['renewals'][1:]):.3g}",
+                          f"{min(e[2] for e in r['renewals']):.2g}, {max(e[3] for e in r['renewals']):.3g}",
+                          f"{r['energy']:.4g}", f"{r['iid_energy']:.4g}", f"**{r['ratio_to_iid']:.2f}**",
+                          f"{r['var_ratio_min']:.2f}-{r['var_ratio_max']:.2f}"])
     if "probes" in data:
         lines += [_stamp_line("probes", data["probes"]), ""]
         lines += [f"* `{key}`: {json.dumps(value, default=float)}" for key, value in data["probes"].items()
@@ -334,9 +468,11 @@ def part_tables(args):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "tables"])
+    parser.add_argument("part", choices=["stationary", "gaussian10d", "logistic", "timing", "probes", "renewals",
+                                               "renewals2d", "ratio_weights", "tables"])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--first-seed", type=int, default=0, help="gaussian10d: seeds first-seed .. + repeats - 1")
     parser.add_argument("--steps", type=int, default=1000)
     parser.add_argument("--stationary-steps", type=int, nargs="+", default=[3000])
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
@@ -346,7 +482,8 @@ def main(argv=None):
     STARTED.update(git=_git_revision(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     args.out.mkdir(parents=True, exist_ok=True)
     dict(stationary=part_stationary, gaussian10d=part_gaussian10d, logistic=part_logistic,
-         timing=part_timing, probes=part_probes, tables=part_tables)[args.part](args)
+         timing=part_timing, probes=part_probes, renewals=part_renewals,
+         renewals2d=part_renewals2d, ratio_weights=part_ratio_weights, tables=part_tables)[args.part](args)
 
 
 if __name__ == "__main__":

@@ -187,3 +187,24 @@ def test_reused_candidate_lists_give_the_exact_neighbours(d, m, seed, step, extr
         assert np.allclose(dist, ref_dist, rtol=0, atol=1e-12)
         assert np.allclose(np.sqrt(((x[:, None, :] - x[idx]) ** 2).sum(-1)), dist, rtol=0, atol=1e-12)
         x = x + step * rng.standard_normal(x.shape)
+
+
+def test_ratio_forces_are_finite_with_a_far_tail_neighbour():
+    """``knn-ratio``: a k-th neighbour so far in the tail that ``p(x_b)^-1`` overflows (weight f = 0 there) left
+    NaN forces (inf * 0; the divergence on the logistic posterior); the forces stay the energy's exact gradient."""
+    target = CountingTarget(lambda x: -np.sum(x**2, axis=1), lambda x: -2.0 * x, 1)
+    x = np.concatenate([np.linspace(0.0, 1.0, 8), [30.0]])[:, None]  # exp(30^2 - 1) overflows a double
+    model = KNNRatioParVIModel(target, 1, k=8)
+    forces = model.evaluate(x).forces
+    assert np.all(np.isfinite(forces))
+    assert np.abs(_fd_forces(model, x) - forces).max() <= 1e-6 * np.abs(forces).max()
+
+
+def test_variant_names_express_the_knn_variants():
+    """``benchmarks/bench_sampling.py --sph-variants knn+whiten`` runs these options."""
+    from ase_sphrelax.sampling.sampler import variant_options
+    assert variant_options("knn+whiten") == dict(neighbours="knn", whiten="covariance")
+    assert variant_options("knn-ratio+whiten+local+k=12") == dict(neighbours="knn-ratio", whiten="covariance",
+                                                                   time_step="local", k=12)
+    with pytest.raises(ValueError, match="unknown token 'knn2'"):
+        variant_options("knn2")

@@ -308,7 +308,9 @@ class KNNRatioParVIModel(KNNParVIModel):
         lq_pk = -self.beta * log_p[idx_pk]  # log q_b
         lq_self_p = -self.beta * log_p
         shift_p = np.maximum(lq_pk[:, :-1].max(axis=1, initial=-np.inf), lq_self_p)  # f = 0 at the k-th neighbour
-        q_pk = np.exp(lq_pk - shift_p[:, None])
+        # the k-th neighbour has f = 0 exactly: q = 0 there (its exp, not in the shift, may overflow: inf * 0)
+        q_pk = np.exp(np.minimum(lq_pk - shift_p[:, None], 0.0))
+        q_pk[:, -1] = 0.0
         q_self_p = np.exp(lq_self_p - shift_p)
         sum_p = np.einsum("pk,pk->p", f_pk, q_pk) + q_self_p  # the particle itself: s = 0, f = 1
         pi_pk = q_pk / sum_p[:, None]

@@ -50,6 +50,20 @@ itself in the default configuration, and the particles mapped back by ``x = c + 
   continually renewed map would converge to. The sampler renews only up to ``whiten_until * steps`` and
   then holds the map fixed, so the final state is that of the fixed-map fluid (W3); the convergence
   verdict covers the last half of the run, which lies after the last renewal for ``whiten_until <= 0.5``.
+* (W4) **bounded renewals**: after the first renewal (which sets the map from the initial particles) a renewal
+  may shrink the covariance the fluid sees by at most a factor g (``RENEWAL_MAX_SHRINK = 2``) along any
+  direction, and grow it freely: with ``C_y = U diag(w) U^T`` the particles' covariance in the current y,
+  ``L' L'^T = L U diag(max(w, 1/g)) U^T L^T``; the particles' covariance in the new y has eigenvalues
+  ``w / max(w, 1/g)`` (1 within the bound). Each renewed map is still an invertible linear change of variables
+  with the state carried over exactly, so W3 holds for the final, frozen map whatever g: the bound chooses the
+  map, not the stationary density. Why it is needed (measured, ``examples/results/parvi/highdim/``, part
+  ``renewals``): the k-NN fluid expanding from a narrow start flattens in some directions (covariance
+  eigenvalues 4e-5 against 25 of the y covariance at step 50 in 10-D, M = 100). The map of the moment then
+  shrinks 1e3-1e5-fold in those directions, the fluid must expand again by that factor in y, the next renewal
+  catches the next transient, and at step 500 the frozen map is wrong (variances 0.07-2.5 of the target's).
+  Bounded, the map shrinks at most 2x per renewal and the fluid's covariance in y settles near 1 by the last
+  renewals. Growth is left free: bounding it too (the factor in both directions) cost the 2D banana (part
+  ``renewals2d``), and an expanding fluid is not the failure measured.
 
 Local time steps (``time_step="local"``). Every particle a is kicked, drifted and damped with its own
 CFL step ``dt_a`` (:meth:`~ase_sphrelax.models.parvi.ParVIModel.cfl_steps`), the local time stepping of
