@@ -64,3 +64,20 @@ def test_pack_bad_boundary_files(tmp_path):
     result = sphrelax("pack", "--boundary", str(bad), "--dx", "0.1")
     assert result.returncode == 2 and "open.edges" in result.stderr and "not closed" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_pack_momentum_reaches_step_2c_and_is_checked(geometries, tmp_path, capsys):
+    """--momentum BETA: the heavy-ball Step 2c of BIPIPacker(momentum=BETA); 0 is the paper's rule, BETA >= 1 refused."""
+    histories = {}
+    for beta in ("0", "0.9"):
+        out = tmp_path / f"m{beta}"
+        assert main(["pack", "--boundary", str(geometries / "TrapezoidalTank.edges"), "--dx", "0.05", "--h", "4",
+                     "--out", str(out), "--max-steps-2a", "20", "--max-steps-2c", "20", "--momentum", beta]) == 0
+        data = json.loads((out / "summary.json").read_text())
+        histories[beta] = data["history"]
+    gradc = {beta: [row["gradc_avg"] for row in history] for beta, history in histories.items()}
+    n_2a = 20
+    assert gradc["0"][:n_2a] == gradc["0.9"][:n_2a]  # Step 2a untouched
+    assert gradc["0"][n_2a + 1:] != gradc["0.9"][n_2a + 1:]
+    bad = sphrelax("pack", "--boundary", str(geometries / "TrapezoidalTank.edges"), "--dx", "0.05", "--momentum", "1")
+    assert bad.returncode == 2 and "[0, 1)" in bad.stderr and "Traceback" not in bad.stderr

@@ -37,7 +37,7 @@ from pathlib import Path
 from . import registry
 from .common import (EXIT_NOT_CONVERGED, add_output_arguments, add_progress_argument, add_size_argument,
                      check_fill_size, check_h_ratio, output_folder, provenance, show_progress)
-from .usage import UsageError, non_negative_int, positive, usage_errors
+from .usage import UsageError, non_negative_int, positive, unit_interval_open, usage_errors
 
 __all__ = ["add_arguments", "run", "BIPIMethod", "parse_periodic", "parse_cell", "periodic_boundary"]
 
@@ -68,6 +68,9 @@ class BIPIMethod:
                                  "within 0.5 dx, default), normal (Eq. 14 as written), centroid (Eq. 21 as written)")
         parser.add_argument("--outside", choices=("raise", "move"), default="raise",
                             help="particles starting outside: refuse (default) or move them 0.5 dx inside")
+        parser.add_argument("--momentum", type=unit_interval_open, default=0.0, metavar="BETA",
+                            help="heavy-ball momentum in Step 2c (0, the default, is the paper's Eq. 14-15; 0.9 "
+                                 "halved the 3D sphere's time with the same boundary layer, benchmarks/README.md)")
 
     @staticmethod
     def prepare(boundary, dx, h, args):
@@ -82,7 +85,7 @@ class BIPIMethod:
                 CAP_2C if args.max_steps_2c is None else args.max_steps_2c)
         packer = BIPIPacker(atoms, calc, max_steps_2a=caps[0], max_steps_2c=caps[1],
                             tol=args.tol, window=args.window, outside=args.outside,
-                            progress=show_progress(args))
+                            momentum=args.momentum, progress=show_progress(args))
         return atoms, packer, start
 
     @staticmethod
