@@ -31,6 +31,32 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from alaric_fig8_nn import layer_checks  # noqa: E402
 
 
+def smooth_wall_calculator(length_factor, **kwargs):
+    """An ALARICCalculator whose domain wall is quadratic, ``U_wall = m c_s^2 phi_+^2 / (2 L^2)`` with ``L =
+    length_factor (V / N)^(1/3)``, in place of the package's linear wall ``m c_s^2 phi_+ / L0`` (``L0 = 0.1 (V /
+    N)^(1/3)``), whose force jumps from 0 to ``m c_s^2 / L0`` when a particle crosses the boundary. Forces stay the
+    exact gradient of the reported energy (``examples/alaric_fig8_fd_check.py``). An experiment, not package code."""
+    from ase_sphrelax.calculators.alaric import ALARICCalculator
+
+    class SmoothWallALARIC(ALARICCalculator):
+        def evaluate(self, st, properties):
+            self._wall = np.inf  # the linear wall adds exactly 0 (energy and force)
+            out = super().evaluate(st, properties)
+            p, d, n = self.parameters, st.dim, len(st.r_pc)
+            length = length_factor * (float(p.domain.volume) / n) ** (1.0 / d)
+            phi_p, normal_pd = p.domain.phi_and_normal(self.points(st.atoms.positions, st.atoms))
+            depth_p = np.maximum(np.asarray(phi_p, dtype=float), 0.0)
+            k = self.mass * p.cs2 / length**2
+            out["energies"] = out["energies"] + 0.5 * k * depth_p**2
+            out["energy"] = float(out["energies"].sum())
+            if "forces" in out:
+                out["forces"] = out["forces"].copy()
+                out["forces"][:, :d] -= (k * depth_p)[:, None] * np.asarray(normal_pd, dtype=float)[:, :d]
+            return out
+
+    return SmoothWallALARIC(**kwargs)
+
+
 def build(args):
     from ase.io import read
 
@@ -55,13 +81,19 @@ def build(args):
         if not args.keep_velocities:
             atoms.set_momenta(np.zeros((len(atoms), 3)))
     boundary = resolve_boundary(args.boundary, domain)
-    calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=3, form="log", domain=domain,
-                            origin=origin, boundary=boundary, eta=args.eta)
+    kwargs = dict(target_density=density, target_gradient=gradient, dim=3, form="log", domain=domain, origin=origin,
+                  boundary=boundary, eta=args.eta)
+    if args.smooth_wall is not None:
+        calc = smooth_wall_calculator(args.smooth_wall, **kwargs)
+    else:
+        if args.wall_length_factor is not None:  # the linear wall's length, times the default 0.1 (V / N)^(1/3)
+            kwargs["wall_length"] = args.wall_length_factor * 0.1 * (float(domain.volume) / len(atoms)) ** (1 / 3)
+        calc = ALARICCalculator(**kwargs)
     atoms.calc = calc
     return atoms, calc, boundary
 
 
-def main():
+def parser():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("mode", choices=("fresh", "continue"))
     ap.add_argument("folder", nargs="?", default=None, help="continue: a folder with relaxed.extxyz")
@@ -71,6 +103,10 @@ def main():
     ap.add_argument("--boundary", choices=("auto", "mirror", "wall"), default="auto")
     ap.add_argument("--keep-velocities", action="store_true", help="continue: start from the stored momenta")
     ap.add_argument("--eta", type=float, default=None, help="n H^3 = eta^3 (default: the kernel's)")
+    ap.add_argument("--wall-length-factor", type=float, default=None,
+                    help="the linear wall's length times this (default 1: 0.1 (V / N)^(1/3))")
+    ap.add_argument("--smooth-wall", type=float, default=None, metavar="L",
+                    help="a quadratic wall of length L (V / N)^(1/3) in place of the linear one (smooth_wall_calculator)")
     ap.add_argument("--cfl", type=float, default=0.25, help="CFL factor of the time step (default 0.25)")
     ap.add_argument("--no-viscosity", action="store_true", help="switch the artificial viscosity off")
     ap.add_argument("--no-velocity-stop", action="store_true", help="switch the velocity stops off")
@@ -78,7 +114,11 @@ def main():
     ap.add_argument("--max-wall", type=float, default=600.0)
     ap.add_argument("--every", type=int, default=100, help="pairing check every this many steps")
     ap.add_argument("--out", required=True)
-    args = ap.parse_args()
+    return ap
+
+
+def main():
+    args = parser().parse_args()
     if args.mode == "continue" and args.folder is None:
         raise SystemExit("continue needs a folder")
     from ase.io import write
@@ -103,6 +143,7 @@ def main():
                    epsilon=float(res["epsilon"]), # U / (m c_s^2) - N ln m = sum_a ln(n_a / rho*_a): the potential without the Eq. 44 mass resets' jumps
                    energy_unit_mass=float(res["energy"]) / (float(calc.mass) * calc.parameters.cs2)
                    - len(atoms) * float(np.log(calc.mass)),
+                   ek_unit_mass=0.5 * float((atoms.get_velocities() ** 2).sum()) / calc.parameters.cs2,
                    **layer_checks(x))
         nn_trace.append(row)
         (out / "nn_trace.json").write_text(json.dumps(nn_trace, indent=1))
@@ -121,6 +162,7 @@ def main():
     (out / "trace.json").write_text(json.dumps(dyn.trace, indent=1))
     summary = dict(mode=args.mode, source=args.folder, n=len(atoms), split=splits, seed=args.seed, boundary=boundary,
                    keep_velocities=bool(args.keep_velocities), eta=calc.eta, cfl=args.cfl,
+                   wall_length_factor=args.wall_length_factor, smooth_wall=args.smooth_wall,
                    viscosity=not args.no_viscosity, velocity_stop=not args.no_velocity_stop, steps=dyn.nsteps, stop_reason=dyn.stop_reason,
                    wall_time_s=time.perf_counter() - t0, load_average_start=load0, load_average_end=os.getloadavg(),
                    command=" ".join(sys.argv), **{k: v for k, v in nn_trace[-1].items() if k not in ("step", "wall", "n")})
