@@ -18,10 +18,17 @@ STORED = ("examples/results/alaric/fig8_mirror/3d_n2075_after", "examples/result
 
 def row_of(folder):
     folder = Path(folder)
-    summary = json.loads((folder / "summary.json").read_text())
+    summary = json.loads((folder / "summary.json").read_text()) if (folder / "summary.json").exists() else None
     uptime = folder.parent / f"{folder.name}.uptime"
     loads = uptime.read_text().split("\n") if uptime.exists() else []
-    if "mode" in summary:  # examples/alaric_fig8_isolate.py
+    if summary is None:  # stopped by hand: its pairing trace only
+        trace = json.loads((folder / "nn_trace.json").read_text())
+        last = [e for e in trace if e["n"] == trace[0]["n"]][-1]  # its last check before any split
+        first_paired = next((e["step"] for e in trace if e["edge_below_half"] + e["interior_below_half"] > 0), None)
+        row = dict(last, mode="stopped by hand: its last check before any split", split=0, boundary="mirror",
+                   steps=last["step"], stop_reason="killed", wall_time_s=last["wall"],
+                   first_paired_check_step=first_paired, stages=sorted({e["n"] for e in trace}))
+    elif "mode" in summary:  # examples/alaric_fig8_isolate.py
         trace = json.loads((folder / "nn_trace.json").read_text())
         first_paired = next((e["step"] for e in trace if e["edge_below_half"] + e["interior_below_half"] > 0), None)
         row = dict(summary, first_paired_check_step=first_paired, stages=sorted({e["n"] for e in trace}))
@@ -39,9 +46,36 @@ def row_of(folder):
 
 def main():
     root = Path(sys.argv[1])
-    folders = [Path(p) for p in STORED] + sorted(p for p in root.iterdir() if (p / "summary.json").exists())
+    folders = [Path(p) for p in STORED] + sorted(p for p in root.iterdir() if (p / "summary.json").exists()
+                                                 or (p / "nn_trace.json").exists())
     rows = {str(f): row_of(f) for f in folders}
-    (root / "results.json").write_text(json.dumps(rows, indent=1))
+    energy = {p.stem: json.loads(p.read_text())["summary"] for p in sorted((root / "energy").glob("*.json"))}
+    fd = {p.stem: [json.loads(line) for line in p.read_text().splitlines() if line.strip()]
+          for p in sorted(root.glob("fd_check_*.jsonl"))}
+    (root / "results.json").write_text(json.dumps(dict(runs=rows, energy_checks=energy, fd_checks=fd), indent=1))
+    print("| run | N | split | edge / wall | steps | stop | eps | min NN/mean: edge | interior | pairs (< 0.5 of the mean) | "
+          "paired r | closest to r = 0 | r < 0.15 | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for f, r in rows.items():
+        pr = r.get("paired_r_range")
+        wall = ("smooth wall L = %g" % r["smooth_wall"] if r.get("smooth_wall") else
+                "linear wall x%g" % r["wall_length_factor"] if r.get("wall_length_factor") else "linear wall")
+        extra = ", CFL %g" % r["cfl"] if r.get("cfl", 0.25) != 0.25 else ""
+        print(f"| {Path(f).parent.name}/{Path(f).name} | {r['n']} | {r['split']} | {r['boundary']}, {wall}{extra} | "
+              f"{r['steps']} | {r['stop_reason']} | {r['epsilon']:.2e} | {r['edge_nn_min_over_mean']:.3f} | "
+              f"{r['interior_nn_min_over_mean']:.3f} | {r['edge_below_half'] + r['interior_below_half']} | "
+              f"{'-' if pr is None else f'{pr[0]:.2f}-{pr[1]:.2f}'} | {r['r_min']:.3f} | {r['particles_within_0_15']} | "
+              f"{r['wall_time_s']:.0f} |")
+    print()
+    print("| energy check (300 steps from a_n2075_split1) | time span | steps with E_tot up | sum of increases | per unit "
+          "time | largest | max speed / c_s |")
+    print("|---|---|---|---|---|---|---|")
+    for k, e in energy.items():
+        print(f"| {k} | {e['time']:.2f} | {e['steps_increasing']} of {e['steps'] - 1} | {e['sum_of_increases']:.1f} | "
+              f"{e['increase_per_time']:.1f} | {e['largest_increase']:.2f} | {e['v_max']:.2f} |")
+
+
+def _old_table(rows):
     print("| run | N | split | boundary | steps | stop | eps | min NN/mean: edge | interior | pairs (< 0.5) edge | "
           "paired r | closest to r = 0 | r < 0.15 | wall s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
