@@ -10,8 +10,19 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+from ase.io import read
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from alaric_fig8_nn import fig8_checks  # noqa: E402
+
+# the runs stopped by hand (no summary.json): their settings, from run.sh
+HAND_STOPPED = {
+    "e_n26415_split1": dict(note="stage 0 (N = 5283, split 0 until its split at step 4000) of the N = 26 415 split-1 "
+                                 "run, stopped by hand at the split"),
+    "c_n26411_smooth1": dict(smooth_wall=1.0, note="continuation of fig8_mirror/3d_n26411, smooth wall L = 1, "
+                                                   "stopped by hand after 300 steps"),
+}
 
 STORED = ("examples/results/alaric/fig8_mirror/3d_n2075_after", "examples/results/alaric/fig8_mirror/3d_n26411")
 
@@ -27,7 +38,8 @@ def row_of(folder):
         first_paired = next((e["step"] for e in trace if e["edge_below_half"] + e["interior_below_half"] > 0), None)
         row = dict(last, mode="stopped by hand: its last check before any split", split=0, boundary="mirror",
                    steps=last["step"], stop_reason="killed", wall_time_s=last["wall"],
-                   first_paired_check_step=first_paired, stages=sorted({e["n"] for e in trace}))
+                   first_paired_check_step=first_paired, stages=sorted({e["n"] for e in trace}),
+                   **HAND_STOPPED.get(folder.name, {}))
     elif "mode" in summary:  # examples/alaric_fig8_isolate.py
         trace = json.loads((folder / "nn_trace.json").read_text())
         first_paired = next((e["step"] for e in trace if e["edge_below_half"] + e["interior_below_half"] > 0), None)
@@ -41,6 +53,9 @@ def row_of(folder):
                    command=" ".join(["sphrelax density"] + [f"--{k.replace('_', '-')} {v}" for k, v in
                                                              summary["arguments"].items() if k not in ("command",)]))
     row["uptime_start_end"] = [s.strip() for s in loads if s.strip()]
+    if summary is not None:  # the end state: particles outside the unit ball (a soft wall lets the outer layer out)
+        r_p = np.linalg.norm(read(folder / "relaxed.extxyz").positions, axis=1)
+        row.update(outside_ball=int(np.count_nonzero(r_p > 1.0)), r_max=float(r_p.max()))
     return row
 
 
@@ -54,8 +69,8 @@ def main():
           for p in sorted(root.glob("fd_check_*.jsonl"))}
     (root / "results.json").write_text(json.dumps(dict(runs=rows, energy_checks=energy, fd_checks=fd), indent=1))
     print("| run | N | split | edge / wall | steps | stop | eps | min NN/mean: edge | interior | pairs (< 0.5 of the mean) | "
-          "paired r | closest to r = 0 | r < 0.15 | wall s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "paired r | closest to r = 0 | r < 0.15 | outside r = 1 | wall s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for f, r in rows.items():
         pr = r.get("paired_r_range")
         wall = ("smooth wall L = %g" % r["smooth_wall"] if r.get("smooth_wall") else
@@ -65,27 +80,14 @@ def main():
               f"{r['steps']} | {r['stop_reason']} | {r['epsilon']:.2e} | {r['edge_nn_min_over_mean']:.3f} | "
               f"{r['interior_nn_min_over_mean']:.3f} | {r['edge_below_half'] + r['interior_below_half']} | "
               f"{'-' if pr is None else f'{pr[0]:.2f}-{pr[1]:.2f}'} | {r['r_min']:.3f} | {r['particles_within_0_15']} | "
-              f"{r['wall_time_s']:.0f} |")
+              f"{r.get('outside_ball', '-')} | {r['wall_time_s']:.0f} |")
     print()
     print("| energy check (300 steps from a_n2075_split1) | time span | steps with E_tot up | sum of increases | per unit "
           "time | largest | max speed / c_s |")
     print("|---|---|---|---|---|---|---|")
     for k, e in energy.items():
-        print(f"| {k} | {e['time']:.2f} | {e['steps_increasing']} of {e['steps'] - 1} | {e['sum_of_increases']:.1f} | "
-              f"{e['increase_per_time']:.1f} | {e['largest_increase']:.2f} | {e['v_max']:.2f} |")
-
-
-def _old_table(rows):
-    print("| run | N | split | boundary | steps | stop | eps | min NN/mean: edge | interior | pairs (< 0.5) edge | "
-          "paired r | closest to r = 0 | r < 0.15 | wall s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for f, r in rows.items():
-        pr = r.get("paired_r_range")
-        print(f"| {Path(f).parent.name}/{Path(f).name} | {r['n']} | {r['split']} | {r['boundary']} | {r['steps']} | "
-              f"{r['stop_reason']} | {r['epsilon']:.2e} | {r['edge_nn_min_over_mean']:.3f} | "
-              f"{r['interior_nn_min_over_mean']:.3f} | {r['edge_below_half']} | "
-              f"{'-' if pr is None else f'{pr[0]:.2f}-{pr[1]:.2f}'} | {r['r_min']:.3f} | {r['particles_within_0_15']} | "
-              f"{r['wall_time_s']:.0f} |")
+        print(f"| {k} | {e['time']:.2f} | {e['steps_increasing']} of {e['steps'] - 1} | {e['sum_of_increases']:.3g} | "
+              f"{e['increase_per_time']:.3g} | {e['largest_increase']:.3g} | {e['v_max']:.2f} |")
 
 
 if __name__ == "__main__":

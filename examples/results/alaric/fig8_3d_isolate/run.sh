@@ -26,7 +26,8 @@ run d_n5283_wall examples/alaric_fig8_isolate.py fresh --n 5283 --split 0 --boun
 python examples/alaric_fig8_fd_check.py examples/results/alaric/fig8_mirror/3d_n26411 > $D/fd_check_n26411.jsonl
 python examples/alaric_fig8_fd_check.py $D/a_n2075_split1 --smooth-wall 1 > $D/fd_check_n2075_smooth1.jsonl
 # is the dynamics dissipative? 300 steps from a_n2075_split1, one ingredient changed at a time
-for v in "default:" "cfl01:--cfl 0.1" "wall10:--wall-length-factor 10" "smooth1:--smooth-wall 1" "smooth05:--smooth-wall 0.5"; do
+for v in "default:" "cfl01:--cfl 0.1" "wall10:--wall-length-factor 10" "smooth1:--smooth-wall 1" "smooth05:--smooth-wall 0.5" \
+    "noviscosity:--no-viscosity"; do
   $PY examples/alaric_fig8_energy_check.py continue $D/a_n2075_split1 --max-steps 300 ${v#*:} --out $D/energy/n2075_${v%%:*}.json
 done
 # (d) the wall made smooth (quadratic, no force jump at the boundary) at N = 5283, split 0
