@@ -2,7 +2,7 @@
 ``U / (m c_s^2) - N ln m`` (the Eq. 44 mass resets do not move it) plus the kinetic energy ``sum v^2 / (2 c_s^2)``:
 friction, viscosity and velocity stops only remove energy, so every increase is injected by the time integration.
 
-    python examples/alaric_fig8_energy_check.py continue FOLDER --max-steps 300 [alaric_fig8_isolate.py options] --out FILE.json
+    python examples/alaric_fig8_energy_check.py continue FOLDER --max-steps 300 [options] --out FILE.json
 
 Takes the options of ``examples/alaric_fig8_isolate.py`` (``--cfl``, ``--no-viscosity``, ``--wall-length-factor``,
 ``--smooth-wall``, ...); ``--out`` is the JSON file written: the totals and the per-step rows.

@@ -9,11 +9,13 @@ form, ``boundary auto`` = mirror, ``stage_steps = max_steps // (split + 1)``), t
 Continuation from a stored state (positions and momenta of a ``relaxed.extxyz``; a new ALARICDynamics: velocity
 stop interval measured again, viscosity switch restarted at alpha0, the Eq. 44 mass reset at its first evaluation)::
 
-    python examples/alaric_fig8_isolate.py continue examples/results/alaric/fig8_mirror/3d_n26411 --max-wall 1200 --out DIR
+    python examples/alaric_fig8_isolate.py continue examples/results/alaric/fig8_mirror/3d_n26411 \
+        --max-wall 1200 --out DIR
 
 Every ``--every`` steps (and at the end) it records epsilon and the pairing checks of
-:func:`alaric_fig8_nn.layer_checks` (smallest NN distance / mean, in the edge layer (``1 - r`` below two mean NN distances) and the
-interior separately) in ``DIR/nn_trace.json``; writes ``DIR/relaxed.extxyz`` (target frame, momenta, h) and
+:func:`alaric_fig8_nn.layer_checks` (smallest NN distance / mean, in the edge layer, ``1 - r`` below two mean NN
+distances, and in the interior), the potential at unit mass and the kinetic energy in ``DIR/nn_trace.json``;
+writes ``DIR/relaxed.extxyz`` (target frame, momenta, h) and
 ``DIR/summary.json`` (the last checks, steps, stop reason, wall, load average at start and end).
 """
 from __future__ import annotations
@@ -106,7 +108,8 @@ def parser():
     ap.add_argument("--wall-length-factor", type=float, default=None,
                     help="the linear wall's length times this (default 1: 0.1 (V / N)^(1/3))")
     ap.add_argument("--smooth-wall", type=float, default=None, metavar="L",
-                    help="a quadratic wall of length L (V / N)^(1/3) in place of the linear one (smooth_wall_calculator)")
+                    help="a quadratic wall of length L (V / N)^(1/3) in place of the linear one "
+                         "(smooth_wall_calculator)")
     ap.add_argument("--cfl", type=float, default=0.25, help="CFL factor of the time step (default 0.25)")
     ap.add_argument("--no-viscosity", action="store_true", help="switch the artificial viscosity off")
     ap.add_argument("--no-velocity-stop", action="store_true", help="switch the velocity stops off")
@@ -139,10 +142,11 @@ def main():
     def check():
         res = calc.results
         x = calc.points(atoms.positions, atoms)
+        # U / (m c_s^2) - N ln m = sum_a ln(n_a / rho*_a): the potential without the Eq. 44 mass resets' jumps
+        unit_mass_u = (float(res["energy"]) / (float(calc.mass) * calc.parameters.cs2)
+                       - len(atoms) * float(np.log(calc.mass)))
         row = dict(step=dyn.nsteps, wall=time.perf_counter() - t0, n=len(atoms), stage=dyn.stage,
-                   epsilon=float(res["epsilon"]), # U / (m c_s^2) - N ln m = sum_a ln(n_a / rho*_a): the potential without the Eq. 44 mass resets' jumps
-                   energy_unit_mass=float(res["energy"]) / (float(calc.mass) * calc.parameters.cs2)
-                   - len(atoms) * float(np.log(calc.mass)),
+                   epsilon=float(res["epsilon"]), energy_unit_mass=unit_mass_u,
                    ek_unit_mass=0.5 * float((atoms.get_velocities() ** 2).sum()) / calc.parameters.cs2,
                    **layer_checks(x))
         nn_trace.append(row)
@@ -163,9 +167,10 @@ def main():
     summary = dict(mode=args.mode, source=args.folder, n=len(atoms), split=splits, seed=args.seed, boundary=boundary,
                    keep_velocities=bool(args.keep_velocities), eta=calc.eta, cfl=args.cfl,
                    wall_length_factor=args.wall_length_factor, smooth_wall=args.smooth_wall,
-                   viscosity=not args.no_viscosity, velocity_stop=not args.no_velocity_stop, steps=dyn.nsteps, stop_reason=dyn.stop_reason,
-                   wall_time_s=time.perf_counter() - t0, load_average_start=load0, load_average_end=os.getloadavg(),
-                   command=" ".join(sys.argv), **{k: v for k, v in nn_trace[-1].items() if k not in ("step", "wall", "n")})
+                   viscosity=not args.no_viscosity, velocity_stop=not args.no_velocity_stop, steps=dyn.nsteps,
+                   stop_reason=dyn.stop_reason, wall_time_s=time.perf_counter() - t0, load_average_start=load0,
+                   load_average_end=os.getloadavg(), command=" ".join(sys.argv),
+                   **{k: v for k, v in nn_trace[-1].items() if k not in ("step", "wall", "n")})
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     print(json.dumps(summary, indent=1))
 

@@ -1,6 +1,6 @@
 """Collect the runs of ``examples/results/alaric/fig8_3d_isolate`` (and the two stored ``fig8_mirror`` 3D runs they
-control) into ``results.json`` and a markdown table (printed): epsilon, pairing by layer (:func:`alaric_fig8_nn.layer_checks`),
-the bottom of the well, steps, stop reason, wall time, load averages.
+control) into ``results.json`` and a markdown table (printed): epsilon, pairing by layer
+(:func:`alaric_fig8_nn.layer_checks`), the bottom of the well, steps, stop reason, wall time, load averages.
 
     python examples/alaric_fig8_isolate_table.py examples/results/alaric/fig8_3d_isolate
 """
@@ -68,8 +68,8 @@ def main():
     fd = {p.stem: [json.loads(line) for line in p.read_text().splitlines() if line.strip()]
           for p in sorted(root.glob("fd_check_*.jsonl"))}
     (root / "results.json").write_text(json.dumps(dict(runs=rows, energy_checks=energy, fd_checks=fd), indent=1))
-    print("| run | N | split | edge / wall | steps | stop | eps | min NN/mean: edge | interior | pairs (< 0.5 of the mean) | "
-          "paired r | closest to r = 0 | r < 0.15 | outside r = 1 | wall s |")
+    print("| run | N | split | edge / wall | steps | stop | eps | min NN/mean: edge | interior | "
+          "pairs (< 0.5 of the mean) | paired r | closest to r = 0 | r < 0.15 | outside r = 1 | wall s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for f, r in rows.items():
         pr = r.get("paired_r_range")
@@ -79,11 +79,12 @@ def main():
         print(f"| {Path(f).parent.name}/{Path(f).name} | {r['n']} | {r['split']} | {r['boundary']}, {wall}{extra} | "
               f"{r['steps']} | {r['stop_reason']} | {r['epsilon']:.2e} | {r['edge_nn_min_over_mean']:.3f} | "
               f"{r['interior_nn_min_over_mean']:.3f} | {r['edge_below_half'] + r['interior_below_half']} | "
-              f"{'-' if pr is None else f'{pr[0]:.2f}-{pr[1]:.2f}'} | {r['r_min']:.3f} | {r['particles_within_0_15']} | "
+              f"{'-' if pr is None else f'{pr[0]:.2f}-{pr[1]:.2f}'} | {r['r_min']:.3f} | "
+              f"{r['particles_within_0_15']} | "
               f"{r.get('outside_ball', '-')} | {r['wall_time_s']:.0f} |")
     print()
-    print("| energy check (300 steps from a_n2075_split1) | time span | steps with E_tot up | sum of increases | per unit "
-          "time | largest | max speed / c_s |")
+    print("| energy check (300 steps from a_n2075_split1) | time span | steps with E_tot up | sum of increases | "
+          "per unit time | largest | max speed / c_s |")
     print("|---|---|---|---|---|---|---|")
     for k, e in energy.items():
         print(f"| {k} | {e['time']:.2f} | {e['steps_increasing']} of {e['steps'] - 1} | {e['sum_of_increases']:.3g} | "

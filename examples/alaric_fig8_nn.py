@@ -18,8 +18,8 @@ from scipy.spatial import cKDTree
 
 def layer_checks(x_pd, radius=1.0, layers=2.0):
     """Pairing by layer: the smallest nearest-neighbour distance over the mean (the mean over all particles) in
-    the edge layer (``radius - r`` below ``layers`` mean nearest-neighbour distances) and in the interior, the particles below
-    0.5 of the mean in each, the closest particle to r = 0 and the particles within r < 0.15."""
+    the edge layer (``radius - r`` below ``layers`` mean nearest-neighbour distances) and in the interior, the
+    particles below 0.5 of the mean in each, the closest particle to r = 0 and the particles within r < 0.15."""
     dist, _ = cKDTree(x_pd).query(x_pd, k=2)
     nn_p = dist[:, 1]
     mean = float(nn_p.mean())
