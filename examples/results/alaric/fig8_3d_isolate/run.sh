@@ -1,8 +1,9 @@
 #!/bin/sh
 # Every command behind fig8_3d_isolate/ (issue 20 item 2, Fig. 8 in 3D), in the order they ran on 2026-12-02, from the
 # repository root; each niced, one thread. Load averages at each run's start and end: <name>.uptime.
-# sphrelax = PYTHONPATH=$PWD python -m ase_sphrelax.cli
+# sphrelax = python -m ase_sphrelax.cli (the venv python; PYTHONPATH is the repository root)
 D=examples/results/alaric/fig8_3d_isolate
+export PYTHONPATH=$PWD
 PY="env OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 python"
 run() { name=$1; shift; uptime > $D/$name.uptime; $PY "$@" > $D/$name.log 2>&1; uptime >> $D/$name.uptime; }
 
@@ -44,5 +45,13 @@ run c_n26411_smooth1 examples/alaric_fig8_isolate.py continue examples/results/a
   --smooth-wall 1 --max-steps 20000 --max-wall 1800 --every 50 --out $D/c_n26411_smooth1
 run c_n26411_smooth05 examples/alaric_fig8_isolate.py continue examples/results/alaric/fig8_mirror/3d_n26411 \
   --smooth-wall 0.5 --max-steps 20000 --max-wall 1500 --every 50 --out $D/c_n26411_smooth05
+# a stiffer smooth wall (L = 0.25): the energy check and N = 5283 (after the runs above)
+$PY examples/alaric_fig8_energy_check.py continue $D/a_n2075_split1 --max-steps 300 --smooth-wall 0.25 \
+  --out $D/energy/n2075_smooth025.json
+run d_n5283_smooth025 examples/alaric_fig8_isolate.py fresh --n 5283 --split 0 --smooth-wall 0.25 --max-steps 800 \
+  --max-wall 420 --every 100 --out $D/d_n5283_smooth025
+# (b) the N = 9625 split-1 run again with the smooth wall (L = 0.5), from the start (started 10:34, after the rest)
+run b_n9625_split1_smooth05 examples/alaric_fig8_isolate.py fresh --n 9625 --split 1 --smooth-wall 0.5 \
+  --max-steps 3000 --max-wall 840 --every 100 --out $D/b_n9625_split1_smooth05
 # the table and results.json
 python examples/alaric_fig8_isolate_table.py $D > $D/table.md
