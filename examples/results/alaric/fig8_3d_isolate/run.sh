@@ -53,5 +53,8 @@ run d_n5283_smooth025 examples/alaric_fig8_isolate.py fresh --n 5283 --split 0 -
 # (b) the N = 9625 split-1 run again with the smooth wall (L = 0.5), from the start (started 10:34, after the rest)
 run b_n9625_split1_smooth05 examples/alaric_fig8_isolate.py fresh --n 9625 --split 1 --smooth-wall 0.5 \
   --max-steps 3000 --max-wall 840 --every 100 --out $D/b_n9625_split1_smooth05
+# (f) a fresh run at the paper's N = 26 411 (split 0) with the smooth wall (L = 0.5), 14-min cap (started 10:39)
+run f_n26411_smooth05 examples/alaric_fig8_isolate.py fresh --n 26411 --split 0 --smooth-wall 0.5 --max-steps 20000 \
+  --max-wall 840 --every 100 --out $D/f_n26411_smooth05
 # the table and results.json
 python examples/alaric_fig8_isolate_table.py $D > $D/table.md
