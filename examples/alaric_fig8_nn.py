@@ -16,6 +16,26 @@ from ase.io import read
 from scipy.spatial import cKDTree
 
 
+def layer_checks(x_pd, radius=1.0, layers=2.0):
+    """Pairing by layer: the smallest nearest-neighbour distance over the mean (the mean over all particles) in
+    the edge layer (``radius - r`` below ``layers`` mean nearest-neighbour distances) and in the interior, the
+    particles below 0.5 of the mean in each, the closest particle to r = 0 and the particles within r < 0.15."""
+    dist, _ = cKDTree(x_pd).query(x_pd, k=2)
+    nn_p = dist[:, 1]
+    mean = float(nn_p.mean())
+    r_p = np.linalg.norm(x_pd, axis=1)
+    edge_p = radius - r_p < layers * mean
+    row = dict(nn_mean=mean, nn_min_over_mean=float(nn_p.min() / mean))
+    for name, m in (("edge", edge_p), ("interior", ~edge_p)):
+        row[f"{name}_n"] = int(m.sum())
+        row[f"{name}_nn_min_over_mean"] = float(nn_p[m].min() / mean) if m.any() else None
+        row[f"{name}_below_half"] = int(np.count_nonzero(nn_p[m] < 0.5 * mean))
+    paired_r = r_p[nn_p < 0.5 * mean]
+    row["paired_r_range"] = [float(paired_r.min()), float(paired_r.max())] if len(paired_r) else None
+    row.update(r_min=float(r_p.min()), particles_within_0_15=int(np.count_nonzero(r_p < 0.15)))
+    return row
+
+
 def fig8_checks(folder):
     folder = Path(folder)
     summary = json.loads((folder / "summary.json").read_text())
@@ -26,7 +46,8 @@ def fig8_checks(folder):
     return dict(epsilon=summary["epsilon"], epsilon_teo_min=summary["epsilon_teo_min"], steps=summary["steps"],
                 stop=summary["stop_reason"], converged=summary["converged"], boundary=summary["boundary"],
                 n=len(x), nn_min_over_mean=float(dist[:, 1].min() / dist[:, 1].mean()), r_min=float(r.min()),
-                particles_within_0_15=int(np.count_nonzero(r < 0.15)), wall_time_s=summary["wall_time_s"])
+                particles_within_0_15=int(np.count_nonzero(r < 0.15)), wall_time_s=summary["wall_time_s"],
+                layers=layer_checks(x) if dim == 3 else None)
 
 
 def main():
