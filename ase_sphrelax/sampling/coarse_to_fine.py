@@ -16,7 +16,7 @@ The split (:func:`split_into_children`): parent a, of volume ``V_a = m / rho_a``
 fluid's coordinates), becomes ``c_a`` children (:func:`child_counts`: ``k`` each, one more for the first ``M mod M_c``
 parents) at the parent plus the offsets of a pattern of zero mean in the cube of volume ``V_a`` around it: the cell
 centres of a ``j^d`` sub-grid when ``c_a = j^d`` (2D, k = 4: a 2 x 2 grid at spacing ``V_a^(1/d) / 2``, the fine
-fluid's), else ``c_a`` stratified points of the cube with their mean removed; each pattern turned by a seeded random
+fluid's), else ``c_a`` stratified points of the cube with their mean removed (within the cube of twice the side); each pattern turned by a seeded random
 rotation. Every parent's children have the parent's position as their mean (the ensemble mean is kept exactly, to
 round-off) and start at rest.
 
