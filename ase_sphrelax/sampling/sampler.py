@@ -73,9 +73,9 @@ VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(t
                       critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4))
 #: Numeric options a variant may set as ``name=value`` tokens.
 VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp",
-                   "coarse_to_fine", "coarse_share")
+                   "coarse_to_fine", "coarse_share", "score_every")
 #: Numeric variant options that are integers.
-VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine")
+VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every")
 
 
 def variant_options(spec):
@@ -230,6 +230,19 @@ class ParVISampler:
         The trace and the convergence verdict are the fine level's; ``max_steps`` applies to it.
     coarse_share : float
         In (0, 1): the share of the evaluations spent on the coarse level (default 0.5).
+    score_every : int
+        1 (default): the score is evaluated at every step. K > 1: multiple time steps: the score force is
+        evaluated at every K-th step and held (the positions of that step's score) over the K - 1 SPH steps in
+        between, while pressure, viscosity and drag are recomputed at every step; ``steps`` counts the SPH steps,
+        so a run costs ``steps / K`` score evaluations per particle (counted). The step stays the CFL step of the
+        pressure (stability), and the held score covers K of them: K times the physical time per evaluation,
+        at the price of the score's change over the held interval (accuracy in the score field, not H, sets K).
+        Exact at rest: at a resting state (``v = 0``, positions unchanged) the held score is the score at those
+        positions, so the resting states are those of ``score_every=1`` (force balance ``F_pressure + m alpha
+        s = 0``, theory.py) and the stationary density is unchanged; with friction the damped steps between
+        fresh scores have a constant score force (a potential), so a fixed point of the map is at rest. Energy
+        records (``trace["energy"]``) are taken every ``record_every * K`` steps; a renewal of the whitening map
+        evaluates the score afresh (counted).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -240,9 +253,14 @@ class ParVISampler:
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
                  whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
-                 friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5):
+                 friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5,
+                 score_every=1):
         self._options = {name: value for name, value in locals().items() if name != "self"}  # for the levels
         self.coarse_to_fine, self.coarse_share = check_coarse_options(coarse_to_fine, coarse_share)
+        if isinstance(score_every, bool) or not isinstance(score_every, (int, np.integer)) or score_every < 1:
+            raise ValueError(f"score_every must be an integer >= 1 (SPH steps per score evaluation), got "
+                             f"{score_every!r}")
+        self.score_every = int(score_every)
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -353,7 +371,8 @@ class ParVISampler:
                                whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
                                friction_every=self.friction_every, friction_ramp=self.friction_ramp,
                                neighbours=neighbours, k=getattr(self.model, "k", None),
-                               coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share)
+                               coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share,
+                               score_every=self.score_every)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -540,7 +559,9 @@ class ParVISampler:
             r = r + dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
-            ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
+            self.target.hold = step % self.score_every != 0  # score_every: the score of the last K-th step
+            ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % (self.record_every *
+                                                                                   self.score_every) == 0)
             v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
             fallback += ev.fallback
             sim_time += float(np.median(dt))
@@ -554,6 +575,7 @@ class ParVISampler:
             if renewing and step % self.whiten_every == 0 and step <= self.whiten_until * self.steps \
                     and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
                 r, v, rho = self.map.renew(r, v, rho)
+                self.target.hold = False  # the held score is in the old coordinates
                 ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
                 self._renew_drag()
             elif step % self.friction_every == 0:
@@ -571,6 +593,7 @@ class ParVISampler:
                     if bar is not None:
                         bar.total = limit
                         bar.refresh()
+        self.target.hold = False
         if bar is not None:
             bar.close()
         if verdict is None:  # steps = 0
@@ -660,6 +683,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       per step of a final particle) settle the large scales first, each is split into k children that finish at
       n; ``steps`` remains the evaluations per final particle, both levels counted (:mod:`.coarse_to_fine`).
       The fine level is the one-level fluid started from the children: the same stationary density.
+    * ``score_every=K`` — multiple time steps: the score evaluated every K-th SPH step and held in between
+      (pressure and drag at every step); ``steps`` counts SPH steps (``steps / K`` evaluations per particle),
+      so an evaluation covers K CFL steps of time; the resting states, hence the stationary density, are
+      those of K = 1 (see :class:`ParVISampler`).
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """

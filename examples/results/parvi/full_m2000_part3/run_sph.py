@@ -2,7 +2,8 @@
 
 The set-up of ``benchmarks/bench_sampling.py``: starts N(0, I) drawn with the seed, reference 20000 i.i.d. points
 (seed 10000), 5000 of them (seed 1) for the energy distance, i.i.d. floor of M points drawn with seed + 500. Each
-variant is a :func:`ase_sphrelax.sampling.sampler.variant_options` name. Rows (one per run) are appended to
+variant is a :func:`ase_sphrelax.sampling.sampler.variant_options` name; ``--steps`` is the budget in score
+evaluations per particle, so a variant with ``score_every=K`` runs ``K`` times as many SPH steps. Rows (one per run) are appended to
 ``--out`` as runs finish; ``evaluations_per_particle`` is the run's score + density evaluations over M.
 
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=. nice -n 10 .venv/bin/python \
@@ -51,8 +52,10 @@ def main():
                     try:
                         with warnings.catch_warnings():
                             warnings.simplefilter("ignore")
+                            options = variant_options(variant)
                             res = ParVISampler(target.log_density, target.score, dim=target.dim, n=args.m, x0=x0,
-                                               steps=steps, seed=seed, **variant_options(variant)).run()
+                                               steps=steps * options.get("score_every", 1), seed=seed,
+                                               **options).run()
                     except ParVIDivergence as exc:
                         row.update(error=str(exc)[:200], wall=time.perf_counter() - t0)
                     else:
@@ -61,6 +64,7 @@ def main():
                                    evaluations_per_particle=res.evaluations / args.m,
                                    sim_time_median=float(res.trace["time"][-1]), dt_median=res.info["dt_median"],
                                    converged=res.info["converged"],
+                                   sph_steps=res.info["steps"], n_score_per_particle=res.n_score / args.m,
                                    coarse=res.info.get("coarse"))
                     rows.append(row)
                     print(json.dumps(row), flush=True)
