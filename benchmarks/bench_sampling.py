@@ -5,7 +5,8 @@ One command writes the report (tables, plots, JSON) under ``examples/results/par
     .venv/bin/python benchmarks/bench_sampling.py            # the full evaluation
     .venv/bin/python benchmarks/bench_sampling.py --quick    # M in {100, 500}, 2 repeats, 400 steps: .../quick/
 
-The full run takes about two hours on the 2-vCPU machine (SVGD at M = 2000 and SPH-ParVI in 10-D dominate).
+The full run took about two hours on the 2-vCPU machine (SVGD at M = 2000 and SPH-ParVI in 10-D dominated; SVGD's
+median heuristic is 2.5-5x cheaper per step since 2026-12-02, examples/results/parvi/full_m2000_part3/svgd_cost.json).
 
 Methods, all started from the same initial points N(0, I) (seeded per repeat), all returning M points:
 
@@ -255,7 +256,8 @@ def main(argv=None):
                              "the baselines alone, without the equal-wall-time column")
     parser.add_argument("--baselines", nargs="*", choices=BASELINES, default=BASELINES,
                         help="the baseline samplers to run (default all: svgd ula mala emcee; SVGD, O(M^2), takes "
-                             "~20 min per run at M = 2000 with 1000 evaluations here)")
+                             "~6 min per target at M = 2000 with 1000 evaluations here at load 8, pilots included; "
+                             "~20 min per run before the median heuristic used pdist, 2026-12-02)")
     parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
     args = parser.parse_args(argv)
     try:
