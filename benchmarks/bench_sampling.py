@@ -22,7 +22,8 @@ Methods, all started from the same initial points N(0, I) (seeded per repeat), a
 * ``sph-<variant>`` — the issue-18 variants named by ``--sph-variants`` (default: ``default tait plog pinv``,
   the methods above), e.g. ``--sph-variants default whiten local whiten+local+critical``: each name is
   :func:`ase_sphrelax.sampling.sampler.variant_options` (tokens ``whiten``, ``local``, ``critical``,
-  ``name=number``, joined by ``+``) and appears as its own method ``sph-<name>`` in report.md and results.json;
+  ``name=number``, joined by ``+``) and appears as its own method ``sph-<name>`` in report.md and results.json
+  (a variant with ``score_every=K`` runs K times the SPH steps: the same score evaluations per particle);
 * ``svgd`` — RBF kernel with the median heuristic times a factor, Adam, numpy, checked against blackjax;
 * ``ula``, ``mala`` — M parallel chains, final states;
   SVGD's learning rate and bandwidth factor and ULA's and MALA's step sizes are set per target by ONE rule
@@ -202,8 +203,9 @@ def run_methods(target, m, seed, steps, methods, tuned_for=None):
             elif name.startswith("sph"):
                 options = dict(friction=RUN_OPTIONS["sph_friction"])
                 options.update(RUN_OPTIONS["sph"][name])  # a variant's own friction rule wins
-                res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0, steps=steps,
-                                   seed=seed, **options).run()
+                # steps = score evaluations per particle: score_every=K (the score held over K SPH steps) runs K x
+                res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0,
+                                   steps=steps * options.get("score_every", 1), seed=seed, **options).run()
             elif name == "svgd":
                 res = baselines.svgd(target.score, x0, steps, lr=tuned["svgd"][0], bandwidth_factor=tuned["svgd"][1],
                                      record_every=rec)
