@@ -5,7 +5,8 @@ One command writes the report (tables, plots, JSON) under ``examples/results/par
     .venv/bin/python benchmarks/bench_sampling.py            # the full evaluation
     .venv/bin/python benchmarks/bench_sampling.py --quick    # M in {100, 500}, 2 repeats, 400 steps: .../quick/
 
-The full run takes about two hours on the 2-vCPU machine (SVGD at M = 2000 and SPH-ParVI in 10-D dominate).
+The full run took about two hours on the 2-vCPU machine (SVGD at M = 2000 and SPH-ParVI in 10-D dominated; SVGD's
+median heuristic is 2.5-5x cheaper per step since 2026-12-02, examples/results/parvi/full_m2000_part3/svgd_cost.json).
 
 Methods, all started from the same initial points N(0, I) (seeded per repeat), all returning M points:
 
@@ -21,7 +22,8 @@ Methods, all started from the same initial points N(0, I) (seeded per repeat), a
 * ``sph-<variant>`` — the issue-18 variants named by ``--sph-variants`` (default: ``default tait plog pinv``,
   the methods above), e.g. ``--sph-variants default whiten local whiten+local+critical``: each name is
   :func:`ase_sphrelax.sampling.sampler.variant_options` (tokens ``whiten``, ``local``, ``critical``,
-  ``name=number``, joined by ``+``) and appears as its own method ``sph-<name>`` in report.md and results.json;
+  ``name=number``, joined by ``+``) and appears as its own method ``sph-<name>`` in report.md and results.json
+  (a variant with ``score_every=K`` runs K times the SPH steps: the same score evaluations per particle);
 * ``svgd`` — RBF kernel with the median heuristic times a factor, Adam, numpy, checked against blackjax;
 * ``ula``, ``mala`` — M parallel chains, final states;
   SVGD's learning rate and bandwidth factor and ULA's and MALA's step sizes are set per target by ONE rule
@@ -201,8 +203,9 @@ def run_methods(target, m, seed, steps, methods, tuned_for=None):
             elif name.startswith("sph"):
                 options = dict(friction=RUN_OPTIONS["sph_friction"])
                 options.update(RUN_OPTIONS["sph"][name])  # a variant's own friction rule wins
-                res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0, steps=steps,
-                                   seed=seed, **options).run()
+                # steps = score evaluations per particle: score_every=K (the score held over K SPH steps) runs K x
+                res = ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0,
+                                   steps=steps * options.get("score_every", 1), seed=seed, **options).run()
             elif name == "svgd":
                 res = baselines.svgd(target.score, x0, steps, lr=tuned["svgd"][0], bandwidth_factor=tuned["svgd"][1],
                                      record_every=rec)
@@ -238,6 +241,8 @@ def main(argv=None):
     parser.add_argument("--sizes", nargs="+", type=int, default=None)
     parser.add_argument("--repeats", type=int, default=None)
     parser.add_argument("--repeats-large", type=int, default=2, help="repeats at M >= 2000 (default 2)")
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="the repeats use seeds first-seed, first-seed + 1, ... (default 0): a run in parts")
     parser.add_argument("--wall-factor", type=float, default=20.0,
                         help="equal wall time: a faster baseline runs at most this many times its steps")
     parser.add_argument("--steps", type=int, default=None)
@@ -246,13 +251,15 @@ def main(argv=None):
     parser.add_argument("--sph-friction", type=float, default=None,
                         help="SPH-ParVI friction (default: the sampler's, 1 / target scale; 1 reproduces the "
                              "tables published before 2026-12-02)")
-    parser.add_argument("--sph-variants", nargs="+", default=DEFAULT_SPH_VARIANTS,
+    parser.add_argument("--sph-variants", nargs="*", default=DEFAULT_SPH_VARIANTS,
                         help="SPH-ParVI variants, each its own method sph-<name>: tait, plog, pinv (the paper's) or "
                              "a sampler variant (tokens default, whiten, local, critical, name=number joined by '+', "
-                             "e.g. whiten+local+critical); default: default tait plog pinv")
+                             "e.g. whiten+local+critical); default: default tait plog pinv; none (an empty list): "
+                             "the baselines alone, without the equal-wall-time column")
     parser.add_argument("--baselines", nargs="*", choices=BASELINES, default=BASELINES,
                         help="the baseline samplers to run (default all: svgd ula mala emcee; SVGD, O(M^2), takes "
-                             "~20 min per run at M = 2000 with 1000 evaluations here)")
+                             "~6 min per target at M = 2000 with 1000 evaluations here at load 8, pilots included; "
+                             "~20 min per run before the median heuristic used pdist, 2026-12-02)")
     parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
     args = parser.parse_args(argv)
     try:
@@ -287,7 +294,8 @@ def main(argv=None):
             half = len(ref) // 2
             floors[tname] = metrics.energy_distance(ref[:half], ref[half:])
         for m in sizes:
-            for seed in range(repeats if m < 2000 else min(repeats, args.repeats_large)):
+            for seed in range(args.first_seed, args.first_seed + (repeats if m < 2000 else
+                                                                    min(repeats, args.repeats_large))):
                 t0 = time.perf_counter()
                 runs = run_methods(target, m, seed, steps, methods)
                 sph_wall = runs.get("sph-default", {}).get("result")
@@ -319,7 +327,7 @@ def main(argv=None):
                                  ((r["method"], r) for r in rows if r["target"] == tname and r["m"] == m
                                   and r["seed"] == seed)), flush=True)
         # after every target: the report so far (a long run can be read while it goes on)
-        meta = dict(git=git_at_start, sizes=sizes, repeats=repeats, steps=steps, load_average=os.getloadavg(),
+        meta = dict(git=git_at_start, sizes=sizes, repeats=repeats, first_seed=args.first_seed, steps=steps, load_average=os.getloadavg(),
                     tuning=args.tuning, tuned={t: tuned_steps(get_target(t), steps, args.tuning)
                                                for t in done + [tname]},
                     tuning_ksd={f"{k[0]}/{k[1]}": {m: r["table"] for m, r in v.items()} for k, v in TUNED.items()},
@@ -358,7 +366,8 @@ def write_report(rows, meta, out):
     wall = meta.get("wall_so_far")
     lines = ["# SPH-ParVI evaluation", "",
              f"Generated by `{command}` (git {meta['git']}); sizes {meta['sizes']}, "
-             f"{meta['repeats']} repeats (seeds 0..{meta['repeats'] - 1}), {meta['steps']} evaluations per particle, "
+             f"{meta['repeats']} repeats (seeds {meta.get('first_seed', 0)}..{meta.get('first_seed', 0) + meta['repeats'] - 1}"
+             f"; at M >= 2000 at most --repeats-large), {meta['steps']} evaluations per particle, "
              f"load average {meta.get('load_average_start', '?')} at the start, {meta['load_average']} at the last "
              f"write" + (f", {wall / 60:.1f} min wall time for the targets done ({', '.join(meta['targets_done'])})"
                          if wall is not None else "") + ".", "",

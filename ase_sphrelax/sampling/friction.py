@@ -52,12 +52,19 @@ def check_friction(friction):
 
 class ScoreMemory(CountingTarget):
     """A :class:`CountingTarget` that keeps the last score it computed for ``n`` points (``last_score``, (n, d)):
-    the particles' scores of the last evaluation, for :func:`critical_drag`, at no extra evaluation."""
+    the particles' scores of the last evaluation, for :func:`critical_drag`, at no extra evaluation.
+
+    ``hold = True`` returns that last score again for ``n`` points, without evaluating or counting: the sampler's
+    ``score_every`` (the score force held over several SPH steps; see :class:`~.sampler.ParVISampler`)."""
 
     def __init__(self, log_density=None, score=None, dim=None, n=None):
         super().__init__(log_density, score, dim)
         self.n = n
         self.last_score = None
+        self.hold = False
+
+    def _held(self, x_pc):
+        return self.hold and self.last_score is not None and x_pc.shape[0] == self.n
 
     def _keep(self, g_pc):
         if g_pc.shape[0] == self.n:
@@ -65,10 +72,10 @@ class ScoreMemory(CountingTarget):
         return g_pc
 
     def score(self, x_pc):
-        return self._keep(super().score(x_pc))
+        return self.last_score if self._held(x_pc) else self._keep(super().score(x_pc))
 
     def fd_score_or_nan(self, x_pc):
-        return self._keep(super().fd_score_or_nan(x_pc))
+        return self.last_score if self._held(x_pc) else self._keep(super().fd_score_or_nan(x_pc))
 
 
 def critical_drag(score_pc, alpha):

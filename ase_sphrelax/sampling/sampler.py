@@ -47,6 +47,7 @@ import numpy as np
 from ..checks import NotConvergedWarning, check_positive
 from ..models.parvi import ParVIModel
 from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, KNNRatioParVIModel, check_k, check_knn_options
+from .coarse_to_fine import check_coarse_options, child_counts, coarse_schedule, split_into_children
 from .convergence import assess_convergence, ensemble_moments
 from .friction import ScoreMemory, check_friction, critical_drag, damp
 from .result import SampleResult
@@ -69,18 +70,22 @@ LOCAL_GROWTH = None
 
 #: The named ingredients of the issue-18 variants, joined by "+" in :func:`variant_options`.
 VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
-                      critical=dict(friction="critical"), knn=dict(neighbours="knn"),
+                      critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4), knn=dict(neighbours="knn"),
                       **{"knn-ratio": dict(neighbours="knn-ratio")})
 #: Numeric options a variant may set as ``name=value`` tokens.
-VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp", "k")
+VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp",
+                   "coarse_to_fine", "coarse_share", "score_every", "k")
+#: Numeric variant options that are integers.
+VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k")
 
 
 def variant_options(spec):
     """Keyword options of :class:`ParVISampler` for a variant name such as ``"whiten+local+critical"``.
 
     ``spec`` joins tokens with ``+``: the names of :data:`VARIANT_TOKENS` (``default``, ``whiten``,
-    ``local``, ``critical``, ``knn``, ``knn-ratio``) and ``name=value`` for a number of :data:`VARIANT_NUMBERS`
-    (``friction=0.3``, ``k=20``), e.g. ``"knn+whiten"`` for the 10-D Gaussian and the logistic posterior.
+    ``local``, ``critical``, ``coarse``, ``knn``, ``knn-ratio``) and ``name=value`` for a number of
+    :data:`VARIANT_NUMBERS` (``friction=0.3``, ``k=20``), e.g. ``"knn+whiten"`` for the 10-D Gaussian and the
+    logistic posterior.
     A token of neither kind is a one-line error naming it.
     """
     if not isinstance(spec, str) or not spec.strip():
@@ -98,8 +103,7 @@ def variant_options(spec):
             number = float(value)
         except ValueError:
             raise ValueError(f"variant {spec!r}: {name} needs a number, got {value!r}") from None
-        options[name] = int(number) if name in ("whiten_every", "friction_every", "k") and number.is_integer() \
-            else number
+        options[name] = int(number) if name in VARIANT_INTEGERS and number.is_integer() else number
     return options
 
 
@@ -218,6 +222,31 @@ class ParVISampler:
     k : int or None
         Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20, at most n - 1); an error with
         the kernel.
+    coarse_to_fine : None or int
+        None (default): one level. An integer k >= 2: coarse to fine (:mod:`.coarse_to_fine`): ``n // k``
+        particles run first with the same options (supports ``k^(1/d)`` times wider, so steps that long), then
+        each is split into k children (a ``2 x 2`` grid in its cell in 2D with k = 4; their mean is the parent)
+        and the n particles finish the run at rest. ``steps`` stays the budget in evaluations per final
+        particle: ``coarse_share`` of it goes to the coarse level (``floor(share steps n / (n // k))`` steps),
+        the rest to the fine one; ``n_score``/``n_density`` count both levels and ``info["coarse"]`` has the
+        coarse level's size, steps, evaluations and verdict. The fine level is the one-level fluid started
+        from the children: the stationary density is unchanged (the split only sets the initial condition).
+        The trace and the convergence verdict are the fine level's; ``max_steps`` applies to it.
+    coarse_share : float
+        In (0, 1): the share of the evaluations spent on the coarse level (default 0.5).
+    score_every : int
+        1 (default): the score is evaluated at every step. K > 1: multiple time steps: the score force is
+        evaluated at every K-th step and held (the positions of that step's score) over the K - 1 SPH steps in
+        between, while pressure, viscosity and drag are recomputed at every step; ``steps`` counts the SPH steps,
+        so a run costs ``steps / K`` score evaluations per particle (counted). The step stays the CFL step of the
+        pressure (stability), and the held score covers K of them: K times the physical time per evaluation,
+        at the price of the score's change over the held interval (accuracy in the score field, not H, sets K).
+        Exact at rest: at a resting state (``v = 0``, positions unchanged) the held score is the score at those
+        positions, so the resting states are those of ``score_every=1`` (force balance ``F_pressure + m alpha
+        s = 0``, theory.py) and the stationary density is unchanged; with friction the damped steps between
+        fresh scores have a constant score force (a potential), so a fixed point of the map is at rest. Energy
+        records (``trace["energy"]``) are taken every ``record_every * K`` steps; a renewal of the whitening map
+        evaluates the score afresh (counted).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -228,7 +257,14 @@ class ParVISampler:
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
                  whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
-                 friction_ramp=1.0, neighbours="kernel", k=None):
+                 friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5,
+                 score_every=1):
+        self._options = {name: value for name, value in locals().items() if name != "self"}  # for the levels
+        self.coarse_to_fine, self.coarse_share = check_coarse_options(coarse_to_fine, coarse_share)
+        if isinstance(score_every, bool) or not isinstance(score_every, (int, np.integer)) or score_every < 1:
+            raise ValueError(f"score_every must be an integer >= 1 (SPH steps per score evaluation), got "
+                             f"{score_every!r}")
+        self.score_every = int(score_every)
         if isinstance(dim, bool) or not isinstance(dim, (int, np.integer)) or dim < 1:
             raise ValueError(f"dim must be an integer >= 1, got {dim!r}")
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 2:
@@ -290,6 +326,14 @@ class ParVISampler:
         self.dim, self.n, self.steps = int(dim), int(n), int(steps)
         if self.model.adaptive:
             self.model._eta_for(self.n)  # M too small for an adaptive support: an error before any work
+        if self.coarse_to_fine is not None:
+            self.schedule = coarse_schedule(self.n, self.steps, self.coarse_to_fine, self.coarse_share)
+            if self.model.adaptive:
+                try:
+                    self.model._eta_for(self.schedule[0])
+                except ValueError as error:
+                    raise ValueError(f"coarse_to_fine={self.coarse_to_fine}: the coarse level's "
+                                     f"{self.schedule[0]} particles: {error}") from None
         self.h_schedule = h_schedule
         self.h_start = None if isinstance(h, str) else float(h)
         self.h_end = check_positive("h_end", h_end, allow_none=True)
@@ -330,7 +374,9 @@ class ParVISampler:
                                (self.whiten if isinstance(self.whiten, str) else self.whiten.tolist()),
                                whiten_every=self.whiten_every, whiten_until=self.whiten_until, time_step=time_step,
                                friction_every=self.friction_every, friction_ramp=self.friction_ramp,
-                               neighbours=neighbours, k=getattr(self.model, "k", None))
+                               neighbours=neighbours, k=getattr(self.model, "k", None),
+                               coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share,
+                               score_every=self.score_every)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -453,6 +499,8 @@ class ParVISampler:
         own evaluations, not in ``n_density``/``n_score``). Warns :class:`NotConvergedWarning`
         when not converged.
         """
+        if self.coarse_to_fine is not None:
+            return self._run_coarse_to_fine()
         t0 = time.perf_counter()
         model = self.model
         self._dt_p = None  # the local steps of the previous step (LOCAL_GROWTH)
@@ -515,7 +563,9 @@ class ParVISampler:
             r = r + dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
-            ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
+            self.target.hold = step % self.score_every != 0  # score_every: the score of the last K-th step
+            ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % (self.record_every *
+                                                                                   self.score_every) == 0)
             v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
             fallback += ev.fallback
             sim_time += float(np.median(dt))
@@ -529,6 +579,7 @@ class ParVISampler:
             if renewing and step % self.whiten_every == 0 and step <= self.whiten_until * self.steps \
                     and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
                 r, v, rho = self.map.renew(r, v, rho)
+                self.target.hold = False  # the held score is in the old coordinates
                 ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
                 self._renew_drag()
             elif step % self.friction_every == 0:
@@ -546,11 +597,13 @@ class ParVISampler:
                     if bar is not None:
                         bar.total = limit
                         bar.refresh()
+        self.target.hold = False
         if bar is not None:
             bar.close()
         if verdict is None:  # steps = 0
             verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
                                          friction=self.damping_rate())
+        self.final_state = (r, ev)  # in the fluid's coordinates (y when whitened): the coarse level's split
         r = to_x(r)
         samples = r if self.rule == "final" else best["samples"]
         chosen = step if self.rule == "final" else best["step"]
@@ -577,6 +630,37 @@ class ParVISampler:
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
                             info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"])))
 
+    def _run_coarse_to_fine(self):
+        """``coarse_to_fine=k`` (:mod:`.coarse_to_fine`): the coarse level, its split, the fine level; both levels'
+        evaluations counted."""
+        t0 = time.perf_counter()
+        n_coarse, coarse_steps, fine_steps = self.schedule
+        options = dict(self._options, coarse_to_fine=None)
+        x0 = None if self.x0 is None else self.x0[:n_coarse]
+        coarse = ParVISampler(**dict(options, n=n_coarse, steps=coarse_steps, x0=x0, max_steps=None, rule="final"))
+        with warnings.catch_warnings():  # the coarse level's verdict goes to info["coarse"]
+            warnings.simplefilter("ignore", NotConvergedWarning)
+            coarse_result = coarse.run()
+        r_pc, ev = coarse.final_state
+        volume_p = np.broadcast_to(np.asarray(ev.mass, dtype=float) / ev.rho, (n_coarse,))
+        children = split_into_children(r_pc, volume_p, child_counts(self.n, n_coarse), seed=self.seed)
+        if coarse.map is not None:
+            children = coarse.map.to_x(children)
+        fine = ParVISampler(**dict(options, steps=fine_steps, x0=children))
+        result = fine.run()
+        result.n_score += coarse_result.n_score
+        result.n_density += coarse_result.n_density
+        result.wall_time = time.perf_counter() - t0
+        result.info["coarse"] = dict(factor=self.coarse_to_fine, share=self.coarse_share, n=n_coarse,
+                                     steps=coarse_steps, fine_steps=fine_steps, n_score=coarse_result.n_score,
+                                     n_density=coarse_result.n_density, wall=coarse_result.wall_time,
+                                     converged=coarse_result.info["converged"],
+                                     convergence_reason=coarse_result.info["convergence_reason"],
+                                     time=float(coarse_result.trace["time"][-1]),
+                                     final_h_median=coarse_result.info["final_h_median"])
+        result.info.update(coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share)
+        return result
+
 
 def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     """Sample with SPH-ParVI in its default configuration (:data:`DEFAULTS`); returns a SampleResult.
@@ -599,6 +683,20 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
     * ``friction="critical"`` — a drag critical along each principal direction of the target's curvature
       seen by the particles, renewed every ``friction_every`` steps; ``friction_ramp < 1`` starts any
       friction lower; friction never changes the stationary density (theory.py, eqs. F1-F3).
+    * ``coarse_to_fine=k`` (with ``coarse_share``, default 0.5) — a step that does not shrink with M beyond
+      what accuracy needs: ``n // k`` particles (``k^(1/d)`` times longer CFL steps, ``1/k`` of the evaluations
+      per step of a final particle) settle the large scales first, each is split into k children that finish at
+      n; ``steps`` remains the evaluations per final particle, both levels counted (:mod:`.coarse_to_fine`).
+      The fine level is the one-level fluid started from the children: the same stationary density.
+      Measured at M = 2000 (examples/results/parvi/full_m2000_part3/): better than one level on the banana,
+      worse on the funnel, short of 2x i.i.d. on both (the coarse level's error relaxes slowly too).
+    * ``score_every=K`` — multiple time steps: the score evaluated every K-th SPH step and held in between
+      (pressure and drag at every step); ``steps`` counts SPH steps (``steps / K`` evaluations per particle),
+      so an evaluation covers K CFL steps of time; the resting states, hence the stationary density, are
+      those of K = 1 (see :class:`ParVISampler`). Measured at M = 2000 with 1000 evaluations and
+      ``time_step="local", friction="critical"`` (examples/results/parvi/full_m2000_part3/): K = 4 takes the
+      banana below i.i.d. (0.1-0.35x) at ~5x the wall time, and loses the funnel (its neck's score changes
+      within the hold).
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
