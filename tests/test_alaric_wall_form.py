@@ -248,3 +248,25 @@ def test_cli_wall_form_reaches_the_calculator(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "ase_sphrelax.cli", "density", "--wall-form", "cubic", "--out",
                           str(tmp_path / "bad")], capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "--wall-form" in bad.stderr
+
+
+@pytest.mark.parametrize("wall_form", ["linear", "quadratic"])
+def test_stress_includes_the_wall(wall_form):
+    """A periodic 3D cell with a ball domain inside it (about half the particles outside): the stress is the strain
+    derivative of the energy, wall included (the wall's share comes in through -F_ext (x) x)."""
+    from ase.calculators.fd import calculate_numerical_stress
+
+    rng = np.random.default_rng(5)
+    grid = (np.stack(np.meshgrid(*[np.arange(5)] * 3, indexing="ij"), axis=-1).reshape(-1, 3) + 0.5) / 5
+    atoms = Atoms(numbers=np.zeros(len(grid), int), positions=grid + rng.uniform(-0.03, 0.03, grid.shape),
+                  cell=np.eye(3), pbc=True)
+    domain = Sphere((0.5, 0.5, 0.5), 0.4)
+    atoms.calc = _calc(3, domain, wall_form=wall_form)
+    stress = atoms.get_stress()
+    assert np.sum(np.asarray(domain.phi(atoms.positions)) > 0) > 20
+    with_wall = atoms.get_potential_energy()
+    fd = calculate_numerical_stress(atoms, eps=1e-6)
+    np.testing.assert_allclose(stress, fd, atol=1e-6 * np.abs(stress).max())
+    atoms.calc = _calc(3, domain, wall_form=wall_form, mass=atoms.calc.mass, wall_length=1e12)
+    assert with_wall - atoms.get_potential_energy() > 0.1 * abs(with_wall)  # the wall carries a real share
+    assert np.abs(atoms.get_stress() - stress).max() > 0.1 * np.abs(stress).max()
