@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from ase import Atoms
 from ase.calculators.fd import calculate_numerical_forces
+from hypothesis import given, settings, strategies as st
 
 from ase_sphrelax import ALARICCalculator
 from ase_sphrelax.calculators.alaric import QUADRATIC_WALL_FACTOR
@@ -37,15 +38,15 @@ def _domain(dim, kind):
     return Circle((0.0, 0.0), 1.0) if kind == "disc" else Circle((0.0, 0.0), 1.0).to_polygon(24)
 
 
-def _edge_atoms(dim, domain, seed=0):
-    """Random particles in the unit ball, the first three moved to the boundary along random directions: one just
-    inside (phi = -1e-3), one just outside (phi = +1e-3), one on it (phi = 0 to rounding), one well outside."""
+def _edge_atoms(dim, domain, seed=0, phis=(-1e-3, 1e-3, 0.0, 0.03)):
+    """Random particles in the unit ball, the first four moved to ``phis`` along random directions (default: just
+    inside, just outside, on the boundary (phi = 0 to rounding), well outside)."""
     n = {2: 40, 3: 70}[dim]
     rng = np.random.default_rng(seed)
     u_nd = rng.normal(size=(n, dim))
     u_nd /= np.linalg.norm(u_nd, axis=1)[:, None]
     x_nd = u_nd * rng.uniform(0.0, 0.9, n)[:, None] ** (1.0 / dim)
-    for k, phi in enumerate((-1e-3, 1e-3, 0.0, 0.03)):
+    for k, phi in enumerate(phis):
         x = u_nd[k]
         # the boundary along u (a polygon's is inside the circle): bisect phi(t u) = phi
         lo, hi = 0.5, 1.2
@@ -86,6 +87,22 @@ def test_forces_are_the_negative_gradient_at_the_boundary(wall_form, dim, kind, 
     e = atoms.get_potential_energy()
     atoms.calc = _calc(dim, domain, wall_form=wall_form, boundary=boundary, mass=m, wall_length=1e12)
     assert abs(e - atoms.get_potential_energy() - expected) < 1e-9 * expected
+
+
+@settings(max_examples=6, deadline=None, database=None)
+@given(wall_form=st.sampled_from(["linear", "quadratic"]), dim=st.sampled_from([2, 3]),
+       seed=st.integers(min_value=0, max_value=2**31 - 1),
+       phis=st.lists(st.floats(min_value=-0.05, max_value=0.05).filter(lambda x: abs(x) > 1e-4), min_size=4,
+                     max_size=4))
+def test_forces_are_the_negative_gradient_property(wall_form, dim, seed, phis):
+    """Random starts with four particles at random depths in and out of the domain (away from the kink by more
+    than the FD step): forces = -grad U for both walls."""
+    domain = _domain(dim, "disc")
+    atoms = _edge_atoms(dim, domain, seed=seed % 1000, phis=tuple(phis))
+    atoms.calc = _calc(dim, domain, wall_form=wall_form)
+    f = atoms.get_forces()
+    fd = calculate_numerical_forces(atoms, eps=1e-6, iatoms=[0, 1, 2, 3], icarts=list(range(dim)))
+    np.testing.assert_allclose(f[:4, :dim], fd[:, :dim], rtol=0, atol=1e-6 * np.abs(f).max())
 
 
 def _force_across(wall_form, phi):
@@ -248,6 +265,10 @@ def test_cli_wall_form_reaches_the_calculator(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "ase_sphrelax.cli", "density", "--wall-form", "cubic", "--out",
                           str(tmp_path / "bad")], capture_output=True, text=True, timeout=600)
     assert bad.returncode != 0 and "--wall-form" in bad.stderr
+    one_d = subprocess.run([sys.executable, "-m", "ase_sphrelax.cli", "density", "--wall-form", "quadratic", "--out",
+                            str(tmp_path / "bad1d")], capture_output=True, text=True, timeout=600)
+    assert one_d.returncode == 2 and "--wall-form is for --dim 2 or 3" in one_d.stderr
+    assert "Traceback" not in one_d.stderr
 
 
 @pytest.mark.parametrize("wall_form", ["linear", "quadratic"])

@@ -120,6 +120,9 @@ def run(args):
         domain = None
         if dim == 1 and args.boundary == "mirror":
             raise UsageError("--boundary mirror is for --dim 2 or 3 (1D runs on a periodic interval, no boundary)")
+        if dim == 1 and args.wall_form != "linear":
+            raise UsageError(f"--wall-form is for --dim 2 or 3 (1D runs on a periodic interval, no boundary), got "
+                             f"--wall-form {args.wall_form} with --dim 1")
         if dim == 1 and args.domain != "ball":
             raise UsageError(f"--domain is for --dim 2 or 3 (1D runs on the periodic interval [-1, 1)), "
                              f"got --domain {args.domain!r} with --dim 1")
@@ -183,7 +186,7 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(result["trace"], indent=1))
     summary = dict(profile=args.profile, delta=args.delta if args.profile == "eq46" else None,
                    p=args.p if args.profile == "eq49" else None, dim=dim, n=len(atoms), splits=args.split,
-                   form=args.form, boundary=calc.parameters.boundary, wall_form=calc.parameters.wall_form,
+                   form=args.form, boundary=calc.parameters.boundary, wall_form=calc.parameters.wall_form if dim > 1 else None,
                    finish=args.finish, polish=do_polish,
                    epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
