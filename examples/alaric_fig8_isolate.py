@@ -34,29 +34,22 @@ from alaric_fig8_nn import layer_checks  # noqa: E402
 
 
 def smooth_wall_calculator(length_factor, **kwargs):
-    """An ALARICCalculator whose domain wall is quadratic, ``U_wall = m c_s^2 phi_+^2 / (2 L^2)`` with ``L =
-    length_factor (V / N)^(1/3)``, in place of the package's linear wall ``m c_s^2 phi_+ / L0`` (``L0 = 0.1 (V /
-    N)^(1/3)``), whose force jumps from 0 to ``m c_s^2 / L0`` when a particle crosses the boundary. Forces stay the
-    exact gradient of the reported energy (``examples/alaric_fig8_fd_check.py``). An experiment, not package code."""
-    from ase_sphrelax.calculators.alaric import ALARICCalculator
+    """An ALARICCalculator with the package's quadratic domain wall (``wall_form="quadratic"``), ``U_wall = m c_s^2
+    phi_+^2 / (2 L^2)`` with ``L = length_factor (V / N)^(1/3)`` (N the current count), in place of the default
+    linear wall ``m c_s^2 phi_+ / L0`` (``L0 = 0.1 (V / N)^(1/3)``), whose force jumps from 0 to ``m c_s^2 / L0``
+    when a particle crosses the boundary. ``length_factor = 0.5`` is the package's default L; other factors only
+    change :meth:`quadratic_wall_length` (``tests/test_alaric_wall_form.py`` checks that the package form gives the
+    energy and forces of this experiment's first, stand-alone version)."""
+    from ase_sphrelax.calculators.alaric import QUADRATIC_WALL_FACTOR, ALARICCalculator
 
-    class SmoothWallALARIC(ALARICCalculator):
-        def evaluate(self, st, properties):
-            self._wall = np.inf  # the linear wall adds exactly 0 (energy and force)
-            out = super().evaluate(st, properties)
-            p, d, n = self.parameters, st.dim, len(st.r_pc)
-            length = length_factor * (float(p.domain.volume) / n) ** (1.0 / d)
-            phi_p, normal_pd = p.domain.phi_and_normal(self.points(st.atoms.positions, st.atoms))
-            depth_p = np.maximum(np.asarray(phi_p, dtype=float), 0.0)
-            k = self.mass * p.cs2 / length**2
-            out["energies"] = out["energies"] + 0.5 * k * depth_p**2
-            out["energy"] = float(out["energies"].sum())
-            if "forces" in out:
-                out["forces"] = out["forces"].copy()
-                out["forces"][:, :d] -= (k * depth_p)[:, None] * np.asarray(normal_pd, dtype=float)[:, :d]
-            return out
+    if length_factor == QUADRATIC_WALL_FACTOR:
+        return ALARICCalculator(wall_form="quadratic", **kwargs)
 
-    return SmoothWallALARIC(**kwargs)
+    class ScaledQuadraticWallALARIC(ALARICCalculator):
+        def quadratic_wall_length(self, n, d):
+            return length_factor * (float(self.parameters.domain.volume) / n) ** (1.0 / d)
+
+    return ScaledQuadraticWallALARIC(wall_form="quadratic", **kwargs)
 
 
 def build(args):

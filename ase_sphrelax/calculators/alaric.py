@@ -18,7 +18,7 @@ from ..models import alaric as model
 from ..neighbors import NeighborList
 from .base import SPHCalculator
 
-__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR", "needed_ghosts"]
+__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR", "QUADRATIC_WALL_FACTOR", "WALL_FORMS", "needed_ghosts"]
 
 PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
@@ -29,6 +29,9 @@ SKIN_FACTOR = 0.1
 # boundary="mirror": the stored ghost set reaches this much deeper than needed (times the mean H at the first
 # evaluation), so that it changes only when particles moved that far (_solve_with_ghosts)
 GHOST_SKIN = 0.25
+WALL_FORMS = ("linear", "quadratic")  # the domain wall's energy per particle outside (wall_form)
+# wall_form="quadratic": default L = this times (V_domain / N)^(1/d) (examples/results/alaric/fig8_3d_isolate: 0.5)
+QUADRATIC_WALL_FACTOR = 0.5
 
 
 @numba.njit(cache=True)
@@ -109,7 +112,8 @@ class ALARICCalculator(SPHCalculator):
         exact Omega. The conservative forms always use the exact Omega (a floor there made the force differ
         from -grad U by 35x at a pair 1e-4 H apart), and refuse ``omega_floor``.
     domain : Domain or None
-        Particles outside it (``phi > 0``) feel ``m c_s^2 phi / wall_length`` (linear wall, exact gradient).
+        Particles outside it (``phi > 0``, ``phi`` its signed distance) feel a wall energy (``wall_form``), whose
+        exact gradient is in the forces (and, through ``-F (x) x``, in the stress).
     boundary : {"wall", "mirror"}
         What the kernels see at the domain's edge. ``"wall"``: nothing (truncated kernels: an edge particle's
         SPH density is about half the interior's). ``"mirror"``: every particle whose mirror image
@@ -120,9 +124,18 @@ class ALARICCalculator(SPHCalculator):
         stored with a skin (``GHOST_SKIN``) and kept between neighbour-list rebuilds (ghosts beyond every support
         add exactly nothing). Needs a Ball/Circle/Sphere or a convex 2D Polygon
         domain and no periodic axes. The wall stays (it pulls back a particle that left the domain).
+    wall_form : {"linear", "quadratic"}
+        ``"linear"`` (default; every stored figure used it): ``U_wall = m c_s^2 phi_+ / L`` per particle, with
+        ``phi_+ = max(phi, 0)``: its force jumps from 0 to ``m c_s^2 / L`` as a particle crosses the boundary, and
+        a leapfrog step across that jump adds energy (the hot, pairing edge layer of Fig. 8 in 3D at N = 26 411,
+        ``examples/results/alaric/fig8_3d_isolate``). ``"quadratic"``: ``U_wall = m c_s^2 phi_+^2 / (2 L^2)``,
+        whose force ``m c_s^2 phi_+ / L^2`` goes to 0 as ``phi -> 0+``: no force jump (with it that run converged at
+        epsilon 1.8e-4 without pairing, ``fig8_3d_isolate/f_n26411_smooth05``).
     wall_length : float or None
-        Default: a tenth of the mean particle spacing ``(V_domain / N)^(1/d)`` at the first evaluation
-        (stiff enough to beat the outward pressure on a particle alone outside).
+        ``L`` of ``wall_form``. Default for ``"linear"``: a tenth of the mean particle spacing
+        ``(V_domain / N)^(1/d)`` at the first evaluation (stiff enough to beat the outward pressure on a particle
+        alone outside), then kept. Default for ``"quadratic"``: ``0.5 (V_domain / N)^(1/d)`` with the current N at
+        every evaluation (it follows splitting, as the experiment ``examples/alaric_fig8_isolate.py`` did).
     density_floor : float or None
         ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-4 max rho*`` over the particles of the first
         evaluation (``grad ln rho*`` diverges like ``2/r`` at a quadratic zero of the target, Eq. 46 with
@@ -148,7 +161,7 @@ class ALARICCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None,
-                              boundary="wall", background=0.0,
+                              boundary="wall", background=0.0, wall_form="linear",
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):
@@ -182,6 +195,8 @@ class ALARICCalculator(SPHCalculator):
         p.h_tol = check_positive("h_tol", p.h_tol)
         p.eta = check_positive("eta", p.eta, allow_none=True)
         p.wall_length = check_positive("wall_length", p.wall_length, allow_none=True)
+        if p.wall_form not in WALL_FORMS:
+            raise ValueError(f"wall_form must be one of {WALL_FORMS}, got {p.wall_form!r}")
         p.density_floor = check_positive("density_floor", p.density_floor, allow_none=True)
         if p.form not in model.FORMS:
             raise ValueError(f"form must be one of {model.FORMS}, got {p.form!r}")
@@ -235,6 +250,14 @@ class ALARICCalculator(SPHCalculator):
         if self.origin.shape != (dim,):
             raise ValueError(f"origin must be {dim} finite numbers or None (the atoms are {dim}D), got {p.origin!r}")
         self.h_p = None
+
+    def quadratic_wall_length(self, n, d):
+        """``L`` of the quadratic wall for ``n`` particles in ``d`` dimensions: ``wall_length`` if given, else
+        ``QUADRATIC_WALL_FACTOR (V_domain / n)^(1/d)``."""
+        p = self.parameters
+        if p.wall_length is not None:
+            return p.wall_length
+        return QUADRATIC_WALL_FACTOR * (float(p.domain.volume) / n) ** (1.0 / d)
 
     # -- public controls for the dynamics (ALARICDynamics) ----------------------------------------------
     def set_mass(self, mass):
@@ -407,12 +430,18 @@ class ALARICCalculator(SPHCalculator):
             energies_p = m * cs2 * (np.log(rho_p) - log_target)
         wall_p = None
         if p.domain is not None:
-            if self._wall is None:
+            if self._wall is None and p.wall_form == "linear":
                 self._wall = 0.1 * (float(p.domain.volume) / n) ** (1.0 / d)
             phi_p, normal_pc = p.domain.phi_and_normal(x_pd)
             phi_p = np.asarray(phi_p, dtype=float)
-            energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
-            wall_p = (phi_p, np.asarray(normal_pc, dtype=float))
+            if p.wall_form == "linear":
+                energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
+                wall_p = (phi_p, np.asarray(normal_pc, dtype=float), None)
+            else:  # quadratic: U = m c_s^2 phi_+^2 / (2 L^2), dU/dphi = m c_s^2 phi_+ / L^2 (0 at phi = 0)
+                stiffness = m * cs2 / self.quadratic_wall_length(n, d) ** 2
+                depth_p = np.maximum(phi_p, 0.0)
+                energies_p += 0.5 * stiffness * depth_p**2
+                wall_p = (phi_p, np.asarray(normal_pc, dtype=float), stiffness * depth_p)
         out = dict(density=rho_p, number_density=n_p, smoothing_lengths=state.h_p, omega=state.omega_p,
                    target=target_p, epsilon=model.epsilon(rho_p, target_p, n_p))
         if self.conservative:
@@ -477,9 +506,12 @@ class ALARICCalculator(SPHCalculator):
             grad_pd = self.target.gradients(x_pd)
             f_ext_pd += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
-            phi_p, normal_pc = wall_p
+            phi_p, normal_pc, slope_p = wall_p
             outside = phi_p > 0.0
-            f_ext_pd[outside] -= (m * cs2 / self._wall) * normal_pc[outside, :d]
+            if slope_p is None:  # linear: dU/dphi = m c_s^2 / L outside
+                f_ext_pd[outside] -= (m * cs2 / self._wall) * normal_pc[outside, :d]
+            else:  # quadratic: dU/dphi = m c_s^2 phi_+ / L^2
+                f_ext_pd[outside] -= slope_p[outside, None] * normal_pc[outside, :d]
         f_pc = np.zeros((len(r_pc), 3))
         f_pc[:, :d] = f_pd
         if f_ext_pd is not f_pd:

@@ -46,6 +46,10 @@ def add_arguments(parser):
                         help="edge treatment in 2D/3D: mirror ghosts that complete the kernels at a ball's or a "
                              "convex polygon's boundary, or wall (truncated kernels); auto (default): mirror "
                              "where the domain allows it, else wall")
+    parser.add_argument("--wall-form", choices=("linear", "quadratic"), default="linear",
+                        help="2D/3D: the domain wall's energy per particle outside, linear m c^2 phi/L (default, "
+                             "L = 0.1 (V/N)^(1/d)) or quadratic m c^2 phi^2/(2 L^2) (L = 0.5 (V/N)^(1/d): no force "
+                             "jump at the boundary, examples/results/alaric/fig8_3d_isolate)")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
     parser.add_argument("--finish", choices=("none", "squares"), default="none",
@@ -116,6 +120,9 @@ def run(args):
         domain = None
         if dim == 1 and args.boundary == "mirror":
             raise UsageError("--boundary mirror is for --dim 2 or 3 (1D runs on a periodic interval, no boundary)")
+        if dim == 1 and args.wall_form != "linear":
+            raise UsageError(f"--wall-form is for --dim 2 or 3 (1D runs on a periodic interval, no boundary), got "
+                             f"--wall-form {args.wall_form} with --dim 1")
         if dim == 1 and args.domain != "ball":
             raise UsageError(f"--domain is for --dim 2 or 3 (1D runs on the periodic interval [-1, 1)), "
                              f"got --domain {args.domain!r} with --dim 1")
@@ -155,6 +162,7 @@ def run(args):
         eps_teo = alaric_min_error(args.n, args.delta, dim)
     result = relax_density(atoms, density, dim, target_gradient=gradient, splits=args.split, domain=domain,
                            origin=origin, form=args.form, polish=do_polish, boundary=args.boundary,
+                           wall_form=args.wall_form,
                            finish=args.finish if args.form == "log" else "none",
                            polish_steps=args.polish_steps,
                            max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
@@ -178,7 +186,8 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(result["trace"], indent=1))
     summary = dict(profile=args.profile, delta=args.delta if args.profile == "eq46" else None,
                    p=args.p if args.profile == "eq49" else None, dim=dim, n=len(atoms), splits=args.split,
-                   form=args.form, boundary=calc.parameters.boundary, finish=args.finish, polish=do_polish,
+                   form=args.form, boundary=calc.parameters.boundary, wall_form=calc.parameters.wall_form if dim > 1 else None,
+                   finish=args.finish, polish=do_polish,
                    epsilon=eps,
                    epsilon_dynamics=float(result["epsilon_dynamics"]), epsilon_teo_min=eps_teo,
                    steps=int(result["steps"]), force_calls=int(result["force_calls"]),

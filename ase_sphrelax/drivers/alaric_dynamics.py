@@ -374,7 +374,8 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
 
 def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
                   form="log", polish=None, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
-                  progress=False, seed=0, epsilon_min=None, boundary="auto", finish="none", **dynamics):
+                  progress=False, seed=0, epsilon_min=None, boundary="auto", finish="none", wall_form="linear",
+                  **dynamics):
     """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
     least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
 
@@ -400,6 +401,9 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     edge particles' density is about half the target and dominates epsilon (Fig. 13:
     ``examples/results/alaric/fig13_mirror``).
 
+    ``wall_form``: the calculator's domain wall, ``"linear"`` (default) or ``"quadratic"`` (no force jump at the
+    boundary; :class:`~ase_sphrelax.calculators.alaric.ALARICCalculator`), also in the polish.
+
     Returns
     -------
     dict
@@ -419,7 +423,7 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     boundary = resolve_boundary(boundary, domain)
     finish = _resolve_finish(finish, dim)
     calc = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim, form=form,
-                            domain=domain, origin=origin, boundary=boundary)
+                            domain=domain, origin=origin, boundary=boundary, wall_form=wall_form)
     atoms.calc = calc
     bar = None
     if progress:
@@ -449,7 +453,8 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         eps_final, polish_trace, calls = polish_least_squares(
             atoms, target_density, dim, reset_mass(res["target"], res["number_density"]), target_gradient,
             domain=domain, origin=origin, steps=polish_steps, eps_min=eps_min, spacing=float(np.mean(
-                res["smoothing_lengths"])) / calc.eta, bar=bar, boundary=boundary)
+                res["smoothing_lengths"])) / calc.eta, bar=bar, boundary=boundary,
+                wall_form=wall_form)
         force_calls += calls
         trace += [dict(e, step=dyn.nsteps + e["step"], stage=dyn.stage, wall=time.perf_counter() - t0)
                   for e in polish_trace]
@@ -488,7 +493,8 @@ def _target_and_n(calc, atoms):
 
 
 def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None, domain=None, origin=None, steps=4000,
-                         eps_min=0.0, spacing=None, bar=None, chunk=250, boundary="wall"):
+                         eps_min=0.0, spacing=None, bar=None, chunk=250, boundary="wall",
+                         wall_form="linear"):
     """LBFGS on the least-squares potential (``form="squares"``) from the current positions; keeps the best.
 
     Returns ``(epsilon, trace, force_calls)``; ``epsilon`` (Eq. 45 with the Eq. 44 mass) of the best
@@ -500,7 +506,8 @@ def polish_least_squares(atoms, target_density, dim, mass, target_gradient=None,
     from ..models.alaric import epsilon as eq45, reset_mass
 
     squares = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim,
-                               form="squares", domain=domain, origin=origin, mass=mass, boundary=boundary)
+                               form="squares", domain=domain, origin=origin, mass=mass, boundary=boundary,
+                               wall_form=wall_form)
     squares.silence_scale_hint()  # LBFGS below is scaled to the potential (alpha, maxstep)
     atoms.calc = squares
     atoms.set_velocities(np.zeros((len(atoms), 3)))
