@@ -22,3 +22,11 @@ OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46
   > examples/results/alaric/fig8_mirror/3d_n2075_after.log 2>&1
 python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n2075_after \
   --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n2075_after
+# 3D with N = 26 411 and the opt-in quadratic domain wall (issue 20: the linear wall's force jump heats the edge
+# layer, fig8_3d_isolate/); same as the 26 411 command above otherwise (lead, 2026-12-02 11:05-11:19 UTC, load 3.5 -> 3.0)
+OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 sphrelax density --profile eq46 --delta 0.01 --dim 3 --n 26411 \
+  --split 0 --max-steps 20000 --max-wall 1800 --wall-form quadratic \
+  --out examples/results/alaric/fig8_mirror/3d_n26411_quadratic --overwrite \
+  > examples/results/alaric/fig8_mirror/3d_n26411_quadratic.log 2>&1
+python examples/alaric_fig8_nn.py examples/results/alaric/fig8_mirror/3d_n26411_quadratic \
+  --json examples/results/alaric/fig8_mirror/nn.json --key 3d_n26411_quadratic
