@@ -788,7 +788,10 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       those of K = 1 (see :class:`ParVISampler`). Measured at M = 2000 with 1000 evaluations and
       ``time_step="local", friction="critical"`` (examples/results/parvi/full_m2000_part3/): K = 4 takes the
       banana below i.i.d. (0.1-0.35x) at ~5x the wall time, and loses the funnel (its neck's score changes
-      within the hold).
+      within the hold). ``score_every="adaptive"`` (with ``hold_tolerance``, ``hold_max``) holds per particle: a
+      particle re-evaluates only when it has moved ``hold_tolerance`` of ``min(H, 1 / |s|)`` or after ``hold_max``
+      steps, the target called on those particles only; ``steps`` is then the evaluations per particle; the
+      same resting states as K = 1 (see :class:`ParVISampler`).
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
