@@ -12,6 +12,7 @@ from ase_sphrelax.sampling.sampler import (HOLD_MAX, ParticleScoreMemory, ParVIS
                                            variant_options)
 from ase_sphrelax.sampling.targets import gaussian_target
 from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from test_parvi_score_every import resting_state  # noqa: F401 (the fixture: a state at rest with K = 1)
 from test_parvi_steps import assert_one_line_error_before_work
 
 

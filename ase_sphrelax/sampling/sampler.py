@@ -97,21 +97,18 @@ class ParticleScoreMemory(ScoreMemory):
         self.last_score = out_pc
         return out_pc
 
+    def _masked(self, x_pc, name):
+        evaluate = getattr(CountingTarget, name)
+        if not isinstance(self.hold, np.ndarray):
+            return getattr(super(), name)(x_pc)
+        out = self._partial(x_pc, evaluate)
+        return self._keep(evaluate(self, x_pc)) if out is None else out
+
     def score(self, x_pc):
-        if isinstance(self.hold, np.ndarray):
-            out = self._partial(x_pc, CountingTarget.score)
-            if out is not None:
-                return out
-            return self._keep(CountingTarget.score(self, x_pc))
-        return super().score(x_pc)
+        return self._masked(x_pc, "score")
 
     def fd_score_or_nan(self, x_pc):
-        if isinstance(self.hold, np.ndarray):
-            out = self._partial(x_pc, CountingTarget.fd_score_or_nan)
-            if out is not None:
-                return out
-            return self._keep(CountingTarget.fd_score_or_nan(self, x_pc))
-        return super().fd_score_or_nan(x_pc)
+        return self._masked(x_pc, "fd_score_or_nan")
 
 
 def held_particles(dr_pc, h_p, score_pc, age_p, tolerance, hold_max):
