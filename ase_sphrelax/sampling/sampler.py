@@ -79,7 +79,7 @@ VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "frict
 #: Numeric variant options that are integers.
 VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max")
 #: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).
-HOLD_TOLERANCE, HOLD_MAX = 0.1, 8
+HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: examples/results/parvi/full_m2000_part4/
 
 
 class ParticleScoreMemory(ScoreMemory):
