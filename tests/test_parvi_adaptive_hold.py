@@ -121,14 +121,14 @@ def test_held_particles_never_hold_a_moved_or_old_particle(seed, tol, hold_max):
 @pytest.mark.parametrize("steps", [20, 60])
 def test_the_budget_is_the_evaluations(steps):
     """``steps`` evaluations per particle (plus the start), spent to within one step, or fewer when the run
-    reaches ``hold_max * steps`` SPH steps first; more SPH steps than ``steps`` (the hold saves evaluations)."""
+    reaches ``(hold_max + 1) steps`` SPH steps first; more SPH steps than ``steps`` (the hold saves evaluations)."""
     target = gaussian_target(np.zeros(2), np.eye(2))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = ParVISampler(score=target.score, dim=2, n=100, steps=steps, seed=0, score_every="adaptive").run()
     assert res.n_score < 100 * (steps + 2)
-    assert steps < res.info["steps"] <= HOLD_MAX * steps
-    assert res.n_score >= 100 * (steps + 1) or res.info["steps"] == HOLD_MAX * steps
+    assert steps < res.info["steps"] <= (HOLD_MAX + 1) * steps
+    assert res.n_score >= 100 * (steps + 1) or res.info["steps"] == (HOLD_MAX + 1) * steps
     assert res.trace["step"][-1] == res.info["steps"]
 
 
@@ -166,3 +166,18 @@ def test_a_resting_state_stays_at_rest_with_an_adaptive_hold(resting_state, hold
                              score_every="adaptive", hold_max=hold_max, hold_tolerance=tol,
                              time_step="local" if local else "global").run().samples
     assert np.max(np.abs(again - rest)) < 0.02 * rest.std()
+
+
+@pytest.mark.parametrize("k, local", [(2, False), (4, True)])
+def test_an_infinite_tolerance_is_score_every(k, local):
+    """``hold_max = K - 1`` with a tolerance no displacement reaches holds every particle for K - 1 steps after
+    each evaluation: the trajectory of ``score_every=K`` (steps = K x evaluations), the same samples and count."""
+    target = gaussian_target(np.zeros(2), np.eye(2))
+    options = dict(seed=3, time_step="local" if local else "global")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fixed = ParVISampler(score=target.score, dim=2, n=80, steps=30 * k, score_every=k, **options).run()
+        held = ParVISampler(score=target.score, dim=2, n=80, steps=30, score_every="adaptive", hold_max=k - 1,
+                            hold_tolerance=1e300, **options).run()
+    assert held.info["steps"] == 30 * k and held.n_score == fixed.n_score
+    np.testing.assert_array_equal(held.samples, fixed.samples)

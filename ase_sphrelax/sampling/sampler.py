@@ -114,7 +114,7 @@ class ParticleScoreMemory(ScoreMemory):
 def held_particles(dr_pc, h_p, score_pc, age_p, tolerance, hold_max):
     """``score_every="adaptive"``: the mask (M,) of particles that keep their last score at this step.
 
-    Particle a holds while ``age_a < hold_max`` (SPH steps since its last evaluation), ``|dr_a| <= tolerance
+    Particle a holds while ``age_a < hold_max`` (steps it has held since its last evaluation), ``|dr_a| <= tolerance
     H_a`` (its displacement since then, in its support) and ``|dr_a| |s_a| <= tolerance`` (the first-order change
     of ``log p`` along the displacement, i.e. the displacement in units of the score's length ``1 / |s_a|``): a
     particle in the neck of a funnel (large ``|s|``) is evaluated at every step, one in a wide, slow region holds
@@ -294,11 +294,12 @@ class ParVISampler:
         records (``trace["energy"]``) are taken every ``record_every * K`` steps; a renewal of the whitening map
         evaluates the score afresh (counted). ``"adaptive"``: a per-particle hold (:func:`held_particles`): a
         particle re-evaluates its score only when it has moved more than ``hold_tolerance`` of its support H or
-        of its score's length ``1 / |s|`` since its last evaluation, or after ``hold_max`` SPH steps; the target
+        of its score's length ``1 / |s|`` since its last evaluation, or after ``hold_max`` held steps; the target
         function is called on those particles only (counted per particle). ``steps`` is then the budget in score
         evaluations per particle: the run stops at the first SPH step at which ``n_score >= (steps + 1) n`` (the
-        start included, as ``score_every=K`` with ``K steps`` SPH steps), or after ``hold_max * steps`` SPH steps.
-        Exact at rest: a particle at rest re-evaluates at least every ``hold_max`` steps at its unchanged
+        start included, as ``score_every=K`` with ``K steps`` SPH steps), or after ``(hold_max + 1) steps`` SPH steps.
+        ``hold_max = K - 1`` with a tolerance no displacement reaches is ``score_every=K`` (tested).
+        Exact at rest: a particle at rest re-evaluates at least every ``hold_max + 1`` steps at its unchanged
         position, so in a state the map leaves unchanged every held score is the score at the particle's
         position, and the resting states are those of ``score_every=1``; conversely a resting state of K = 1 (with
         its fresh scores) does not move under the hold (no displacement, so only the ``hold_max`` refreshes, which
@@ -307,7 +308,8 @@ class ParVISampler:
         ``score_every="adaptive"``: the displacement, in units of ``min(H, 1 / |s|)``, that triggers a particle's
         re-evaluation (default :data:`HOLD_TOLERANCE`).
     hold_max : int
-        ``score_every="adaptive"``: the most SPH steps a particle holds its score (default :data:`HOLD_MAX`).
+        ``score_every="adaptive"``: the most SPH steps a particle holds its score after the step that evaluated it,
+        so it is evaluated at least every ``hold_max + 1`` steps (default :data:`HOLD_MAX`).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -626,7 +628,7 @@ class ParVISampler:
         record(0, dt)
         limit = self.steps  # the stopping rule may double it (max_steps)
         if self.adaptive_hold:  # steps: evaluations per particle; the SPH steps stop when they are spent
-            limit = self.hold_max * self.steps
+            limit = (self.hold_max + 1) * self.steps  # every particle holding as long as it may
             budget = (self.steps + 1) * self.n
             r_last, age_p = r.copy(), np.zeros(self.n, dtype=int)
         step = 0
@@ -786,7 +788,7 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       ``time_step="local", friction="critical"`` (examples/results/parvi/full_m2000_part3/): K = 4 takes the
       banana below i.i.d. (0.1-0.35x) at ~5x the wall time, and loses the funnel (its neck's score changes
       within the hold). ``score_every="adaptive"`` (with ``hold_tolerance``, ``hold_max``) holds per particle: a
-      particle re-evaluates only when it has moved ``hold_tolerance`` of ``min(H, 1 / |s|)`` or after ``hold_max``
+      particle re-evaluates only when it has moved ``hold_tolerance`` of ``min(H, 1 / |s|)`` or after ``hold_max`` held
       steps, the target called on those particles only; ``steps`` is then the evaluations per particle; the
       same resting states as K = 1 (see :class:`ParVISampler`).
 
