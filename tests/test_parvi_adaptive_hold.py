@@ -130,6 +130,7 @@ def test_the_budget_is_the_evaluations(steps):
     assert steps < res.info["steps"] <= (HOLD_MAX + 1) * steps
     assert res.n_score >= 100 * (steps + 1) or res.info["steps"] == (HOLD_MAX + 1) * steps
     assert res.trace["step"][-1] == res.info["steps"]
+    assert 0.0 <= res.info["hold_moved_share"] <= 1.0
 
 
 @pytest.mark.parametrize("dim, n, steps", [(1, 300, 600), (2, 500, 400)])
@@ -180,4 +181,5 @@ def test_an_infinite_tolerance_is_score_every(k, local):
         held = ParVISampler(score=target.score, dim=2, n=80, steps=30, score_every="adaptive", hold_max=k - 1,
                             hold_tolerance=1e300, **options).run()
     assert held.info["steps"] == 30 * k and held.n_score == fixed.n_score
+    assert held.info["hold_moved_share"] == 0.0
     np.testing.assert_array_equal(held.samples, fixed.samples)

@@ -303,7 +303,8 @@ class ParVISampler:
         position, so in a state the map leaves unchanged every held score is the score at the particle's
         position, and the resting states are those of ``score_every=1``; conversely a resting state of K = 1 (with
         its fresh scores) does not move under the hold (no displacement, so only the ``hold_max`` refreshes, which
-        return the same scores). Not with ``coarse_to_fine`` or ``max_steps``.
+        return the same scores). Not with ``coarse_to_fine`` or ``max_steps``. ``info["hold_moved_share"]``: the
+        share of the evaluations triggered by a displacement.
     hold_tolerance : float
         ``score_every="adaptive"``: the displacement, in units of ``min(H, 1 / |s|)``, that triggers a particle's
         re-evaluation (default :data:`HOLD_TOLERANCE`).
@@ -631,6 +632,7 @@ class ParVISampler:
             limit = (self.hold_max + 1) * self.steps  # every particle holding as long as it may
             budget = (self.steps + 1) * self.n
             r_last, age_p = r.copy(), np.zeros(self.n, dtype=int)
+            moved = 0  # evaluations triggered by a displacement (the others: the start and hold_max)
         step = 0
         verdict = None
         while step < limit:
@@ -647,6 +649,7 @@ class ParVISampler:
                 held_p = held_particles(r - r_last, ev.h, self.target.last_score, age_p, self.hold_tolerance,
                                         self.hold_max)
                 self.target.hold = held_p
+                moved += int(np.sum(~held_p & (age_p < self.hold_max)))
                 r_last[~held_p] = r[~held_p]
                 age_p = np.where(held_p, age_p + 1, 0)
             else:
@@ -714,6 +717,8 @@ class ParVISampler:
                     start_scale=self.start[1].tolist() if self.x0 is None else None,
                     target_scale=self.target_scale.tolist(), n_check_density=probe.n_density,
                     n_check_score=probe.n_score)
+        if self.adaptive_hold:
+            info["hold_moved_share"] = moved / max(self.target.n_score, 1)
         if not verdict["converged"]:
             warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
                           NotConvergedWarning, stacklevel=3)

@@ -4,7 +4,7 @@ import json
 from pathlib import Path
 
 HERE = Path(__file__).parent
-COLUMNS = ("target", "seed", "variant", "ratio_to_iid", "n_score_per_particle", "evaluations_per_particle",
+COLUMNS = ("target", "seed", "variant", "ratio_to_iid", "n_score_per_particle", "evaluations_per_particle", "hold_moved_share",
            "sph_steps", "sim_time_median", "converged", "wall", "load", "git")
 
 
