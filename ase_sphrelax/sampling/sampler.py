@@ -795,7 +795,9 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       within the hold). ``score_every="adaptive"`` (with ``hold_tolerance``, ``hold_max``) holds per particle: a
       particle re-evaluates only when it has moved ``hold_tolerance`` of ``min(H, 1 / |s|)`` or after ``hold_max`` held
       steps, the target called on those particles only; ``steps`` is then the evaluations per particle; the
-      same resting states as K = 1 (see :class:`ParVISampler`).
+      same resting states as K = 1 (see :class:`ParVISampler`). Measured with ``time_step="local",
+      friction="critical"`` at M = 2000, 1000 evaluations (examples/results/parvi/full_m2000_part4/): banana
+      0.14-0.50x and funnel 0.90-1.97x i.i.d. (3 seeds), the other 2D targets as K = 1.
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
