@@ -148,7 +148,20 @@ def score_all(x, target, ref, ref_stats):
                mean_err=metrics.mean_error(x, ref_stats["mean"]), cov_err=metrics.cov_error(x, ref_stats["cov"]))
     if target.modes is not None:
         row["mode_err"] = metrics.mode_weight_error(x, target.modes, target.mode_weights)
+    row.update(marginal_errors(x, ref_stats))
     return row
+
+
+def marginal_errors(x, ref_stats):
+    """The logistic goal's measures per coordinate j, against the reference's mean mu_j and sd s_j:
+    ``|mean_j(x) - mu_j| / s_j`` (worst and median over j) and the sd ratio ``sd_j(x) / s_j`` (smallest and
+    largest), with the fraction of coordinates whose sd is within 10 %."""
+    sd_ref = np.sqrt(np.diag(np.atleast_2d(ref_stats["cov"])))
+    mean_sd = np.abs(x.mean(axis=0) - np.asarray(ref_stats["mean"], dtype=float)) / sd_ref
+    ratio = x.std(axis=0, ddof=1) / sd_ref
+    return dict(mean_err_sd_max=float(mean_sd.max()), mean_err_sd_median=float(np.median(mean_sd)),
+                sd_ratio_min=float(ratio.min()), sd_ratio_max=float(ratio.max()),
+                sd_within_10pct=float(np.mean(np.abs(ratio - 1.0) <= 0.1)))
 
 
 def equal_wall(name, target, m, seed, steps, res, wall, sph_wall, max_factor=20.0):
@@ -220,8 +233,11 @@ def run_methods(target, m, seed, steps, methods, tuned_for=None):
                 res = baselines.emcee_ensemble(target.log_density, x0, steps, seed=seed)
             else:
                 raise KeyError(name)
-        except (ParVIDivergence, ValueError) as exc:
+        except ParVIDivergence as exc:
             out[name] = dict(error=str(exc).splitlines()[0][:200], wall=time.perf_counter() - t0)
+            continue
+        except ValueError as exc:  # refused before it started (e.g. the kernel default with M < 656 in 10-D)
+            out[name] = dict(error=str(exc).splitlines()[0][:200], refused=True, wall=time.perf_counter() - t0)
             continue
         if not np.all(np.isfinite(res.samples)):
             out[name] = dict(error="non-finite samples", wall=time.perf_counter() - t0)
@@ -232,6 +248,16 @@ def run_methods(target, m, seed, steps, methods, tuned_for=None):
                                                                     n_score=res.n_score, info=res.info),
                                       wall=out[name]["wall"])
     return out
+
+
+def sph_wall_reference(runs):
+    """(method, wall time) of the SPH-ParVI run the baselines' equal-wall-time column is measured against:
+    sph-default, else (when it refused or failed) the first SPH-ParVI variant that ran; (None, None) if none."""
+    ran = [n for n in runs if n.startswith("sph-") and n != "sph-optimal" and "result" in runs[n]]
+    ran.sort(key=lambda n: n != "sph-default")
+    if not ran:
+        return None, None
+    return ran[0], runs[ran[0]]["result"].wall_time
 
 
 def main(argv=None):
@@ -298,12 +324,13 @@ def main(argv=None):
                                                                     min(repeats, args.repeats_large))):
                 t0 = time.perf_counter()
                 runs = run_methods(target, m, seed, steps, methods)
-                sph_wall = runs.get("sph-default", {}).get("result")
-                sph_wall = sph_wall.wall_time if sph_wall is not None else None
+                wall_method, sph_wall = sph_wall_reference(runs)
                 for name, run in runs.items():
                     row = dict(target=tname, m=m, seed=seed, method=name, wall=run["wall"])
                     if "error" in run:
                         row["error"] = run["error"]
+                        if run.get("refused"):
+                            row["refused"] = True
                         rows.append(row)
                         continue
                     res = run["result"]
@@ -314,6 +341,7 @@ def main(argv=None):
                                                         args.wall_factor)
                         row["energy_at_sph_wall"] = metrics.energy_distance(x_wall, ref_eval)
                         row["steps_at_sph_wall"] = steps_wall
+                        row["sph_wall_method"] = wall_method
                     rows.append(row)
                     if seed == 0 and m == 500 and target.dim == 2:
                         examples.setdefault(tname, {})[name] = res.samples
@@ -372,7 +400,8 @@ def write_report(rows, meta, out):
              f"write" + (f", {wall / 60:.1f} min wall time for the targets done ({', '.join(meta['targets_done'])})"
                          if wall is not None else "") + ".", "",
              "Entries: mean ± standard deviation over the repeats; `div` = the run diverged or left no finite "
-             "samples (the error is in results.json); `-` = not applicable.", ""]
+             "samples, `refused` = the sampler refused the configuration before it started (the error is in "
+             "results.json); `-` = not applicable.", ""]
     if meta.get("reference_floor"):
         lines += ["Targets without an i.i.d. sampler: energy distance between the two halves of the reference "
                   "(its own noise floor): " + ", ".join(f"{k} {v:.3g}" for k, v in meta["reference_floor"].items()),
@@ -383,12 +412,20 @@ def write_report(rows, meta, out):
                        ("sliced_w", "Sliced Wasserstein-2 (200 directions)"),
                        ("cov_err", "Relative covariance error"), ("mean_err", "Mean error"),
                        ("mode_err", "Mode-weight error, 8-Gaussian ring (total variation)"),
-                       ("energy_at_sph_wall", "Energy distance at SPH-ParVI default's wall time"),
+                       ("mean_err_sd_max", "Worst coordinate's mean error in reference sds"),
+                       ("mean_err_sd_median", "Median coordinate's mean error in reference sds"),
+                       ("sd_ratio_min", "Smallest marginal sd ratio (sample / reference)"),
+                       ("sd_ratio_max", "Largest marginal sd ratio (sample / reference)"),
+                       ("sd_within_10pct", "Fraction of marginal sds within 10 % of the reference"),
+                       ("energy_at_sph_wall", "Energy distance at SPH-ParVI's wall time (sph-default's, else "
+                                              "the first SPH-ParVI variant that ran: `sph_wall_method` in "
+                                              "results.json)"),
                        ("wall", "Wall time per run [s]")):
         summary = _summary(rows, key)
         if not summary:
             continue
-        errors = {(r["target"], r["m"], r["method"]) for r in rows if "error" in r}
+        errors = {(r["target"], r["m"], r["method"]): "refused" if r.get("refused") else "div"
+                  for r in rows if "error" in r}
         lines += [f"## {title}", "", "| target | M | " + " | ".join(methods) + " |",
                   "| --- | --- | " + " | ".join("---" for _ in methods) + " |"]
         for tname, m in sorted({(k[0], k[1]) for k in summary}, key=lambda t: (TARGETS.index(t[0]), t[1])):
@@ -398,7 +435,7 @@ def write_report(rows, meta, out):
                     mu, sd, _ = summary[(tname, m, meth)]
                     cells.append(f"{mu:.3g} ± {sd:.1g}")
                 else:
-                    cells.append("div" if (tname, m, meth) in errors and key != "wall" else "-")
+                    cells.append(errors.get((tname, m, meth), "-") if key != "wall" else "-")
             lines.append(f"| {tname} | {m} | " + " | ".join(cells) + " |")
         lines.append("")
     (out / "report.md").write_text("\n".join(lines))
