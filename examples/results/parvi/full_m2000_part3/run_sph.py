@@ -9,67 +9,12 @@ evaluations per particle, so a variant with ``score_every=K`` runs ``K`` times a
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=. nice -n 10 .venv/bin/python \
         examples/results/parvi/full_m2000_part3/run_sph.py --targets banana --steps 1000 2000 --seeds 0 1 2 \
         --variants local+critical --out examples/results/parvi/full_m2000_part3/steps.json
+
+The runner is ``../full_m2000_part4/run_sph.py`` (the same set-up and rows; part 4 added the adaptive hold's
+budget rule and its ``hold_moved_share``, written only for runs that report it): this file runs it.
 """
-import argparse
-import json
-import os
-import subprocess
-import time
-import warnings
+import runpy
 from pathlib import Path
 
-import numpy as np
-
-from ase_sphrelax.sampling import get_target, metrics
-from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant_options
-
-
-def main():
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--targets", nargs="+", default=["banana"])
-    parser.add_argument("--variants", nargs="+", default=["local+critical"])
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0])
-    parser.add_argument("--m", type=int, default=2000)
-    parser.add_argument("--steps", nargs="+", type=int, default=[1000])
-    parser.add_argument("--out", type=Path, required=True)
-    args = parser.parse_args()
-    rows = json.loads(args.out.read_text())["rows"] if args.out.exists() else []
-    git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    dirty = bool(subprocess.run(["git", "status", "--porcelain", "ase_sphrelax"], capture_output=True,
-                                text=True).stdout.strip())
-    for seed in args.seeds:
-        for tname in args.targets:
-            target = get_target(tname)
-            ref = target.sample(20000, np.random.default_rng(10_000))
-            ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
-            iid = metrics.energy_distance(target.sample(args.m, np.random.default_rng(seed + 500)), ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
-            for steps in args.steps:
-                for variant in args.variants:
-                    row = dict(target=tname, m=args.m, steps=steps, seed=seed, variant=variant, iid_energy=iid,
-                               git=git + ("+dirty" if dirty else ""), load=os.getloadavg()[0])
-                    t0 = time.perf_counter()
-                    try:
-                        with warnings.catch_warnings():
-                            warnings.simplefilter("ignore")
-                            options = variant_options(variant)
-                            res = ParVISampler(target.log_density, target.score, dim=target.dim, n=args.m, x0=x0,
-                                               steps=steps * options.get("score_every", 1), seed=seed,
-                                               **options).run()
-                    except ParVIDivergence as exc:
-                        row.update(error=str(exc)[:200], wall=time.perf_counter() - t0)
-                    else:
-                        energy = metrics.energy_distance(res.samples, ref)
-                        row.update(energy=energy, ratio_to_iid=energy / iid, wall=time.perf_counter() - t0,
-                                   evaluations_per_particle=res.evaluations / args.m,
-                                   sim_time_median=float(res.trace["time"][-1]), dt_median=res.info["dt_median"],
-                                   converged=res.info["converged"],
-                                   sph_steps=res.info["steps"], n_score_per_particle=res.n_score / args.m,
-                                   coarse=res.info.get("coarse"))
-                    rows.append(row)
-                    print(json.dumps(row), flush=True)
-                    args.out.write_text(json.dumps(dict(command="see run_sph.py's docstring", rows=rows), indent=1))
-
-
 if __name__ == "__main__":
-    main()
+    runpy.run_path(str(Path(__file__).resolve().parents[1] / "full_m2000_part4" / "run_sph.py"), run_name="__main__")

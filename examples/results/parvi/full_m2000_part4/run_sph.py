@@ -73,7 +73,9 @@ def main():
                                    sim_time_median=float(res.trace["time"][-1]), dt_median=res.info["dt_median"],
                                    converged=res.info["converged"],
                                    sph_steps=res.info["steps"], n_score_per_particle=res.n_score / args.m,
-                                   coarse=res.info.get("coarse"), hold_moved_share=res.info.get("hold_moved_share"))
+                                   coarse=res.info.get("coarse"))
+                        if "hold_moved_share" in res.info:
+                            row.update(hold_moved_share=res.info["hold_moved_share"])
                     rows.append(row)
                     print(json.dumps(row), flush=True)
                     args.out.write_text(json.dumps(dict(command="see run_sph.py's docstring", rows=rows), indent=1))
