@@ -50,6 +50,7 @@ from ..models.parvi_knn import DEFAULT_K, KNNParVIModel, KNNRatioParVIModel, che
 from .coarse_to_fine import check_coarse_options, child_counts, coarse_schedule, split_into_children
 from .convergence import assess_convergence, ensemble_moments
 from .friction import ScoreMemory, check_friction, critical_drag, damp
+from .finish import check_finish, ellipsoid_frame, mala_finish, refill_radii
 from .result import SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
 from .whitening import AffineMap, check_whiten
@@ -72,12 +73,14 @@ LOCAL_GROWTH = None
 VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
                       critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4), knn=dict(neighbours="knn"),
                       **{"score_every=adaptive": dict(score_every="adaptive")},
-                      **{"knn-ratio": dict(neighbours="knn-ratio")})
+                      **{"knn-ratio": dict(neighbours="knn-ratio")}, mala=dict(finish="mala"),
+                      radial=dict(finish="radial"))
 #: Numeric options a variant may set as ``name=value`` tokens.
 VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp",
-                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max")
+                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max", "finish_steps")
 #: Numeric variant options that are integers.
-VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max")
+VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max",
+                    "finish_steps")
 #: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).
 HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: examples/results/parvi/full_m2000_part4/
 
@@ -311,6 +314,21 @@ class ParVISampler:
     hold_max : int
         ``score_every="adaptive"``: the most SPH steps a particle holds its score after the step that evaluated it,
         so it is evaluated at least every ``hold_max + 1`` steps (default :data:`HOLD_MAX`).
+    finish : None, "mala" or "radial"
+        None (default): the particles are the fluid's. Otherwise, after the run, an exact p-invariant kernel
+        (:mod:`.finish`; theory.py, eqs. G1-G5) moves the final particles in the frozen whitening map's coordinates
+        (or the frame of the particles' mean and covariance without a map), ``finish_steps`` times.
+        ``"mala"``: Metropolis-adjusted Langevin steps (one score and one log-density per particle and step, the
+        step adapted in the first quarter, then drawn from a fixed spread): the fluid is the start and the
+        preconditioner, the Metropolis test removes its bias (the k-NN fluid's shell above a few dimensions,
+        K5-K7, and particles stranded in a tail). ``"radial"``: each particle's radius from the centre redrawn
+        from ``r^(d-1) p(c + L r u)`` given its direction u (slice sampling; log-densities only): the shell's radial
+        profile made exact, the directions left as the fluid's. Needs ``log_density`` (and ``score`` for
+        ``"mala"``) and ``rule="final"``; the evaluations are counted in ``n_score``/``n_density`` (``steps`` counts
+        the fluid's steps only); ``info["finish"]`` has the finish's own counts, step and acceptance;
+        ``alternatives["fluid"]`` the particles before it. The convergence verdict is the fluid's.
+    finish_steps : int
+        Steps (``"mala"``) or slice updates (``"radial"``) per particle of the finish (default 200).
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
@@ -322,9 +340,13 @@ class ParVISampler:
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
                  whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
                  friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5,
-                 score_every=1, hold_tolerance=HOLD_TOLERANCE, hold_max=HOLD_MAX):
+                 score_every=1, hold_tolerance=HOLD_TOLERANCE, hold_max=HOLD_MAX, finish=None, finish_steps=200):
         self._options = {name: value for name, value in locals().items() if name != "self"}  # for the levels
         self.coarse_to_fine, self.coarse_share = check_coarse_options(coarse_to_fine, coarse_share)
+        self.finish, self.finish_steps = check_finish(finish, finish_steps, rule)
+        if self.finish is not None and (log_density is None or (finish == "mala" and score is None)):
+            raise ValueError(f"log_density, score: finish={finish!r} needs the log-density"
+                             f"{' and the score' if finish == 'mala' else ''}; give them")
         if score_every != "adaptive" and (isinstance(score_every, bool) or not isinstance(score_every, (int, np.integer))
                                           or score_every < 1):
             raise ValueError(f"score_every must be an integer >= 1 (SPH steps per score evaluation) or 'adaptive', "
@@ -453,7 +475,7 @@ class ParVISampler:
                                neighbours=neighbours, k=getattr(self.model, "k", None),
                                coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share,
                                score_every=self.score_every, hold_tolerance=self.hold_tolerance,
-                               hold_max=self.hold_max)
+                               hold_max=self.hold_max, finish=self.finish, finish_steps=self.finish_steps)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -557,6 +579,23 @@ class ParVISampler:
     def damping_rate(self):
         """The slowest damping rate of the drag: the friction, or the smallest rate of the critical drag."""
         return float(np.min(self._drag[1])) if self._drag is not None else float(self.friction)
+
+    def _finish(self, r):
+        """``finish=`` (:mod:`.finish`): the final particles moved by the exact kernel in the frozen whitening map's
+        coordinates (centre 0, unit frame: ``r`` is y), or without a map in the frame of the particles' mean and
+        covariance; returns ``(r, info)``, r in the fluid's coordinates (y when whitened). Counted evaluations."""
+        self.target.hold = False
+        rng = np.random.default_rng([int(self.seed) if isinstance(self.seed, (int, np.integer)) else 0, 4242])
+        centre_c, l_cc = (np.zeros(self.dim), np.eye(self.dim)) if self.map is not None else ellipsoid_frame(r)
+        n_score, n_density = self.target.n_score, self.target.n_density
+        if self.finish == "mala":
+            r, info = mala_finish(r, self.target.log_density, self.target.score, centre_c, l_cc, self.finish_steps,
+                                  rng)
+        else:
+            r, info = refill_radii(r, self.target.log_density, centre_c, l_cc, self.finish_steps, rng)
+        info.update(kind=self.finish, steps=self.finish_steps, n_score=self.target.n_score - n_score,
+                    n_density=self.target.n_density - n_density)
+        return r, info
 
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
@@ -698,6 +737,9 @@ class ParVISampler:
             verdict = assess_convergence(trace["step"], trace["time"], trace["kinetic"], moments, to_x(r),
                                          friction=self.damping_rate())
         self.final_state = (r, ev)  # in the fluid's coordinates (y when whitened): the coarse level's split
+        finished = None if self.finish is None else self._finish(r)  # finish.py (theory.py, G1-G5)
+        if finished is not None:
+            r, finish_info = finished
         r = to_x(r)
         samples = r if self.rule == "final" else best["samples"]
         chosen = step if self.rule == "final" else best["step"]
@@ -719,12 +761,16 @@ class ParVISampler:
                     n_check_score=probe.n_score)
         if self.adaptive_hold:
             info["hold_moved_share"] = moved / max(self.target.n_score, 1)
+        if finished is not None:
+            info["finish"] = finish_info
         if not verdict["converged"]:
             warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
                           NotConvergedWarning, stacklevel=3)
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
-                            info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"])))
+                            info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"]),
+                                                         **({} if finished is None else  # the fluid before the finish
+                                                            dict(fluid=np.array(to_x(self.final_state[0]))))))
 
     def _run_coarse_to_fine(self):
         """``coarse_to_fine=k`` (:mod:`.coarse_to_fine`): the coarse level, its split, the fine level; both levels'
@@ -733,7 +779,8 @@ class ParVISampler:
         n_coarse, coarse_steps, fine_steps = self.schedule
         options = dict(self._options, coarse_to_fine=None)
         x0 = None if self.x0 is None else self.x0[:n_coarse]
-        coarse = ParVISampler(**dict(options, n=n_coarse, steps=coarse_steps, x0=x0, max_steps=None, rule="final"))
+        coarse = ParVISampler(**dict(options, n=n_coarse, steps=coarse_steps, x0=x0, max_steps=None, rule="final",
+                                     finish=None))
         with warnings.catch_warnings():  # the coarse level's verdict goes to info["coarse"]
             warnings.simplefilter("ignore", NotConvergedWarning)
             coarse_result = coarse.run()
@@ -798,6 +845,12 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       same resting states as K = 1 (see :class:`ParVISampler`). Measured with ``time_step="local",
       friction="critical"`` at M = 2000, 1000 evaluations (examples/results/parvi/full_m2000_part4/): banana
       0.14-0.50x and funnel 0.90-1.97x i.i.d. (3 seeds), the other 2D targets as K = 1.
+
+    * ``finish="mala"`` (with ``finish_steps``, default 200) — after the fluid, Metropolis-adjusted Langevin steps
+      for every particle in the whitening map's coordinates (p-invariant exactly; theory.py, eqs. G3-G5): removes
+      the k-NN fluid's bias above a few dimensions (K5-K7) at one score and one log-density per particle and step
+      (counted); ``finish="radial"`` redraws only the radii from the centre (the diagnosis of that bias). Measured
+      on the 32-D logistic posterior: examples/results/parvi/logistic_goal/.
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
