@@ -110,7 +110,7 @@ def part_goal(args):
         for seed in range(args.repeats):
             sampler, res, run = _fluid(target, m, seed, args.steps, **variant_options(args.variant))
             row = dict(m=m, seed=seed, variant=args.variant, steps=args.steps, **run,
-                       evaluations_per_particle=(res.n_score + res.n_density) / m, finish=res.info["finish"],
+                       evaluations_per_particle=(res.n_score + res.n_density) / m, finish=res.info["finish_info"],
                        fluid=goal_measures(res.alternatives["fluid"], ref), **goal_measures(res.samples, ref))
             print(json.dumps(row, default=float), flush=True)
             rows.append(row)
@@ -130,7 +130,7 @@ def part_gauss10d(args):
         row = dict(m=500, seed=seed, variant=args.variant, steps=args.steps, **run, iid_energy=iid, energy=e,
                    ratio_to_iid=e / iid, fluid_energy=e_fluid, fluid_ratio_to_iid=e_fluid / iid,
                    var_ratio_min=float(var_ratio.min()), var_ratio_max=float(var_ratio.max()),
-                   evaluations_per_particle=(res.n_score + res.n_density) / 500, finish=res.info["finish"])
+                   evaluations_per_particle=(res.n_score + res.n_density) / 500, finish=res.info["finish_info"])
         print(json.dumps(row, default=float), flush=True)
         rows.append(row)
         _update(args.out, f"gauss10d_{args.tag}", dict(rows=rows, **_stamp()))

@@ -325,7 +325,7 @@ class ParVISampler:
         from ``r^(d-1) p(c + L r u)`` given its direction u (slice sampling; log-densities only): the shell's radial
         profile made exact, the directions left as the fluid's. Needs ``log_density`` (and ``score`` for
         ``"mala"``) and ``rule="final"``; the evaluations are counted in ``n_score``/``n_density`` (``steps`` counts
-        the fluid's steps only); ``info["finish"]`` has the finish's own counts, step and acceptance;
+        the fluid's steps only); ``info["finish_info"]`` has the finish's own counts, step and acceptance;
         ``alternatives["fluid"]`` the particles before it. The convergence verdict is the fluid's.
     finish_steps : int
         Steps (``"mala"``) or slice updates (``"radial"``) per particle of the finish (default 200).
@@ -762,7 +762,7 @@ class ParVISampler:
         if self.adaptive_hold:
             info["hold_moved_share"] = moved / max(self.target.n_score, 1)
         if finished is not None:
-            info["finish"] = finish_info
+            info["finish_info"] = finish_info
         if not verdict["converged"]:
             warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
                           NotConvergedWarning, stacklevel=3)
