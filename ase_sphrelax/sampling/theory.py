@@ -276,3 +276,57 @@ matrix ``F`` of the particles' scores, the same for all particles), applied exac
   at ``b / 2``). It is taken from the scores the step computes anyway (no extra evaluation), renewed
   every ``friction_every`` steps, and in whitened coordinates from the whitened target's scores.
 """
+
+
+# -- Exact finishing kernels (issue 18, the logistic goal): appended to the module docstring ----------------------
+__doc__ += """
+Exact finishing kernels (``finish=``, :mod:`~ase_sphrelax.sampling.finish`; issue 18, the logistic goal). The
+resting k-NN fluid above a few dimensions is not p (K7): K4-K5 fix its mean and its mean ``(x - c) . grad log p``,
+not its radial profile nor, on a non-Gaussian target, its directions. A finish applies, after the fluid, a Markov
+kernel T with ``p T = p`` to every particle, in the fluid's frame ``x = c + L y`` (the frozen whitening map, or the
+particles' mean and Cholesky covariance factor); the output density is ``q T^n``, q the fluid's, which tends to p
+as n grows for an ergodic T, and equals p at every n if q = p: a finish can only remove the fluid's error, never
+add a bias of its own.
+
+* (G1) polar coordinates about c in the frame L: ``x = c + L r u``, ``r > 0``, ``|u| = 1``,
+  ``dx = |det L| r^(d-1) dr dsigma(u)``, so under p the pair (r, u) has density ``∝ r^(d-1) p(c + L r u)`` and
+  the radius given the direction has the conditional ``pi(r | u) ∝ r^(d-1) p(c + L r u)`` on (0, inf); the
+  directions have the marginal ``p_u(u) = |det L| int_0^inf r^(d-1) p(c + L r u) dr``.
+* (G2) ``finish="radial"``: each slice-sampling update (Neal 2003: level ``log pi(r) - Exp(1)``, an interval of
+  width w placed uniformly at random around r, stepped out at most m times with a random split between the two
+  sides, then shrunk towards r) leaves ``pi(r | u)`` invariant; with u untouched, the joint update leaves p invariant
+  (a Gibbs step in the coordinates of G1) for any fixed c, L. After the updates the output is
+  ``q_u(u) pi(r | u)``: the radial conditional exact whatever the fluid left, the directions the fluid's ``q_u``.
+  It is a diagnosis: if the fluid's error were its thin shell (K7), the refill would remove it; measured on the
+  32-D logistic posterior it does not (``examples/results/parvi/logistic_goal/``): the fluid's directions are
+  biased (they lie where p reaches farther, and a share of the particles is stranded in a far tail).
+* (G3) ``finish="mala"``: in y the target is ``p_y(y) ∝ p(c + L y)``, score ``L^T grad log p``; the proposal
+  ``y' = y + (eps/2) grad log p_y(y) + sqrt(eps) xi``, ``xi ~ N(0, I)``, accepted with probability
+  ``min(1, p_y(y') Q(y | y') / (p_y(y) Q(y' | y)))``, ``Q(b | a) = N(b; a + (eps/2) grad log p_y(a), eps I)``, is
+  reversible with respect to p_y for every eps > 0 (Metropolis-Hastings). A step size drawn independently of the
+  state, ``eps = eps_max * s^(-U)``, U ~ U(0, 1), makes the step a mixture ``int T_eps dmu(eps)`` of kernels each
+  reversible with respect to p: the mixture is too. So after the adaptation (the first quarter of the steps, where
+  ``log eps_max`` follows the ensemble's acceptance towards 0.574 and the kernel depends on the other particles'
+  acceptances, as in adaptive MCMC) every particle runs a time-homogeneous chain with stationary density exactly p,
+  independent of the other particles. The spread s (16) is for particles stranded where the curvature is large:
+  the acceptance of a step eps at a point of curvature kappa falls roughly like ``exp(-c eps^2 kappa^2 ...)`` once
+  ``eps kappa`` exceeds one, so with one eps fitted to the bulk such a particle never moves (measured: 1 % of the
+  fluid's particles at the posterior's log-precision 2.98, beyond the largest of 4000 NUTS draws, 1.10, rejected
+  every step of a fixed-eps MALA for 4000 steps); the small steps of the mixture move it.
+* (G4) linear change of variables: for ``x~ = A x + b`` (A invertible), the target ``p~(x~) = p(A^-1 (x~ - b)) / |det A|``
+  and the frame ``(A c + b, A L)``, the y of every particle is the same, ``p~_y`` differs from ``p_y`` by the constant
+  ``-log |det A|`` and the score in y is the same (``(A L)^T grad log p~ = L^T grad log p``): with the same random
+  numbers both kernels make the same moves and decisions in y (constants cancel in the acceptance ratio and in the
+  slice comparisons), so the output for ``p~`` is ``A`` times the output for p plus b, up to round-off
+  (hypothesis-tested, including a nearly singular A). The fixed whitening map ``whiten=A`` transforms so; the
+  renewed map and the particles' own frame use Cholesky factors, equivariant for lower-triangular A and, for other
+  A, up to a rotation of y, under which both kernels are equivariant in distribution (isotropic noise, radii).
+* (G5) cost and budget: ``"mala"`` one score and one log-density per particle and step (the logistic runs: 540
+  fluid steps + 200 MALA steps, about 1000 evaluations per particle in all); ``"radial"`` log-densities only,
+  about 5-7 per particle and update.
+
+The stationary density of the finished sampler is therefore p exactly in the limit of many finishing steps, for any
+fluid; with finitely many, the output is ``q T^n``: the measured question is how far the fluid's q is from p in the
+directions T mixes slowly, and the fluid is what makes a few hundred steps enough (its particles are the start,
+its covariance the preconditioner L).
+"""
