@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 import warnings
@@ -37,24 +35,14 @@ from ase_sphrelax.sampling.finish import mala_finish, refill_radii  # noqa: E402
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options  # noqa: E402
 from ase_sphrelax.sampling.targets import gaussian_target, get_target  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "examples"))
+from parvi_highdim import STARTED, _git_revision, _stamp, _update  # noqa: E402  (the revision, load and time of a part)
+
 OUT = ROOT / "examples" / "results" / "parvi" / "logistic_goal"
 REFERENCE = ROOT / "examples" / "results" / "parvi" / "reference_logistic.npy"
 #: the remedy's options: 540 fluid steps and 200 MALA steps, about 1000 evaluations (score + log-density) each
 REMEDY = "knn+whiten+mala+finish_steps=200"
 REMEDY_STEPS = 540
-STARTED = {}
-
-
-def _stamp():
-    return dict(git=STARTED.get("git"), started_utc=STARTED.get("utc"), load=os.getloadavg(),
-                utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
-
-
-def _update(out, key, value):
-    path = out / "results.json"
-    data = json.loads(path.read_text()) if path.exists() else {}
-    data[key] = value
-    path.write_text(json.dumps(data, indent=1, default=float) + "\n")
 
 
 def goal_measures(x, ref):
@@ -225,8 +213,7 @@ def main(argv=None):
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    STARTED.update(git=subprocess.run(["git", "describe", "--always", "--dirty"], cwd=ROOT, capture_output=True,
-                                      text=True).stdout.strip(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
+    STARTED.update(git=_git_revision(), utc=time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     PARTS[args.part](args)
 
 
