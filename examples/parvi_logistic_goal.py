@@ -9,6 +9,7 @@ Parts (each adds its key to ``<out>/results.json``; run them one at a time)::
     python examples/parvi_logistic_goal.py k           # knn+whiten, k = 5, 10, 40, M = 500, seed 0
     python examples/parvi_logistic_goal.py m           # knn+whiten, M = 100 and 2000, seed 0
     python examples/parvi_logistic_goal.py iid         # subsets of the NUTS reference of size M: the goal's noise
+    python examples/parvi_logistic_goal.py spread      # the finish's step spread on the particles stranded in a tail
 
 The diagnosis parts run the fluid alone (``knn+whiten``) and then, on its final particles and in its frozen
 whitening frame, the two finishing kernels of ``ase_sphrelax/sampling/finish.py`` (``refill_radii``: exact radii
@@ -198,8 +199,39 @@ def part_iid(args):
     _update(args.out, "iid", dict(out, **_stamp()))
 
 
+def part_spread(args):
+    """The finish's step spread on the stranded particles: one fluid (knn+whiten, M = 500, seed 0, 1000 steps), then
+    mala_finish with a fixed step after the adaptation (spread 1) and with the spread 16, several lengths; and the
+    NUTS reference's own numbers quoted in README.md (radius in its frame, |w|^2, the virial)."""
+    target = get_target("logistic")
+    ref = np.load(REFERENCE)
+    sampler, res, run = _fluid(target, 500, 0, 1000, neighbours="knn", whiten="covariance")
+    x = res.samples
+    frame = (sampler.map.centre_c, sampler.map.l_cc)
+    beyond = x[:, -1] > ref[:, -1].max()
+    rows = [dict(kind="fluid", **run, **goal_measures(x, ref), stranded_log_precision=x[beyond, -1].tolist(),
+                 log_precision_quantiles_1_50_99=np.quantile(x[:, -1], [0.01, 0.5, 0.99]).tolist())]
+    for spread, steps in ((1.0, 200), (1.0, 1000), (16.0, 100), (16.0, 200), (16.0, 400)):
+        x_m, info = mala_finish(x, target.log_density, target.score, *frame, steps, np.random.default_rng([0, 4]),
+                                spread=spread)
+        rows.append(dict(kind="mala", spread=spread, steps=steps, **info, **goal_measures(x_m, ref),
+                         stranded_after=x_m[beyond, -1].tolist()))
+        print(json.dumps(rows[-1], default=float), flush=True)
+    c_c = ref.mean(axis=0)
+    l_cc = np.linalg.cholesky(np.cov(ref, rowvar=False))
+    radius = np.linalg.norm(np.linalg.solve(l_cc, (ref - c_c).T), axis=0)
+    w2 = np.einsum("pc,pc->p", ref[:, :31], ref[:, :31])
+    nuts = dict(radius_in_own_frame=(float(radius.mean()), float(radius.std())),
+                w_squared_mean_sd=(float(w2.mean()), float(w2.std())),
+                virial=float(np.mean(np.einsum("pc,pc->p", ref - c_c, target.score(ref)))),
+                log_precision_quantiles_1_50_99=np.quantile(ref[:, -1], [0.01, 0.5, 0.99]).tolist(),
+                log_precision_max=float(ref[:, -1].max()))
+    print(json.dumps(nuts), flush=True)
+    _update(args.out, "spread", dict(rows=rows, nuts=nuts, **_stamp()))
+
+
 PARTS = dict(goal=part_goal, gauss10d=part_gauss10d, rest=part_rest, gauss32=part_gauss32, k=part_k, m=part_m,
-             iid=part_iid)
+             iid=part_iid, spread=part_spread)
 
 
 def main(argv=None):
