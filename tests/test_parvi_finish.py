@@ -166,6 +166,8 @@ def test_finish_rejects_bad_input():
         ParVISampler(log_p, None, dim=2, n=20, finish="mala")
     with pytest.raises(ValueError, match="centre"):
         refill_radii(np.zeros((3, 2)), log_p, np.zeros(2), np.eye(2), 1, np.random.default_rng(0))
+    with pytest.raises(ValueError, match="singular"):
+        ellipsoid_frame(np.ones((5, 3)))
     assert check_finish(None, 5, "optimal") == (None, 5)
     assert variant_options("knn+whiten+mala+finish_steps=50") == dict(neighbours="knn", whiten="covariance",
                                                                       finish="mala", finish_steps=50)

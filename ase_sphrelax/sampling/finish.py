@@ -49,10 +49,16 @@ def check_finish(finish, finish_steps, rule):
 
 
 def ellipsoid_frame(x_pc):
-    """``(c, L)``: the particles' mean and the Cholesky factor of their covariance (affine equivariant)."""
+    """``(c, L)``: the particles' mean and the Cholesky factor of their covariance (equivariant under a linear map
+    up to a rotation of the frame, theory.py G4); a one-line error when the covariance is singular."""
     x_pc = np.asarray(x_pc, dtype=float)
     cov_cc = np.atleast_2d(np.cov(x_pc, rowvar=False))
-    return x_pc.mean(axis=0), np.linalg.cholesky(cov_cc)
+    try:
+        return x_pc.mean(axis=0), np.linalg.cholesky(cov_cc)
+    except np.linalg.LinAlgError:
+        raise ValueError(f"finish: the particles' covariance is singular ({x_pc.shape[0]} particles in "
+                         f"{x_pc.shape[1]} dimensions); use whiten='covariance' (the finish then runs in the map's "
+                         f"frame) or more particles") from None
 
 
 def refill_radii(x_pc, log_density, centre_c, l_cc, sweeps, rng, width=1.0, max_out=20):
@@ -90,7 +96,7 @@ def refill_radii(x_pc, log_density, centre_c, l_cc, sweeps, rng, width=1.0, max_
     z_pc = np.linalg.solve(l_cc, (x_pc - centre_c).T).T
     r_p = np.sqrt(np.einsum("pc,pc->p", z_pc, z_pc))
     if not np.all(r_p > 0):
-        raise ValueError("refill: a particle sits at the centre (its direction is undefined)")
+        raise ValueError("finish='radial': a particle sits at the centre (its direction is undefined)")
     u_pc = z_pc / r_p[:, None]
     before = (float(r_p.mean()), float(r_p.std()))
     calls = 0
@@ -110,7 +116,7 @@ def refill_radii(x_pc, log_density, centre_c, l_cc, sweeps, rng, width=1.0, max_
     every = np.arange(m)
     f_p = log_f(r_p, every)
     if not np.all(np.isfinite(f_p)):
-        raise ValueError("refill: log_density is not finite at a particle")
+        raise ValueError("finish='radial': log_density is not finite at a particle")
     for _ in range(int(sweeps)):
         level_p = f_p - rng.exponential(size=m)
         left_p = r_p - width * rng.random(m)
