@@ -132,9 +132,9 @@ def variant_options(spec):
     """Keyword options of :class:`ParVISampler` for a variant name such as ``"whiten+local+critical"``.
 
     ``spec`` joins tokens with ``+``: the names of :data:`VARIANT_TOKENS` (``default``, ``whiten``,
-    ``local``, ``critical``, ``coarse``, ``knn``, ``knn-ratio``) and ``name=value`` for a number of
-    :data:`VARIANT_NUMBERS` (``friction=0.3``, ``k=20``), e.g. ``"knn+whiten"`` for the 10-D Gaussian and the
-    logistic posterior.
+    ``local``, ``critical``, ``coarse``, ``knn``, ``knn-ratio``, ``mala``, ``radial``) and ``name=value`` for a
+    number of :data:`VARIANT_NUMBERS` (``friction=0.3``, ``k=20``, ``finish_steps=200``), e.g. ``"knn+whiten"`` for
+    the 10-D Gaussian and ``"knn+whiten+mala"`` (the exact finish) for the logistic posterior.
     A token of neither kind is a one-line error naming it.
     """
     if not isinstance(spec, str) or not spec.strip():
