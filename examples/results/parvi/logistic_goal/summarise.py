@@ -11,16 +11,18 @@ def cells(r):
             f"{100 * r['share_beyond_nuts_max']:.1f} %")
 
 
-print("## goal")
-for r in data.get("goal_main", {}).get("rows", []):
-    f = r["finish"]
-    print(f"| {r['m']} | {r['seed']} | fluid (540 steps) | {cells(r['fluid'])} | | |")
-    print(f"| {r['m']} | {r['seed']} | + MALA 200 | {cells(r)} | {r['evaluations_per_particle']:.0f} | "
-          f"{f['eps_max']:.3f}, {f['acceptance']:.2f}, {f['stuck_share']:.3f} | {r['wall']:.0f} |")
-print("## gauss10d")
-for r in data.get("gauss10d_main", {}).get("rows", []):
-    print(f"| {r['seed']} | {r['fluid_ratio_to_iid']:.2f} | {r['ratio_to_iid']:.2f} | {r['energy']:.5f} | {r['iid_energy']:.5f} | "
-          f"{r['var_ratio_min']:.3f}-{r['var_ratio_max']:.3f} | {r['evaluations_per_particle']:.0f} | {r['wall']:.0f} |")
+for goal_key in ("goal_main", "goal_m2000", "goal_mala_only"):
+    print(f"## {goal_key}")
+    for r in data.get(goal_key, {}).get("rows", []):
+        f = r["finish"]
+        print(f"| {r['m']} | {r['seed']} | fluid ({r['steps']} steps) | {cells(r['fluid'])} | | |")
+        print(f"| {r['m']} | {r['seed']} | + MALA {f['steps']} | {cells(r)} | {r['evaluations_per_particle']:.0f} | "
+              f"{f['eps_max']:.3f}, {f['acceptance']:.2f}, {f['stuck_share']:.4f} | {r['wall']:.0f} |")
+for g_key in ("gauss10d_main", "gauss10d_seeds3"):
+    print(f"## {g_key}")
+    for r in data.get(g_key, {}).get("rows", []):
+        print(f"| {r['seed']} | {r['fluid_ratio_to_iid']:.2f} | {r['ratio_to_iid']:.2f} | {r['energy']:.5f} | {r['iid_energy']:.5f} | "
+              f"{r['var_ratio_min']:.3f}-{r['var_ratio_max']:.3f} | {r['evaluations_per_particle']:.0f} | {r['wall']:.0f} |")
 for key in ("rest", "k", "m"):
     print(f"## {key}")
     for r in data.get(key, {}).get("rows", []):
