@@ -850,7 +850,9 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       for every particle in the whitening map's coordinates (p-invariant exactly; theory.py, eqs. G3-G5): removes
       the k-NN fluid's bias above a few dimensions (K5-K7) at one score and one log-density per particle and step
       (counted); ``finish="radial"`` redraws only the radii from the centre (the diagnosis of that bias). Measured
-      on the 32-D logistic posterior: examples/results/parvi/logistic_goal/.
+      on the 32-D logistic posterior with ``neighbours="knn", whiten="covariance", steps=540, finish_steps=200``
+      (1008 evaluations per particle): means within 0.093 posterior sd and sds within 9 % of NUTS's at M = 500
+      (3 seeds), against 0.43 sd and 25 % for the fluid alone (examples/results/parvi/logistic_goal/).
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """
