@@ -1,8 +1,8 @@
 #!/bin/bash
-# Item 5 completion: SVGD M=2000 seeds 1-2 on four 2D targets, then the logistic posterior at M=2000 (3 seeds).
-cd /work/wt-runs
+# Item 5 completion (run 2026-12-02 12:22-13:31 UTC, git b4d306e): SVGD M=2000 seeds 1-2 on four 2D targets, then the logistic posterior at M=2000 (3 seeds).
+cd "$(dirname "$0")/../../.."   # the repository root
 export OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 PYTHONPATH=.
-PY=/work/main/.venv/bin/python
+PY=${PY:-.venv/bin/python}   # the run used the main checkout's venv
 R=examples/results/parvi
 for SEED in 1 2; do for T in gaussian correlated donut funnel; do
   O=$R/full_m2000_svgd_seeds12/${T}_seed$SEED; mkdir -p $O
