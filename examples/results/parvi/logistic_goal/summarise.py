@@ -11,7 +11,7 @@ def cells(r):
             f"{100 * r['share_beyond_nuts_max']:.1f} %")
 
 
-for goal_key in ("goal_main", "goal_m2000", "goal_mala_only"):
+for goal_key in ("goal_main", "goal_m2000", "goal_m2000_r3", "goal_mala_only"):
     print(f"## {goal_key}")
     for r in data.get(goal_key, {}).get("rows", []):
         f = r["finish"]
