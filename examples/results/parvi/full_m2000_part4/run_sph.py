@@ -42,9 +42,10 @@ def reference_set(target, m, seed):
     return ref, iid, x0
 
 
-def build_sampler(target, variant, m, x0, steps, seed):
-    """The ParVISampler of one row: ``variant``'s options, ``steps`` score evaluations per particle."""
-    options = variant_options(variant)
+def build_sampler(target, variant, m, x0, steps, seed, **extra):
+    """The ParVISampler of one row: ``variant``'s options (and ``extra`` keyword options), ``steps`` score
+    evaluations per particle."""
+    options = dict(variant_options(variant), **extra)
     return ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0,
                         steps=steps * sph_steps_per_evaluation(options), seed=seed, **options)
 

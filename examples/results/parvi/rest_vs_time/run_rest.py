@@ -28,6 +28,7 @@ import numpy as np
 from scipy.stats import norm
 
 from ase_sphrelax.sampling import get_target, metrics
+from ase_sphrelax.sampling import sampler as sampler_module
 from ase_sphrelax.sampling.convergence import assess_convergence, ensemble_moments
 
 HERE = Path(__file__).resolve().parent
@@ -66,9 +67,11 @@ def rms(a):
     return np.sqrt(np.mean(a**2))
 
 
-def funnel_diagnostics(x_pc, h_p):
-    """The funnel's neck: x1 / exp(x0/2) ~ N(0, 1) at every x0 (rms 1), and H against the neck's sd exp(x0/2)."""
+def funnel_diagnostics(x_pc, h_p, v_pc):
+    """The funnel's neck: x1 / exp(x0/2) ~ N(0, 1) at every x0 (rms 1), and H against the neck's sd exp(x0/2); the
+    rms speed per bin (a fluid at rest: 0)."""
     x0_p, x1_p = x_pc[:, 0], x_pc[:, 1]
+    speed_p = np.sqrt(np.einsum("pc,pc->p", v_pc, v_pc))
     width_p = np.exp(0.5 * x0_p)
     return dict(x0=marginal(x0_p, 3.0),
                 share_below_m3=[float(np.mean(x0_p < -3.0)), float(norm.cdf(-1.0))],
@@ -77,13 +80,15 @@ def funnel_diagnostics(x_pc, h_p):
                     x1_rms_over_width=(x1_p / width_p, rms),
                     x1_mean_over_width=(x1_p / width_p, np.mean),
                     h_median=(h_p, np.median),
-                    h_over_width_median=(h_p / width_p, np.median))))
+                    h_over_width_median=(h_p / width_p, np.median),
+                    speed_rms=(speed_p, rms))))
 
 
-def banana_diagnostics(x_pc, h_p):
+def banana_diagnostics(x_pc, h_p, v_pc):
     """The banana's curve: u = x1 - b (x0^2 - 100) ~ N(0, 1) at every x0; H against the width across the curve,
     1 / sqrt(1 + (2 b x0)^2)."""
     x0_p = x_pc[:, 0]
+    speed_p = np.sqrt(np.einsum("pc,pc->p", v_pc, v_pc))
     u_p = x_pc[:, 1] - BANANA_B * (x0_p**2 - 100.0)
     width_p = 1.0 / np.sqrt(1.0 + (2.0 * BANANA_B * x0_p) ** 2)
     return dict(x0=marginal(x0_p, 10.0),
@@ -91,7 +96,8 @@ def banana_diagnostics(x_pc, h_p):
                 share_abs_above_20=[float(np.mean(np.abs(x0_p) > 20.0)), float(2 * norm.cdf(-2.0))],
                 bins=binned(x0_p, BANANA_EDGES, 10.0, dict(
                     u_rms=(u_p, rms), u_mean=(u_p, np.mean), h_median=(h_p, np.median),
-                    h_over_width_median=(h_p / width_p, np.median))))
+                    h_over_width_median=(h_p / width_p, np.median),
+                    speed_rms=(speed_p, rms))))
 
 
 DIAGNOSTICS = dict(funnel=funnel_diagnostics, banana=banana_diagnostics)
@@ -143,7 +149,7 @@ def checkpoint_rows(target, res, hook, ref, iid):
                    mean_drift_se=verdict["mean_drift_se"], cov_drift_se=verdict["cov_drift_se"],
                    kinetic_ratio=verdict["kinetic_ratio"], h_median=float(np.median(state["h"])))
         if target.name in DIAGNOSTICS:
-            row["diagnostics"] = DIAGNOSTICS[target.name](x_pc, state["h"])
+            row["diagnostics"] = DIAGNOSTICS[target.name](x_pc, state["h"], state["v"])
         rows.append(row)
     return rows
 
@@ -155,8 +161,14 @@ def main():
     parser.add_argument("--seeds", nargs="+", type=int, default=[0])
     parser.add_argument("--m", type=int, default=500)
     parser.add_argument("--checkpoints", nargs="+", type=int, default=[1000, 2000, 4000, 8000])
+    parser.add_argument("--local-growth", type=float, default=None,
+                        help="sampler.LOCAL_GROWTH for this run (the cap on a particle's step growth per step)")
+    parser.add_argument("--n-neighbours", type=float, default=None,
+                        help="ParVISampler's n_neighbours (default: the model's, 32 in 2D)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
+    extra = {} if args.n_neighbours is None else dict(n_neighbours=args.n_neighbours)
+    sampler_module.LOCAL_GROWTH = args.local_growth
     rows = json.loads(args.out.read_text())["rows"] if args.out.exists() else []
     git = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     dirty = bool(subprocess.run(["git", "status", "--porcelain", "ase_sphrelax"], capture_output=True,
@@ -173,7 +185,7 @@ def main():
                     raise SystemExit(f"{variant}: the checkpoints need one evaluate call per SPH step (K = 1)")
                 load = os.getloadavg()[0]
                 t0 = time.perf_counter()
-                sampler = run_sph.build_sampler(target, variant, args.m, x0, steps, seed)
+                sampler = run_sph.build_sampler(target, variant, args.m, x0, steps, seed, **extra)
                 hook = Checkpoints(sampler, args.checkpoints)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
@@ -181,13 +193,17 @@ def main():
                 wall = time.perf_counter() - t0
                 head = dict(target=tname, m=args.m, seed=seed, variant=variant, iid_energy=iid,
                             git=git + ("+dirty" if dirty else ""), load=load, load_end=os.getloadavg()[0],
-                            wall=wall, final_converged=res.info["converged"])
+                            wall=wall, final_converged=res.info["converged"], local_growth=args.local_growth,
+                            n_neighbours=args.n_neighbours)
                 for row in checkpoint_rows(target, res, hook, ref, iid):
                     rows.append(dict(head, **row))
                     print(json.dumps({k: v for k, v in rows[-1].items() if k != "diagnostics"}), flush=True)
-                np.savez_compressed(snapshots / f"{tname}_m{args.m}_s{seed}_{variant.replace('+', '_')}.npz",
+                tag = "" if args.local_growth is None else f"_growth{args.local_growth:g}"
+                tag += "" if args.n_neighbours is None else f"_nb{args.n_neighbours:g}"
+                np.savez_compressed(snapshots / f"{tname}_m{args.m}_s{seed}_{variant.replace('+', '_')}{tag}.npz",
                                     **{f"r_{s}": st["r"] for s, st in hook.states.items()},
                                     **{f"h_{s}": st["h"] for s, st in hook.states.items()},
+                                    **{f"v_{s}": st["v"] for s, st in hook.states.items()},
                                     time=res.trace["time"], step=res.trace["step"], kinetic=res.trace["kinetic"])
                 args.out.write_text(json.dumps(dict(command="see run_rest.py's docstring", rows=rows), indent=1))
 
