@@ -75,7 +75,7 @@ VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(t
                       **{"knn-ratio": dict(neighbours="knn-ratio")})
 #: Numeric options a variant may set as ``name=value`` tokens.
 VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp",
-                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max")
+                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max", "n_neighbours")
 #: Numeric variant options that are integers.
 VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max")
 #: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).

@@ -144,7 +144,7 @@ def checkpoint_rows(target, res, hook, ref, iid):
         kinetic_k = trace["kinetic"][keep]
         row = dict(steps=step, energy=energy, ratio_to_iid=energy / iid,
                    sim_time_median=float(trace["time"][keep][-1]),
-                   kinetic=float(kinetic_k[-1]), kinetic_max_last_half=float(kinetic_k[trace["step"][keep] > step / 2].max()),
+                   kinetic=float(kinetic_k[-1]), kinetic_max_last_half=float(kinetic_k[trace["step"][keep] >= step / 2].max()),
                    converged=bool(verdict["converged"]), convergence_reason=verdict["reason"],
                    mean_drift_se=verdict["mean_drift_se"], cov_drift_se=verdict["cov_drift_se"],
                    kinetic_ratio=verdict["kinetic_ratio"], h_median=float(np.median(state["h"])))
@@ -165,6 +165,8 @@ def main():
                         help="sampler.LOCAL_GROWTH for this run (the cap on a particle's step growth per step)")
     parser.add_argument("--n-neighbours", type=float, default=None,
                         help="ParVISampler's n_neighbours (default: the model's, 32 in 2D)")
+    parser.add_argument("--start", choices=("normal", "iid"), default="normal",
+                        help="normal: run_sph's N(0, I) starts; iid: M i.i.d. draws of the target (seed + 700)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     extra = {} if args.n_neighbours is None else dict(n_neighbours=args.n_neighbours)
@@ -180,6 +182,9 @@ def main():
         for tname in args.targets:
             target = get_target(tname)
             ref, iid, x0 = run_sph.reference_set(target, args.m, seed)
+            if args.start == "iid":  # a start with the target's own law: does the fluid leave it?
+                x0 = target.sample(args.m, np.random.default_rng(seed + 700))
+                x0_ratio = metrics.energy_distance(x0, ref) / iid
             for variant in args.variants:
                 if "score_every" in variant or "whiten" in variant or "coarse" in variant:
                     raise SystemExit(f"{variant}: the checkpoints need one evaluate call per SPH step (K = 1)")
@@ -194,12 +199,14 @@ def main():
                 head = dict(target=tname, m=args.m, seed=seed, variant=variant, iid_energy=iid,
                             git=git + ("+dirty" if dirty else ""), load=load, load_end=os.getloadavg()[0],
                             wall=wall, final_converged=res.info["converged"], local_growth=args.local_growth,
-                            n_neighbours=args.n_neighbours)
+                            n_neighbours=args.n_neighbours, start=args.start,
+                            start_ratio_to_iid=x0_ratio if args.start == "iid" else None)
                 for row in checkpoint_rows(target, res, hook, ref, iid):
                     rows.append(dict(head, **row))
                     print(json.dumps({k: v for k, v in rows[-1].items() if k != "diagnostics"}), flush=True)
                 tag = "" if args.local_growth is None else f"_growth{args.local_growth:g}"
                 tag += "" if args.n_neighbours is None else f"_nb{args.n_neighbours:g}"
+                tag += "" if args.start == "normal" else f"_start{args.start}"
                 np.savez_compressed(snapshots / f"{tname}_m{args.m}_s{seed}_{variant.replace('+', '_')}{tag}.npz",
                                     **{f"r_{s}": st["r"] for s, st in hook.states.items()},
                                     **{f"h_{s}": st["h"] for s, st in hook.states.items()},
