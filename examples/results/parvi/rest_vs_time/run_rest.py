@@ -18,6 +18,7 @@ Positions at the checkpoints go to ``<out>.npz``-like files in ``snapshots/``.
 import argparse
 import importlib.util
 import json
+import math
 import os
 import subprocess
 import time
@@ -29,6 +30,7 @@ from scipy.stats import norm
 
 from ase_sphrelax.sampling import get_target, metrics
 from ase_sphrelax.sampling import sampler as sampler_module
+from ase_sphrelax.sampling.friction import damp as friction_damp
 from ase_sphrelax.sampling.convergence import assess_convergence, ensemble_moments
 
 HERE = Path(__file__).resolve().parent
@@ -100,6 +102,26 @@ def banana_diagnostics(x_pc, h_p, v_pc):
                     speed_rms=(speed_p, rms))))
 
 
+def particle_drag(sampler):
+    """``damp`` of friction.py followed by a per-particle drag along each particle's last score: the component of
+    v_a along s_a decays with rate ``2 (alpha)^(1/2) |s_a|`` (B_a = that rate times s_a s_a^T / |s_a|^2: symmetric
+    positive semi-definite, zero at rest, so the resting states are unchanged; theory.py F1-F3)."""
+    alpha = sampler.model.alpha
+
+    def damp(v_pc, dt, friction, drag):
+        v_pc = friction_damp(v_pc, dt, friction, drag)
+        s_pc = sampler.target.last_score
+        if s_pc is None or s_pc.shape != v_pc.shape:
+            return v_pc
+        norm_p = np.sqrt(np.einsum("pc,pc->p", s_pc, s_pc))
+        unit_pc = np.where(norm_p[:, None] > 0, s_pc / np.where(norm_p > 0, norm_p, 1.0)[:, None], 0.0)
+        along_p = np.einsum("pc,pc->p", v_pc, unit_pc)
+        decay_p = np.exp(-0.5 * np.ravel(dt * np.ones((len(v_pc), 1))) * 2.0 * math.sqrt(alpha) * norm_p)
+        return v_pc + ((decay_p - 1.0) * along_p)[:, None] * unit_pc
+
+    return damp
+
+
 DIAGNOSTICS = dict(funnel=funnel_diagnostics, banana=banana_diagnostics)
 
 
@@ -167,6 +189,9 @@ def main():
                         help="ParVISampler's n_neighbours (default: the model's, 32 in 2D)")
     parser.add_argument("--start", choices=("normal", "iid"), default="normal",
                         help="normal: run_sph's N(0, I) starts; iid: M i.i.d. draws of the target (seed + 700)")
+    parser.add_argument("--particle-drag", action="store_true",
+                        help="experiment: after the sampler's drag, each particle's velocity along its last score s_a "
+                             "is damped with rate 2 (alpha)^(1/2) |s_a| (a per-particle critical rate; a PSD drag)")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     extra = {} if args.n_neighbours is None else dict(n_neighbours=args.n_neighbours)
@@ -192,6 +217,7 @@ def main():
                 t0 = time.perf_counter()
                 sampler = run_sph.build_sampler(target, variant, args.m, x0, steps, seed, **extra)
                 hook = Checkpoints(sampler, args.checkpoints)
+                sampler_module.damp = particle_drag(sampler) if args.particle_drag else friction_damp
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     res = sampler.run()
@@ -199,7 +225,7 @@ def main():
                 head = dict(target=tname, m=args.m, seed=seed, variant=variant, iid_energy=iid,
                             git=git + ("+dirty" if dirty else ""), load=load, load_end=os.getloadavg()[0],
                             wall=wall, final_converged=res.info["converged"], local_growth=args.local_growth,
-                            n_neighbours=args.n_neighbours, start=args.start,
+                            n_neighbours=args.n_neighbours, start=args.start, particle_drag=args.particle_drag,
                             start_ratio_to_iid=x0_ratio if args.start == "iid" else None)
                 for row in checkpoint_rows(target, res, hook, ref, iid):
                     rows.append(dict(head, **row))
@@ -207,6 +233,7 @@ def main():
                 tag = "" if args.local_growth is None else f"_growth{args.local_growth:g}"
                 tag += "" if args.n_neighbours is None else f"_nb{args.n_neighbours:g}"
                 tag += "" if args.start == "normal" else f"_start{args.start}"
+                tag += "_pdrag" if args.particle_drag else ""
                 np.savez_compressed(snapshots / f"{tname}_m{args.m}_s{seed}_{variant.replace('+', '_')}{tag}.npz",
                                     **{f"r_{s}": st["r"] for s, st in hook.states.items()},
                                     **{f"h_{s}": st["h"] for s, st in hook.states.items()},

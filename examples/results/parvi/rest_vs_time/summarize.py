@@ -24,7 +24,7 @@ def main():
     lines = ["# Every row of this folder's JSON files (made by summarize.py)", ""]
     for path in sorted(HERE.glob("*.json")):
         rows = json.loads(path.read_text())["rows"]
-        if not rows or "steps" not in rows[0]:
+        if not rows or "target" not in rows[0]:
             continue
         lines += [f"## {path.name}", "",
                   "| target | M | seed | variant | steps | time | E / iid | kinetic | converged | x0 mean | x0 q0.05 "
@@ -44,11 +44,19 @@ def main():
                          spread, width, counts]
             else:
                 extra = ["-"] * 6
-            lines.append("| " + " | ".join([row["target"], str(row["m"]), str(row["seed"]), row["variant"],
-                                             str(row["steps"]), fmt(row["sim_time_median"]), fmt(row["ratio_to_iid"]),
-                                             fmt(row["kinetic"]), fmt(row["converged"])] + extra
+            variant = row["variant"] + "".join(f", {k}={row[k]:g}" for k in ("n_neighbours", "local_growth")
+                                               if row.get(k) is not None)
+            variant += ", i.i.d. start" if row.get("start") == "iid" else ""
+            lines.append("| " + " | ".join([row["target"], str(row["m"]), str(row["seed"]), variant,
+                                             str(row["steps"]), fmt(row.get("sim_time_median")),
+                                             fmt(row.get("ratio_to_iid")), fmt(row.get("kinetic")),
+                                             fmt(row.get("converged"))] + extra
                                             + [f"{row['git']}, {row['load']:.1f}"]) + " |")
         lines.append("")
+    energies = json.loads((HERE / "snapshot_energy.json").read_text())["rows"]
+    lines += ["## snapshot_energy.json: the model energy E of the checkpoints (lower = nearer the resting state)", "",
+              "| snapshot file | steps | E | rms residual acceleration |", "| --- | --- | --- | --- |"]
+    lines += [f"| {r['file']} | {r['steps']} | {r['energy']:.5f} | {r['residual_force_rms']:.3g} |" for r in energies]
     (HERE / "summary.md").write_text("\n".join(lines))
     print("\n".join(lines))
 
