@@ -52,3 +52,9 @@ $PY $D/summarize.py   # summary.md
 for t in funnel banana; do
   $PY $D/run_rest.py --targets $t --m 500 --seeds 1 2 --checkpoints 250 500 1000 2000 4000 8000 --out $D/${t}_m500.json
 done
+# 3. the one configuration, six 2D targets, seeds 0-2, M = 500 and 2000 (1000 evaluations per particle)
+V=local+critical+score_every=adaptive+n_neighbours=12+hold_max=scaled
+for m in 500 2000; do
+  $PY $P4/run_sph.py --targets funnel banana gaussian correlated ring8 donut --m $m --steps 1000 --seeds 0 1 2 \
+      --variants $V --out $D/one_config_m$m.json
+done
