@@ -58,3 +58,6 @@ for m in 500 2000; do
   $PY $P4/run_sph.py --targets funnel banana gaussian correlated ring8 donut --m $m --steps 1000 --seeds 0 1 2 \
       --variants $V --out $D/one_config_m$m.json
 done
+$PY $D/line_law.py   # line_law.json
+# 4. the one configuration with 2000 and 4000 evaluations (is the funnel's number a transient?)
+$PY $P4/run_sph.py --targets funnel banana --m 500 --steps 2000 4000 --seeds 0 --variants $V --out $D/one_config_budget.json

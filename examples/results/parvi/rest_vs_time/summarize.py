@@ -23,7 +23,7 @@ def fmt(value, digits=3):
 def main():
     lines = ["# Every row of this folder's JSON files (made by summarize.py)", ""]
     for path in sorted(HERE.glob("*.json")):
-        rows = json.loads(path.read_text())["rows"]
+        rows = json.loads(path.read_text()).get("rows")
         if not rows or "target" not in rows[0]:
             continue
         lines += [f"## {path.name}", "",
