@@ -47,6 +47,7 @@ $PY $D/snapshot_energy.py $D/snapshots/funnel_m500_s0_local_critical.npz $D/snap
 $PY $D/snapshot_energy.py $D/snapshots/funnel_m500_s0_default.npz $D/snapshots/funnel_m500_s0_critical.npz --out $D/snapshot_energy.json
 $PY $D/snapshot_energy.py $D/snapshots/funnel_m500_s0_local_critical_startiid.npz $D/snapshots/banana_m500_s0_default.npz \
     $D/snapshots/banana_m500_s0_critical.npz --out $D/snapshot_energy.json
+$PY $D/snapshot_energy.py $D/snapshots/funnel_m500_s0_local_critical_pdrag.npz --out $D/snapshot_energy.json
 $PY $D/summarize.py   # summary.md
 # 1 (seeds 1 and 2 at M = 500)
 for t in funnel banana; do
