@@ -51,6 +51,7 @@ from .coarse_to_fine import check_coarse_options, child_counts, coarse_schedule,
 from .convergence import assess_convergence, ensemble_moments
 from .friction import ScoreMemory, check_friction, critical_drag, damp
 from .finish import check_finish, ellipsoid_frame, mala_finish, refill_radii
+from .hold_rule import resolve_hold_max
 from .result import SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
 from .whitening import AffineMap, check_whiten
@@ -73,11 +74,13 @@ LOCAL_GROWTH = None
 VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
                       critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4), knn=dict(neighbours="knn"),
                       **{"score_every=adaptive": dict(score_every="adaptive")},
+                      **{"hold_max=scaled": dict(hold_max="scaled")},
                       **{"knn-ratio": dict(neighbours="knn-ratio")}, mala=dict(finish="mala"),
                       radial=dict(finish="radial"))
 #: Numeric options a variant may set as ``name=value`` tokens.
 VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "friction_every", "friction_ramp",
-                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max", "finish_steps")
+                   "coarse_to_fine", "coarse_share", "score_every", "k", "hold_tolerance", "hold_max", "n_neighbours",
+                   "finish_steps")
 #: Numeric variant options that are integers.
 VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max",
                     "finish_steps")
@@ -311,9 +314,12 @@ class ParVISampler:
     hold_tolerance : float
         ``score_every="adaptive"``: the displacement, in units of ``min(H, 1 / |s|)``, that triggers a particle's
         re-evaluation (default :data:`HOLD_TOLERANCE`).
-    hold_max : int
+    hold_max : int or "scaled"
         ``score_every="adaptive"``: the most SPH steps a particle holds its score after the step that evaluated it,
-        so it is evaluated at least every ``hold_max + 1`` steps (default :data:`HOLD_MAX`).
+        so it is evaluated at least every ``hold_max + 1`` steps (default :data:`HOLD_MAX`). ``"scaled"``:
+        ``round(HOLD_MAX (n / 500)^(1/dim))`` (:mod:`.hold_rule`, eq. S1; 4 at n = 500, 8 at n = 2000 in 2D), so that
+        the physical time per evaluation does not shrink with n as the CFL step does; ``parameters["hold_max"]``
+        is the number used.
     finish : None, "mala" or "radial"
         None (default): the particles are the fluid's. Otherwise, after the run, an exact p-invariant kernel
         (:mod:`.finish`; theory.py, eqs. G1-G5) moves the final particles in the frozen whitening map's coordinates
@@ -354,8 +360,9 @@ class ParVISampler:
         if isinstance(hold_tolerance, bool) or not isinstance(hold_tolerance, numbers.Real) \
                 or not 0.0 < hold_tolerance < math.inf:
             raise ValueError(f"hold_tolerance must be a finite number > 0, got {hold_tolerance!r}")
+        hold_max = resolve_hold_max(hold_max, n, dim, HOLD_MAX)  # "scaled": hold_rule.py, eq. S1
         if isinstance(hold_max, bool) or not isinstance(hold_max, (int, np.integer)) or hold_max < 1:
-            raise ValueError(f"hold_max must be an integer >= 1, got {hold_max!r}")
+            raise ValueError(f"hold_max must be an integer >= 1 or 'scaled', got {hold_max!r}")
         self.adaptive_hold = score_every == "adaptive"
         if self.adaptive_hold and (coarse_to_fine is not None or max_steps is not None):
             raise ValueError("score_every='adaptive' counts steps as evaluations: give coarse_to_fine=None and "
@@ -844,7 +851,16 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       steps, the target called on those particles only; ``steps`` is then the evaluations per particle; the
       same resting states as K = 1 (see :class:`ParVISampler`). Measured with ``time_step="local",
       friction="critical"`` at M = 2000, 1000 evaluations (examples/results/parvi/full_m2000_part4/): banana
-      0.14-0.50x and funnel 0.90-1.97x i.i.d. (3 seeds), the other 2D targets as K = 1.
+      0.14-0.50x and funnel 0.90-1.97x i.i.d. (3 seeds), the other 2D targets as K = 1. ``hold_max="scaled"``
+      (:mod:`.hold_rule`) lengthens the hold like ``n^(1/dim)`` (4 at n = 500, 8 at n = 2000 in 2D) so that an
+      evaluation covers the same physical time at any n; any hold keeps the resting states.
+    * ``n_neighbours=N`` — about N particles per support instead of the default (32 in 2D): a smaller H resolves
+      structures narrower than the default support (the banana's arms, the funnel's neck), whose resting state at
+      M = 500 is biased with 32 (examples/results/parvi/rest_vs_time/); exact in the continuum like any N, at the
+      price of a CFL step smaller by ``(N / 32)^(1/2)`` in 2D. Measured with ``time_step="local",
+      friction="critical", score_every="adaptive", hold_max="scaled"`` and N = 12, 1000 evaluations, six 2D targets,
+      3 seeds (examples/results/parvi/rest_vs_time/): <= 0.94x i.i.d. at M = 500 and <= 1.18x at M = 2000 on every
+      target and seed; the funnel's M = 500 figure (0.85-0.87x) is a transient (2.4x with 2000 evaluations).
 
     * ``finish="mala"`` (with ``finish_steps``, default 200) — after the fluid, Metropolis-adjusted Langevin steps
       for every particle in the whitening map's coordinates (p-invariant exactly; theory.py, eqs. G3-G5): removes

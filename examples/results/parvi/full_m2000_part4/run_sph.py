@@ -32,6 +32,24 @@ def sph_steps_per_evaluation(options):
     return 1 if every == "adaptive" else every
 
 
+def reference_set(target, m, seed):
+    """The benchmark's set-up for one target, M and seed: the 5000 reference points, the energy distance of M
+    i.i.d. points (seed + 500) to them, and the N(0, I) starts drawn with the seed."""
+    ref = target.sample(20000, np.random.default_rng(10_000))
+    ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
+    iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
+    x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
+    return ref, iid, x0
+
+
+def build_sampler(target, variant, m, x0, steps, seed, **extra):
+    """The ParVISampler of one row: ``variant``'s options (and ``extra`` keyword options), ``steps`` score
+    evaluations per particle."""
+    options = dict(variant_options(variant), **extra)
+    return ParVISampler(target.log_density, target.score, dim=target.dim, n=m, x0=x0,
+                        steps=steps * sph_steps_per_evaluation(options), seed=seed, **options)
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--targets", nargs="+", default=["banana"])
@@ -48,10 +66,7 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref = target.sample(20000, np.random.default_rng(10_000))
-            ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
-            iid = metrics.energy_distance(target.sample(args.m, np.random.default_rng(seed + 500)), ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
+            ref, iid, x0 = reference_set(target, args.m, seed)
             for steps in args.steps:
                 for variant in args.variants:
                     row = dict(target=tname, m=args.m, steps=steps, seed=seed, variant=variant, iid_energy=iid,
@@ -60,10 +75,7 @@ def main():
                     try:
                         with warnings.catch_warnings():
                             warnings.simplefilter("ignore")
-                            options = variant_options(variant)
-                            res = ParVISampler(target.log_density, target.score, dim=target.dim, n=args.m, x0=x0,
-                                               steps=steps * sph_steps_per_evaluation(options), seed=seed,
-                                               **options).run()
+                            res = build_sampler(target, variant, args.m, x0, steps, seed).run()
                     except ParVIDivergence as exc:
                         row.update(error=str(exc)[:200], wall=time.perf_counter() - t0)
                     else:
