@@ -861,7 +861,6 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       friction="critical", score_every="adaptive", hold_max="scaled"`` and N = 12, 1000 evaluations, six 2D targets,
       3 seeds (examples/results/parvi/rest_vs_time/): <= 0.94x i.i.d. at M = 500 and <= 1.18x at M = 2000 on every
       target and seed; the funnel's M = 500 figure (0.85-0.87x) is a transient (2.4x with 2000 evaluations).
-
     * ``finish="mala"`` (with ``finish_steps``, default 200) — after the fluid, Metropolis-adjusted Langevin steps
       for every particle in the whitening map's coordinates (p-invariant exactly; theory.py, eqs. G3-G5): removes
       the k-NN fluid's bias above a few dimensions (K5-K7) at one score and one log-density per particle and step
