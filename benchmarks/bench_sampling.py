@@ -109,6 +109,30 @@ def evaluation_points(ref, n=5000):
     return ref[np.random.default_rng(1).choice(len(ref), min(len(ref), n), replace=False)]
 
 
+def reference_points(target, out=OUT):
+    """The run's reference sample: 20000 i.i.d. points (seed 10000), or the stored NUTS draws (4000)."""
+    return reference_samples(target, 20000 if target.sample else 4000, 0, out)
+
+
+def start_points(target, m, seed):
+    """Every method's start: M points of N(0, I) drawn with the seed."""
+    return np.random.default_rng(seed).standard_normal((m, target.dim))
+
+
+def comparison_set(target, m, seed, out=OUT):
+    """One (target, M, seed) cell of the evaluation, for the scripts that run SPH-ParVI alone against it.
+
+    Returns the points the distances are measured against (:func:`evaluation_points` of
+    :func:`reference_points`), the energy distance of M i.i.d. points drawn with ``seed + 500`` to them (None for
+    a target without an i.i.d. sampler) and the starts (:func:`start_points`): the ``iid`` row and the start of
+    :func:`run_methods`.
+    """
+    ref = evaluation_points(reference_points(target, out))
+    iid = (metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
+           if target.sample is not None else None)
+    return ref, iid, start_points(target, m, seed)
+
+
 def nuts_reference(target, n, chains=4, warmup=2000):
     """Long NUTS (blackjax, window adaptation), thinned to n points over 4 chains."""
     import blackjax
@@ -200,7 +224,7 @@ RUN_OPTIONS = dict(tuning="pilot", sph_friction=None, sph=dict(SPH_VARIANTS))  #
 
 
 def run_methods(target, m, seed, steps, methods, tuned_for=None):
-    x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
+    x0 = start_points(target, m, seed)
     tuned = tuned_steps(target, steps if tuned_for is None else tuned_for, RUN_OPTIONS["tuning"])
     out = {}
     rec = max(steps // 20, 1)
@@ -312,7 +336,7 @@ def main(argv=None):
         except ImportError as exc:
             print(f"skip {tname}: {exc}")
             continue
-        ref = reference_samples(target, 20000 if target.sample else 4000, 0, args.out)
+        ref = reference_points(target, args.out)
         ref_stats = dict(mean=ref.mean(axis=0) if target.mean is None else target.mean,
                          cov=np.cov(ref, rowvar=False) if target.cov is None else target.cov)
         ref_eval = evaluation_points(ref)

@@ -12,6 +12,7 @@ import argparse
 import json
 import os
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -23,6 +24,9 @@ from ase_sphrelax.sampling.coarse_to_fine import child_counts, split_into_childr
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options
 
 OUT = Path(__file__).with_name("diagnose_coarse.json")
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[4] / "benchmarks"))
+from bench_sampling import comparison_set  # noqa: E402  (the benchmark's reference, i.i.d. floor and starts)
 
 
 def main():
@@ -42,12 +46,9 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref = target.sample(20000, np.random.default_rng(10_000))
-            ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
+            ref, iid, x0 = comparison_set(target, args.m, seed)
             n_c = args.m // args.factor
-            iid = metrics.energy_distance(target.sample(args.m, np.random.default_rng(seed + 500)), ref)
             iid_c = metrics.energy_distance(target.sample(n_c, np.random.default_rng(seed + 500)), ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
             t0 = time.perf_counter()
             coarse = ParVISampler(target.log_density, target.score, dim=2, n=n_c, x0=x0[:n_c], steps=args.coarse_steps,
                                   seed=seed, **options)

@@ -1,6 +1,6 @@
 """SPH-ParVI alone at M = 2000 (issue 18, item 1): controlled runs of named variants and step counts.
 
-The set-up of ``benchmarks/bench_sampling.py``: starts N(0, I) drawn with the seed, reference 20000 i.i.d. points
+The set-up of ``benchmarks/bench_sampling.py`` (its ``comparison_set``): starts N(0, I) drawn with the seed, reference 20000 i.i.d. points
 (seed 10000), 5000 of them (seed 1) for the energy distance, i.i.d. floor of M points drawn with seed + 500. Each
 variant is a :func:`ase_sphrelax.sampling.sampler.variant_options` name; ``--steps`` is the budget in score
 evaluations per particle, so a variant with ``score_every=K`` runs ``K`` times as many SPH steps, and one with
@@ -15,14 +15,16 @@ import argparse
 import json
 import os
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
 
-import numpy as np
-
 from ase_sphrelax.sampling import get_target, metrics
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant_options
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[4] / "benchmarks"))
+from bench_sampling import comparison_set  # noqa: E402  (the benchmark's reference, i.i.d. floor and starts)
 
 
 def sph_steps_per_evaluation(options):
@@ -30,16 +32,6 @@ def sph_steps_per_evaluation(options):
     ``steps`` is already the evaluation budget) and for the default."""
     every = options.get("score_every", 1)
     return 1 if every == "adaptive" else every
-
-
-def reference_set(target, m, seed):
-    """The benchmark's set-up for one target, M and seed: the 5000 reference points, the energy distance of M
-    i.i.d. points (seed + 500) to them, and the N(0, I) starts drawn with the seed."""
-    ref = target.sample(20000, np.random.default_rng(10_000))
-    ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
-    iid = metrics.energy_distance(target.sample(m, np.random.default_rng(seed + 500)), ref)
-    x0 = np.random.default_rng(seed).standard_normal((m, target.dim))
-    return ref, iid, x0
 
 
 def build_sampler(target, variant, m, x0, steps, seed, **extra):
@@ -66,7 +58,7 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref, iid, x0 = reference_set(target, args.m, seed)
+            ref, iid, x0 = comparison_set(target, args.m, seed)
             for steps in args.steps:
                 for variant in args.variants:
                     row = dict(target=tname, m=args.m, steps=steps, seed=seed, variant=variant, iid_energy=iid,

@@ -1,7 +1,7 @@
 """Energy distance and resolution diagnostics against SPH steps: one long run, read at checkpoints.
 
-A wrapper of ``../full_m2000_part4/run_sph.py`` (its ``reference_set`` and ``build_sampler``: the same starts,
-reference and i.i.d. floor). One run of ``max(--checkpoints)`` steps is made per target, M, seed and variant; the
+A wrapper of ``../full_m2000_part4/run_sph.py`` (its ``build_sampler``, and the benchmark's ``comparison_set`` that
+it uses: the same starts, reference and i.i.d. floor). One run of ``max(--checkpoints)`` steps is made per target, M, seed and variant; the
 particles are read at every checkpoint (by wrapping the model's ``evaluate``, which the sampler calls once per SPH
 step with the positions of that step). Nothing in the K = 1 dynamics depends on ``steps`` (no ramp, no annealing,
 no whitening), so the state at checkpoint k is the final state of a run of k steps (checked against run_sph.py's
@@ -206,7 +206,7 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref, iid, x0 = run_sph.reference_set(target, args.m, seed)
+            ref, iid, x0 = run_sph.comparison_set(target, args.m, seed)
             if args.start == "iid":  # a start with the target's own law: does the fluid leave it?
                 x0 = target.sample(args.m, np.random.default_rng(seed + 700))
                 x0_ratio = metrics.energy_distance(x0, ref) / iid

@@ -12,6 +12,7 @@ import argparse
 import json
 import os
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -22,6 +23,9 @@ from ase_sphrelax.sampling import get_target, metrics, sampler as sampler_module
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler
 
 OUT = Path(__file__).resolve().parent / "results.json"
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[4] / "benchmarks"))
+from bench_sampling import comparison_set  # noqa: E402  (the benchmark's reference, i.i.d. floor and starts)
 
 
 def main():
@@ -40,10 +44,7 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref = target.sample(20000, np.random.default_rng(10_000))
-            ref = ref[np.random.default_rng(1).choice(len(ref), 5000, replace=False)]
-            iid = metrics.energy_distance(target.sample(args.m, np.random.default_rng(seed + 500)), ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))
+            ref, iid, x0 = comparison_set(target, args.m, seed)
             for mode in args.modes:
                 row = dict(target=tname, m=args.m, steps=args.steps, seed=seed, time_step=mode, iid_energy=iid,
                            courant=args.courant, growth=args.growth,

@@ -25,7 +25,7 @@ from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[3] / "benchmarks"))
-from bench_sampling import evaluation_points, reference_samples  # noqa: E402  (the benchmark's reference)
+from bench_sampling import comparison_set  # noqa: E402  (the benchmark's reference, i.i.d. floor and starts)
 
 
 def main():
@@ -46,10 +46,7 @@ def main():
     for seed in args.seeds:
         for tname in args.targets:
             target = get_target(tname)
-            ref = evaluation_points(reference_samples(target, 20000, 0, HERE))
-            iid_points = target.sample(args.m, np.random.default_rng(seed + 500))
-            iid = metrics.energy_distance(iid_points, ref)
-            x0 = np.random.default_rng(seed).standard_normal((args.m, target.dim))  # the benchmark's start
+            ref, iid, x0 = comparison_set(target, args.m, seed, HERE)
             for variant in args.variants:
                 row = dict(target=tname, m=args.m, steps=args.steps, seed=seed, variant=variant, tag=args.tag,
                            iid_energy=iid, git=git + ("+dirty" if dirty else ""), load=os.getloadavg()[0])
