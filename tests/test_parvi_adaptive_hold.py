@@ -11,7 +11,7 @@ from ase_sphrelax.sampling.friction import ScoreMemory
 from ase_sphrelax.sampling.sampler import (HOLD_MAX, ParticleScoreMemory, ParVISampler, held_particles,
                                            variant_options)
 from ase_sphrelax.sampling.targets import gaussian_target
-from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from parvi_rest import assert_rests_at_the_predicted_variance
 from test_parvi_score_every import resting_state  # noqa: F401 (the fixture: a state at rest with K = 1)
 from test_parvi_steps import assert_one_line_error_before_work
 
@@ -143,16 +143,7 @@ def test_adaptive_hold_keeps_the_stationary_density(dim, n, steps):
         held = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=steps, seed=1,
                             score_every="adaptive").run()
         one = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=held.info["steps"], seed=1).run()
-    predicted = predicted_gaussian_moments("force", "isothermal", dim)["variance"]
-    var_one, var_held = (res.samples.var(axis=0).mean() for res in (one, held))
-    assert var_held == pytest.approx(predicted, rel=0.05)
-    assert var_held == pytest.approx(var_one, rel=0.03)
-
-
-@pytest.fixture(scope="module")
-def resting_state():
-    target = gaussian_target(np.zeros(2), np.eye(2))
-    return target, ParVISampler(target.log_density, target.score, dim=2, n=200, steps=2000, seed=2).run().samples
+    assert_rests_at_the_predicted_variance(held, one, dim)
 
 
 @settings(max_examples=6, deadline=None, database=None)

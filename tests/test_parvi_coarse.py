@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from ase_sphrelax.sampling.coarse_to_fine import child_counts, child_pattern, coarse_schedule, split_into_children
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options
 from ase_sphrelax.sampling.targets import gaussian_target
-from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from parvi_rest import assert_rests_at_the_predicted_variance
 from test_parvi_steps import assert_one_line_error_before_work
 
 
@@ -108,11 +108,7 @@ def test_coarse_to_fine_keeps_the_stationary_density(dim, n, steps):
             warnings.simplefilter("ignore")
             out[factor] = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=steps, seed=1,
                                        coarse_to_fine=factor).run()
-    predicted = predicted_gaussian_moments("force", "isothermal", dim)["variance"]
-    var_one = out[None].samples.var(axis=0).mean()
-    var_coarse = out[4].samples.var(axis=0).mean()
-    assert var_coarse == pytest.approx(predicted, rel=0.05)
-    assert var_coarse == pytest.approx(var_one, rel=0.03)
+    assert_rests_at_the_predicted_variance(out[4], out[None], dim)
     info = out[4].info["coarse"]
     n_c = n // 4
     assert (info["n"], info["steps"], info["fine_steps"]) == (n_c, 2 * steps, steps // 2)

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from ase_sphrelax.sampling.friction import critical_drag, damp
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options
 from ase_sphrelax.sampling.targets import gaussian_target
-from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from parvi_rest import assert_rests_at_the_predicted_variance
 from test_parvi_steps import assert_one_line_error_before_work
 
 
@@ -55,11 +55,7 @@ def test_critical_friction_keeps_the_stationary_density(dim, n, steps):
             warnings.simplefilter("ignore")
             out[friction] = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=steps, seed=1,
                                          friction=friction).run()
-    predicted = predicted_gaussian_moments("force", "isothermal", dim)["variance"]
-    var_default = out[None].samples.var(axis=0).mean()
-    var_critical = out["critical"].samples.var(axis=0).mean()
-    assert var_critical == pytest.approx(predicted, rel=0.05)
-    assert var_critical == pytest.approx(var_default, rel=0.03)
+    assert_rests_at_the_predicted_variance(out["critical"], out[None], dim)
     rates = out["critical"].info["friction_rates"]
     assert len(rates) == dim and all(1.0 < r < 3.0 for r in rates)  # 2 sqrt(curvature 1), from the particles
 

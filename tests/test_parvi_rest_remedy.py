@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from ase_sphrelax.sampling.hold_rule import SCALED_HOLD_REFERENCE_N, resolve_hold_max
 from ase_sphrelax.sampling.sampler import HOLD_MAX, ParVISampler, sample, variant_options
 from ase_sphrelax.sampling.targets import gaussian_target
-from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from parvi_rest import assert_rests_at_the_predicted_variance
 
 REMEDY = "local+critical+score_every=adaptive+n_neighbours=12+hold_max=scaled"
 
@@ -107,7 +107,4 @@ def test_fewer_neighbours_keep_the_stationary_density(dim, n, neighbours, varian
                            n_neighbours=neighbours, **options).run()
         options.pop("hold_max", None)
         usual = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=steps, seed=1, **options).run()
-    predicted = predicted_gaussian_moments("force", "isothermal", dim)["variance"]
-    var_few, var_usual = (res.samples.var(axis=0).mean() for res in (few, usual))
-    assert var_few == pytest.approx(predicted, rel=0.05)
-    assert var_few == pytest.approx(var_usual, rel=0.03)
+    assert_rests_at_the_predicted_variance(few, usual, dim)

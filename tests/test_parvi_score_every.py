@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from ase_sphrelax.sampling.friction import ScoreMemory
 from ase_sphrelax.sampling.sampler import ParVISampler, variant_options
 from ase_sphrelax.sampling.targets import gaussian_target
-from ase_sphrelax.sampling.theory import predicted_gaussian_moments
+from parvi_rest import assert_rests_at_the_predicted_variance
 from test_parvi_steps import assert_one_line_error_before_work
 
 
@@ -66,10 +66,7 @@ def test_held_score_keeps_the_stationary_density(dim, n, steps):
             warnings.simplefilter("ignore")
             out[k] = ParVISampler(target.log_density, target.score, dim=dim, n=n, steps=steps, seed=1,
                                   score_every=k).run()
-    predicted = predicted_gaussian_moments("force", "isothermal", dim)["variance"]
-    var_one, var_held = (out[k].samples.var(axis=0).mean() for k in (1, 4))
-    assert var_held == pytest.approx(predicted, rel=0.05)
-    assert var_held == pytest.approx(var_one, rel=0.03)
+    assert_rests_at_the_predicted_variance(out[4], out[1], dim)
 
 
 @pytest.fixture(scope="module")
