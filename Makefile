@@ -1,6 +1,6 @@
 # Two entry points for a fresh machine with Python 3.11 and make:
 #   make demo   create .venv if missing, install, relax Fan's default circle
-#   make test   same set-up, run the whole test suite
+#   make test   same set-up, check the registry of reproductions, run the whole test suite
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -23,6 +23,7 @@ demo: $(STAMP)
 	$(VENV)/bin/sphrelax relax --out demo_out --overwrite
 
 test: $(STAMP)
+	$(VENV)/bin/sphrelax reproduce --check
 	$(PY) -m pytest -n 2 -q --durations=15
 
 bench: $(STAMP)

@@ -41,6 +41,7 @@ COMMANDS = {
     "sample": "ase_sphrelax.cli.sample",
     "density": "ase_sphrelax.cli.density",
     "pack": "ase_sphrelax.cli.pack",
+    "reproduce": "ase_sphrelax.cli.reproduce",
 }
 
 #: built-in methods per command (``sphrelax COMMAND --method NAME``)
