@@ -54,7 +54,7 @@ def test_table_csv_has_one_name():
     from ase_sphrelax.analysis.patterns import table_path
 
     assert table_path(2).name == "table2_2d.csv" and table_path(3, "x").as_posix() == "x/table2_3d.csv"
-    example = (Path(__file__).parents[1] / "examples" / "lattice_tables.py").read_text()
+    example = (Path(__file__).parents[1] / "reproductions" / "lattice-table2" / "run.py").read_text()
     assert "table_path(2" in example and "table2d" not in example
 
 

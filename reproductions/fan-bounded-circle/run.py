@@ -8,14 +8,21 @@ a centred rectangular lattice by our lattice analysis). The interior
 (phi < -2h) is classified by the majority local lattice of the neighbour
 vectors and by the hexatic orders |psi_4|, |psi_6| (freud).
 
-    python examples/bounded_patterns.py --out bounded_out [--steps 1500] [--jitter 0.45] [--h 2.25 2.0]
-    python examples/bounded_patterns.py --out bounded_out --continue --steps 3000 --h 2.25   # more steps
+The committed results were made by (about 4 min per 1500 steps and case on 1 core):
 
-Writes bounded_out/circle_<h>.png (figures like Figs. 12-14), circle_<h>.extxyz
-and summary.txt.
+    python reproductions/fan-bounded-circle/run.py --steps 1500 --jitter 0.45
+    python reproductions/fan-bounded-circle/run.py --continue --steps 3000 --h 2.25 2.75 3.3 2.15
+    python reproductions/fan-bounded-circle/run.py --continue --steps 0   # re-classify, redraw
+
+Writes <out> (default reproductions/fan-bounded-circle/results)/circle_<h>.png
+(figures like Figs. 12-14), circle_<h>.extxyz (not committed: 0.5 MB each),
+summary.txt (one line per run, appended) and summary.json (the last line per h,
+parsed: ``cases[h=2.25].pattern``).
 """
 import argparse
+import json
 import os
+import re
 import time
 
 from ase.io import read
@@ -24,11 +31,35 @@ from ase_sphrelax.analysis.bounded import classify_bounded_pattern, plot_bounded
 from ase_sphrelax.analysis import predict_pattern
 
 CASES = (2.25, 2.75, 3.3, 2.0, 2.05, 2.15)
+LINE = re.compile(r"h/dp=(?P<h>\S+) N=(?P<n>\d+) steps=(?P<steps>\d+) E=(?P<energy>\S+) interior=(?P<interior>\d+) "
+                  r"pattern=(?P<pattern>\w+) \[(?P<fractions>[^]]*)\] psi4=(?P<psi4>\S+) psi6=(?P<psi6>\S+) "
+                  r"median \|a2\|/\|a1\|=(?P<median_ratio>\S+) angle=(?P<median_angle>\S+) \| "
+                  r"Table 1: (?P<table1>\w+), best lattice: (?P<best_lattice>\w+)")
+
+
+def write_summary_json(summary_txt, summary_json):
+    """Parse the lines of ``summary_txt`` into ``summary_json``: per h the last line's figures."""
+    cases = {}
+    with open(summary_txt) as fh:
+        for line in fh:
+            m = LINE.match(line.strip())
+            if m is None:
+                raise ValueError(f"summary_txt: line not in the expected form: {line.strip()!r}")
+            d = m.groupdict()
+            case = {"h": float(d["h"]), "n": int(d["n"]), "steps": int(d["steps"]), "energy": float(d["energy"]),
+                    "interior": int(d["interior"]), "pattern": d["pattern"],
+                    "fractions": {k: float(v) for k, v in (kv.split("=") for kv in d["fractions"].split())},
+                    "table1": d["table1"], "best_lattice": d["best_lattice"]}
+            case.update({k: float(d[k]) for k in ("psi4", "psi6", "median_ratio", "median_angle")})
+            cases[case["h"]] = case
+    with open(summary_json, "w") as fh:
+        json.dump({"source": os.path.basename(summary_txt), "cases": list(cases.values())}, fh, indent=1)
+        fh.write("\n")
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", default="bounded_out")
+    parser.add_argument("--out", default="reproductions/fan-bounded-circle/results")
     parser.add_argument("--steps", type=int, default=1500)
     parser.add_argument("--jitter", type=float, default=0.45)
     parser.add_argument("--optimizer", default="fire")
@@ -57,6 +88,7 @@ def main(argv=None):
                                  title=f"h = {h:g} dp: {pattern} (interior {info['fractions'][pattern]:.0%})")
             atoms.calc = None
             atoms.write(os.path.join(args.out, f"circle_{h:g}.extxyz"))
+    write_summary_json(os.path.join(args.out, "summary.txt"), os.path.join(args.out, "summary.json"))
 
 
 if __name__ == "__main__":
