@@ -695,7 +695,7 @@ def _max_displacement2(r_pc, r0_pc):
 # benchmarks/profile_fan.py: m = 2 in 3D checks 0.58x the candidates of m = 1)
 BIN_DIVISIONS = {1: 1, 2: 2, 3: 2}
 
-# Wide cut-offs (benchmarks/README.md, "Neighbour bins by a typical cut-off"): when the largest
+# Wide cut-offs (reproductions/speed-wide-cutoffs/README.md): when the largest
 # reach (cut-off + skin) exceeds WIDE_FACTOR times the TYPICAL_QUANTILE of the reaches, the bins
 # are sized by that typical reach and the points of larger reach ("wide" points) scan their own
 # full stencils; otherwise the bins are sized by the largest reach, as for a uniform cut-off.

@@ -88,6 +88,8 @@ def main(argv=None):
     for r in rows:
         if r["svgd"] is None:
             r["svgd_extrapolated"] = float(np.exp(svgd_c) * r["m"] ** svgd_exp)
+        else:
+            r["svgd_over_sph"] = r["svgd"] / r["sph"]  # how many times faster SPH-ParVI's step is
     # crossover: exp(svgd_c) M^a = exp(sph_c) M^b
     crossover = float(np.exp((sph_c - svgd_c) / (svgd_exp - sph_exp))) if svgd_exp != sph_exp else None
     measured_crossover = None

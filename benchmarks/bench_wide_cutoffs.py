@@ -1,6 +1,6 @@
 """Neighbour rebuild with cut-offs spanning two orders of magnitude, against a uniform cut-off.
 
-The case of benchmarks/README.md, "Known limit" (issue 16, item 6): M = 2e4 points of a 2D
+The case of reproductions/speed-wide-cutoffs/README.md, "Known limit" (issue 16, item 6): M = 2e4 points of a 2D
 standard normal, bounded, with SPH-ParVI's adaptive smoothing lengths H (the model's own
 solve: H from about 0.03 to 3, 100x). Timed: a list rebuild (``NeighborList.update`` with
 skin 0.2 median H) plus one density pass (``sph.density_sums``, which runs the fused rebuild

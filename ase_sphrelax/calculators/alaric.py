@@ -24,7 +24,7 @@ PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default flo
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
 # default Verlet skin, relative to the mean H at the first evaluation, as Fan's 0.1 h: 0.2 listed 1.17x (2D) / 1.29x
 # (3D) the pairs at 1e5; ALARICDynamics on Fig. 13 rebuilds at nearly every step with either (0.2: 89 %, 0.1: 100 %
-# of the steps; benchmarks/results/alaric_skin_rebuilds.json, benchmarks/README.md "ALARIC speed")
+# of the steps; benchmarks/results/alaric_skin_rebuilds.json, reproductions/speed-alaric-lammps/README.md)
 SKIN_FACTOR = 0.1
 # boundary="mirror": the stored ghost set reaches this much deeper than needed (times the mean H at the first
 # evaluation), so that it changes only when particles moved that far (_solve_with_ghosts)

@@ -70,7 +70,7 @@ class BIPIMethod:
                             help="particles starting outside: refuse (default) or move them 0.5 dx inside")
         parser.add_argument("--momentum", type=unit_interval_open, default=0.0, metavar="BETA",
                             help="heavy-ball momentum in Step 2c (0, the default, is the paper's Eq. 14-15; 0.9 "
-                                 "halved the 3D sphere's time with the same boundary layer, benchmarks/README.md)")
+                                 "halved the 3D sphere's time with the same boundary layer, reproductions/speed-bipi-sphere)")
 
     @staticmethod
     def prepare(boundary, dx, h, args):

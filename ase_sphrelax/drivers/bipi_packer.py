@@ -260,7 +260,7 @@ class BIPIPacker(Optimizer):
         0 (default): the paper's Eq. 14-15. ``beta`` in [0, 1): Step 2c moves by the heavy-ball step
         ``s_i = Eq. 14 + beta s_(i-1)``, capped by Eq. 15, with ``s_(i-1)`` the previous move (0 where it
         was rejected). Not the paper's rule: it reaches a lower ``|grad C|_avg`` in fewer iterations
-        (``benchmarks/README.md``, "BIPI 3D"; the sphere: 352 iterations to 4.1e-5 by the 1 % rule
+        (``reproductions/speed-bipi-sphere/README.md``; the sphere: 352 iterations to 4.1e-5 by the 1 % rule
         against 1000, the cap, to 3.4e-4 at 0). Opt-in: at 0.95 the oscillating ``|grad C|_avg``
         satisfied the 1 % rule after 36 iterations, far from converged.
     momentum_stages : tuple of str
