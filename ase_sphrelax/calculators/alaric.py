@@ -30,7 +30,7 @@ SKIN_FACTOR = 0.1
 # evaluation), so that it changes only when particles moved that far (_solve_with_ghosts)
 GHOST_SKIN = 0.25
 WALL_FORMS = ("linear", "quadratic")  # the domain wall's energy per particle outside (wall_form)
-# wall_form="quadratic": default L = this times (V_domain / N)^(1/d) (examples/results/alaric/fig8_3d_isolate: 0.5)
+# wall_form="quadratic": default L = this times (V_domain / N)^(1/d) (reproductions/alaric-fig8-3d-isolate: 0.5)
 QUADRATIC_WALL_FACTOR = 0.5
 
 
@@ -128,14 +128,14 @@ class ALARICCalculator(SPHCalculator):
         ``"linear"`` (default; every stored figure used it): ``U_wall = m c_s^2 phi_+ / L`` per particle, with
         ``phi_+ = max(phi, 0)``: its force jumps from 0 to ``m c_s^2 / L`` as a particle crosses the boundary, and
         a leapfrog step across that jump adds energy (the hot, pairing edge layer of Fig. 8 in 3D at N = 26 411,
-        ``examples/results/alaric/fig8_3d_isolate``). ``"quadratic"``: ``U_wall = m c_s^2 phi_+^2 / (2 L^2)``,
+        ``reproductions/alaric-fig8-3d-isolate``). ``"quadratic"``: ``U_wall = m c_s^2 phi_+^2 / (2 L^2)``,
         whose force ``m c_s^2 phi_+ / L^2`` goes to 0 as ``phi -> 0+``: no force jump (with it that run converged at
         epsilon 1.8e-4 without pairing, ``fig8_3d_isolate/f_n26411_smooth05``).
     wall_length : float or None
         ``L`` of ``wall_form``. Default for ``"linear"``: a tenth of the mean particle spacing
         ``(V_domain / N)^(1/d)`` at the first evaluation (stiff enough to beat the outward pressure on a particle
         alone outside), then kept. Default for ``"quadratic"``: ``0.5 (V_domain / N)^(1/d)`` with the current N at
-        every evaluation (it follows splitting, as the experiment ``examples/alaric_fig8_isolate.py`` did).
+        every evaluation (it follows splitting, as the experiment ``reproductions/lib/alaric_fig8_isolate.py`` did).
     density_floor : float or None
         ``ln rho*`` uses ``max(rho*, floor)``; default ``1e-4 max rho*`` over the particles of the first
         evaluation (``grad ln rho*`` diverges like ``2/r`` at a quadratic zero of the target, Eq. 46 with

@@ -49,7 +49,7 @@ def add_arguments(parser):
     parser.add_argument("--wall-form", choices=("linear", "quadratic"), default="linear",
                         help="2D/3D: the domain wall's energy per particle outside, linear m c^2 phi/L (default, "
                              "L = 0.1 (V/N)^(1/d)) or quadratic m c^2 phi^2/(2 L^2) (L = 0.5 (V/N)^(1/d): no force "
-                             "jump at the boundary, examples/results/alaric/fig8_3d_isolate)")
+                             "jump at the boundary, reproductions/alaric-fig8-3d-isolate)")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
                         help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
     parser.add_argument("--finish", choices=("none", "squares"), default="none",

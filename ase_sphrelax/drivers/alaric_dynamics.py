@@ -394,12 +394,12 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     minimum is the paper's fixed point ``rho_a = rho*(x_a)`` (Eq. 29, 43). On a uniform target in a disc with
     mirror ghosts it lowers epsilon from about 1e-5 to about 1e-8 without pairing; on Eq. 46's well it lowers
     Eq. 45 below Eq. 48 by moving the particles off the bottom of the well, while the integral error grows
-    (``examples/results/alaric/table2_two_stage``): so it is opt-in. ``"none"`` (default): the log potential alone.
+    (``reproductions/alaric-table2-two-stage``): so it is opt-in. ``"none"`` (default): the log potential alone.
 
     ``boundary``: the calculator's edge treatment; ``"auto"`` (default) mirrors through a ball's or a convex
     polygon's boundary (:func:`~ase_sphrelax.models.alaric.resolve_boundary`): with truncated kernels the
     edge particles' density is about half the target and dominates epsilon (Fig. 13:
-    ``examples/results/alaric/fig13_mirror``).
+    ``reproductions/alaric-fig13``).
 
     ``wall_form``: the calculator's domain wall, ``"linear"`` (default) or ``"quadratic"`` (no force jump at the
     boundary; :class:`~ase_sphrelax.calculators.alaric.ALARICCalculator`), also in the polish.
