@@ -1,14 +1,14 @@
-"""examples/alaric_figures.py runs on tiny cases (Figs. 1 and 9; Figs. 12 and 16 take minutes even when quick)."""
+"""reproductions/lib/alaric_figures.py (Figs. 1, 9, 12, 16) runs on tiny cases (Figs. 1 and 9; Figs. 12 and 16 take minutes even when quick)."""
 import json
 
 import pytest
-from examples_loader import load_example
+from examples_loader import load_script
 
 
 
 @pytest.fixture(scope="module")
 def figures():
-    return load_example("alaric_figures")
+    return load_script("reproductions/lib/alaric_figures.py")
 
 
 def test_figure1_quick_writes_its_files_and_the_maps_agree(figures, tmp_path):

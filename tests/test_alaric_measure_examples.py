@@ -1,17 +1,17 @@
-"""examples/alaric_table1_f_isolate.py and examples/alaric_fig13_common_measure.py on tiny cases."""
+"""reproductions/alaric-table1-f/run.py and reproductions/alaric-fig13-common/run.py on tiny cases."""
 import numpy as np
 import pytest
-from examples_loader import load_example
+from examples_loader import load_script
 
 
 @pytest.fixture(scope="module")
 def isolate():
-    return load_example("alaric_table1_f_isolate")
+    return load_script("reproductions/alaric-table1-f/run.py")
 
 
 @pytest.fixture(scope="module")
 def common():
-    return load_example("alaric_fig13_common_measure")
+    return load_script("reproductions/alaric-fig13-common/run.py")
 
 
 def test_recorded_limits_reproduce_the_drivers_step(isolate):
@@ -39,7 +39,7 @@ def test_gaps_see_a_crossing(isolate):
 
 
 def test_common_measures_on_a_small_set(common):
-    from alaric_reproduce import circle_start
+    from lib.alaric_reproduce import circle_start
 
     x_pd = circle_start(400, 3).positions[:, :2]
     row = common.measure("random", x_pd, "test")

@@ -1,28 +1,24 @@
 """ALARIC's domain wall: ``wall_form="linear"`` (default, ``m c_s^2 phi_+ / L``) or ``"quadratic"``
-(``m c_s^2 phi_+^2 / (2 L^2)``, no force jump at the boundary: examples/results/alaric/fig8_3d_isolate).
+(``m c_s^2 phi_+^2 / (2 L^2)``, no force jump at the boundary: reproductions/alaric-fig8-3d-isolate).
 
 FD forces next to, on and outside the boundary; the quadratic wall's force continuous at phi = 0; a particle
 crossing the wall under leapfrog: energy error O(dt^2) (quadratic) against O(dt) (linear); the linear default
 unchanged to the bit; the CLI option reaching the calculator; the example's smooth wall = the package's form.
 """
-import importlib.util
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from ase import Atoms
 from ase.calculators.fd import calculate_numerical_forces
+from examples_loader import load_script
 from hypothesis import given, settings, strategies as st
 
 from ase_sphrelax import ALARICCalculator
 from ase_sphrelax.calculators.alaric import QUADRATIC_WALL_FACTOR
 from ase_sphrelax.domains import Circle, Sphere
-
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _density(x):
     return 1.0 + 0.3 * x[:, 0]
@@ -205,7 +201,7 @@ def test_quadratic_default_length_follows_n():
 
 
 def _stand_alone_smooth_wall(length_factor, **kwargs):
-    """The first version of examples/alaric_fig8_isolate.py's smooth_wall_calculator (before the package option),
+    """The first version of reproductions/lib/alaric_fig8_isolate.py's smooth_wall_calculator (before the package option),
     which made the stored fig8_3d_isolate results: the linear wall switched off, the quadratic one added."""
 
     class SmoothWallALARIC(ALARICCalculator):
@@ -228,10 +224,7 @@ def _stand_alone_smooth_wall(length_factor, **kwargs):
 
 
 def _example_module():
-    spec = importlib.util.spec_from_file_location("alaric_fig8_isolate", ROOT / "examples" / "alaric_fig8_isolate.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("reproductions/lib/alaric_fig8_isolate.py")
 
 
 @pytest.mark.parametrize("length_factor", [0.5, 1.0])

@@ -5,7 +5,7 @@ Energy tolerance: ``fix sph`` integrates ``v``, ``x`` and ``esph`` by velocity V
 energy updates; the semi-discrete equations conserve ``KE + sum esph`` exactly (each pair's work
 is billed half to each particle), so what remains is the time integration error, second order in
 the step: on 40 x 40 to t = 0.09, max |(E - E0)/E0| = 4.6e-4, 9.0e-5, 2.6e-5, 7.3e-6 at cfl = 0.2, 0.1,
-0.05, 0.025 (examples/results/alaric/fig14_15/checks.json). The tests ask for < 3e-4 at cfl 0.1 and for the error to fall by at least 40 % when the step
+0.05, 0.025 (reproductions/alaric-fig14-15/results/checks.json). The tests ask for < 3e-4 at cfl 0.1 and for the error to fall by at least 40 % when the step
 is halved: a leak (an energy term LAMMPS does not count) would not shrink with the step.
 """
 import numpy as np
