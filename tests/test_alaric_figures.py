@@ -1,4 +1,4 @@
-"""reproductions/lib/alaric_figures.py (Figs. 1, 9, 12, 16) runs on tiny cases (Figs. 1 and 9; Figs. 12 and 16 take minutes even when quick)."""
+"""reproductions/lib/alaric_figures.py runs on tiny cases (Figs. 1 and 9; Figs. 12 and 16 take minutes even when quick)."""
 import json
 
 import pytest

@@ -141,7 +141,8 @@ def main():
         wvt_positions[weight] = x_pd.tolist()
         sets.append((f"WVT {'r^-2' if weight == 'r2' else 'kernel'}", x_pd,
                      f"re-run here, seed {args.seed}, {steps} steps, {wall:.0f} s"))
-    cli = read(RESULTS / "alaric-fig13-cli" / "results" / "default" / "relaxed.extxyz")  # sh reproductions/alaric-fig13-cli/run.sh first
+    # written by sh reproductions/alaric-fig13-cli/run.sh (not committed): run that entry first
+    cli = read(RESULTS / "alaric-fig13-cli" / "results" / "default" / "relaxed.extxyz")
     sets.append(("ALARIC, CLI default start", cli.positions[:, :2],
                  f"fig13_cli/default/relaxed.extxyz (another start; 256-gon edge file), its own eps "
                  f"{cli.info.get('epsilon', float('nan')):.3g}"))

@@ -3,7 +3,7 @@ with whatever ase_sphrelax PYTHONPATH points at: steps, stop, eps, simulated tim
 
     git archive REV ase_sphrelax | tar -x -C /tmp/REV
     OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=/tmp/REV .venv/bin/python \
-        reproductions/alaric-table1-f/results/f_run.py [STEPS] > reproductions/alaric-table1-f/results/f_NAME.json
+        reproductions/alaric-table1-f/f_run.py [STEPS] > reproductions/alaric-table1-f/results/f_NAME.json
 """
 import json, sys, time
 import numpy as np

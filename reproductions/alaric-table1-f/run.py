@@ -2,7 +2,7 @@
 
 The F run: friction chi = 2 only (no velocity stops, no viscosity), log potential, Eq. 46 with Delta = 0, 300
 equispaced particles on the periodic [-1, 1), cap 10 000 steps (as ``reproductions/lib/alaric_reproduce.py`` part a and
-``reproductions/alaric-table1-f/results/f_run.py``). An observer of the public driver (``dyn.attach``) records after every
+``reproductions/alaric-table1-f/f_run.py``). An observer of the public driver (``dyn.attach``) records after every
 step: the step just taken ``dt``; the two limits of the next step (signal speed ``C min H/(v_sig + |v|max)`` and force
 ``C min sqrt(H/|a|)``) and which one is smaller (the driver's ``cfl_timestep`` takes their minimum: checked against the
 next ``dt``); the smallest pair distance over the mean spacing 2/N and the pair; how many neighbours in the start's

@@ -680,7 +680,8 @@ def main():
     parser.add_argument("--only", default="a,b,c,d,e,f,g,h", help="comma-separated parts (default all)")
     parser.add_argument("--quick", action="store_true", help="smaller runs (minutes, for checking the script)")
     parser.add_argument("--deltas", default="0.1", help="part b2: the Deltas (comma-separated)")
-    parser.add_argument("--out", required=True, help="the entry's results folder, e.g. reproductions/alaric-table1/results")
+    parser.add_argument("--out", required=True,
+                        help="the entry's results folder, e.g. reproductions/alaric-table1/results")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
