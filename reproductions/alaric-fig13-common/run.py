@@ -119,6 +119,13 @@ def run_wvt(weight, steps, seed):
     return atoms.positions[:, :2].copy(), opt.nsteps, time.perf_counter() - t0
 
 
+def ratios(rows, keys):
+    """Each set's measure over the first set's (ALARIC, mirror) per measure in ``keys`` (> 1: ALARIC lower), as the
+    table's "ratio to" rows and ``ratios.json``."""
+    ref = rows[0]
+    return dict(ratio_to=ref["set"], rows=[dict(set=r["set"], **{k: r[k] / ref[k] for k in keys}) for r in rows])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=10000, help="WVT steps")
@@ -172,6 +179,7 @@ def main():
                  + " | ".join(str(r["edge_particles_within_0p1_spacing"]) for r in rows) + " |")
     lines += ["", "Sets: " + "; ".join(f"{r['set']}: {r['note']}" for r in rows) + "."]
     (out / "table.md").write_text("\n".join(lines) + "\n")
+    (out / "ratios.json").write_text(json.dumps(ratios(rows, [k for k, _ in keys[:-1]]), indent=1) + "\n")
     print("\n".join(lines))
 
 
