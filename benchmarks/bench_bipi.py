@@ -22,7 +22,7 @@ iteration at N ~ 1e5 at most 3x a FanCalculator warm evaluation.
     python benchmarks/bench_bipi.py --quick    # N = 1e3, 3e3, 1e4
 
 3D (issue 17 item 6: one Step-2c iteration at 1e5 at most 3 FanCalculator warm evaluations): the sphere of
-radius 0.5 of ``examples/bipi_results.py`` (``Sphere.to_mesh(3)``, 1280 triangles) filled by Step 1 at
+radius 0.5 of ``reproductions/bipi-table/run.py`` (``Sphere.to_mesh(3)``, 1280 triangles) filled by Step 1 at
 dx = (volume / N)^(1/3), h = 4 dx; Step 2c only (``--no-2a``), the Fan evaluation on the same particles with
 the sphere as its domain:
 
@@ -115,7 +115,7 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--out", default=str(RESULTS / "bench_bipi.json"))
     parser.add_argument("--dim", type=int, default=2, choices=[2, 3],
-                        help="2: the trapezoid (default); 3: the sphere of examples/bipi_results.py")
+                        help="2: the trapezoid (default); 3: the sphere of reproductions/bipi-table/run.py")
     parser.add_argument("--no-2a", dest="step_2a", action="store_false", help="time Step 2c only")
     parser.add_argument("--threads", type=int, default=1,
                         help="numba threads (default 1: CPU time of one thread is robust on the shared machine)")

@@ -1,4 +1,4 @@
-"""CPU and wall time of the BIPI sphere case (examples/bipi_results.py ``sphere_3d``), this checkout against a baseline.
+"""CPU and wall time of the BIPI sphere case (reproductions/bipi-table/run.py ``sphere_3d``), this checkout against a baseline.
 
 The sphere of radius 0.5 (``Sphere.to_mesh(3)``, 1280 triangles), dx = 0.05, h_B/dx = 2 (4032 particles),
 packed with the case's settings, capped (default 40 iterations of Step 2a, 80 of 2c; ``--full``: the case's own

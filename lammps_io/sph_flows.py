@@ -195,7 +195,7 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
         particles sank 5.6 dx against 0.02 dx (0.5 s). With alpha = 0.02 the continuity run of that
         tank did not settle (kinetic energy 1e2 J after 0.5 s, particles through the floor); with
         alpha = 0.1 longer runs did not either (the 2.05 m wedge tank and a flat tank at dx = 0.02 m:
-        kinetic energy 570-730 J/m within 1 s, examples/results/bipi_sph/), while alpha = 0.5 settled.
+        kinetic energy 570-730 J/m within 1 s, reproductions/bipi-fig13-14/), while alpha = 0.5 settled.
     hydrostatic_start : bool
         Start from the hydrostatic densities ``rho0 (1 + rho0 g d / B)^(1/7)`` at depth ``d`` (walls
         included, at their own depth, zero above the surface), so that only the particle

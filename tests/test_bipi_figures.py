@@ -1,13 +1,11 @@
-"""examples/bipi_figures.py: its after-the-fact stopping rule is the packer's, and its history file keeps every row."""
+"""reproductions/lib/bipi_figures.py: its after-the-fact stopping rule is the packer's, and its history file keeps every row."""
 import csv
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from examples_loader import load_script
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-bipi_figures = pytest.importorskip("bipi_figures")
+bipi_figures = load_script("reproductions/lib/bipi_figures.py")
 
 
 def _packer(window, n2a):

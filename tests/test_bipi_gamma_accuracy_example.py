@@ -1,8 +1,8 @@
-"""examples/bipi_gamma_accuracy.py: its independent references hit known values and agree with gamma_and_gradient."""
+"""reproductions/bipi-gamma-accuracy/run.py: its independent references hit known values and agree with gamma_and_gradient."""
 
 import numpy as np
 import pytest
-from examples_loader import load_example
+from examples_loader import load_script
 
 pytest.importorskip("shapely")
 pytest.importorskip("trimesh")
@@ -12,7 +12,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarn
 
 @pytest.fixture(scope="module")
 def example():
-    return load_example("bipi_gamma_accuracy")
+    return load_script("reproductions/bipi-gamma-accuracy/run.py")
 
 
 def test_references_known_values(example):

@@ -1,4 +1,4 @@
-"""Grid walls 1 dx from the fluid (examples/results/bipi_sph/README.md, "A defect of these grid walls").
+"""Grid walls 1 dx from the fluid (reproductions/bipi-fig13-14/README.md, "A defect of these grid walls").
 
 The wedge tank is 102.5 dx wide at dx = 0.02: the cell centres at x = 2.05 lie on its right wall,
 ``initial_fill`` drops them (within dx/8 of the boundary) and walls strictly outside skipped them too,
@@ -7,7 +7,7 @@ leaving a 2 dx gap there. ``add_walls`` now takes the centres the fill dropped.
 
 import numpy as np
 import pytest
-from examples_loader import load_example
+from examples_loader import load_script
 
 from ase_sphrelax.boundary import BoundarySegments
 from ase_sphrelax.domains import Polygon
@@ -15,7 +15,7 @@ from ase_sphrelax.drivers.bipi_packer import DROP_FRACTION, FLUID, WALL, add_wal
 
 
 def _example():
-    return load_example("bipi_sph")
+    return load_script("reproductions/lib/bipi_sph.py")
 
 
 def _side_gaps(both, dx):

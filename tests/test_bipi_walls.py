@@ -3,7 +3,7 @@ import json
 
 import numpy as np
 import pytest
-from examples_loader import load_example
+from examples_loader import load_script
 from ase.io import read, write
 
 from ase_sphrelax.boundary import BoundarySegments
@@ -102,9 +102,9 @@ def test_cli_pack_walls(geometries, tmp_path):
 
 
 def test_wedge_tank_example_walls_stay_below_the_surface():
-    """examples/bipi_sph.py's tank: walls outside floor, wedge and sides only, none at or above the water."""
+    """reproductions/lib/bipi_sph.py's tank: walls outside floor, wedge and sides only, none at or above the water."""
 
-    example = load_example("bipi_sph")
+    example = load_script("reproductions/lib/bipi_sph.py")
     boundary, dx = example.wedge_tank(), 0.05
     h = example.H_OVER_DX * dx
     both = example.with_walls(initial_fill(boundary, dx), boundary, dx, h, example.DEPTH)
@@ -277,13 +277,13 @@ def test_cli_pack_packed_walls(geometries, tmp_path):
 
 
 def test_coral_tank_example_geometry():
-    """examples/bipi_sph.py's case (b): one loop; the coral's trunk and tips are solid; its band covers the thin branches."""
+    """reproductions/lib/bipi_sph.py's case (b): one loop; the coral's trunk and tips are solid; its band covers the thin branches."""
 
     import shapely
 
     from ase_sphrelax.drivers.bipi_walls import wall_band
 
-    example = load_example("bipi_sph")
+    example = load_script("reproductions/lib/bipi_sph.py")
     dx = 0.02
     boundary = example.coral_tank(dx)
     tank_area = 0.5 * (1.4 + 1.9) * example.CORAL_DEPTH

@@ -214,7 +214,7 @@ def _sees_one_face(x, tri, t):
 @pytest.mark.parametrize("x_units", [[1.3709634413226972, -1.1527844571916064, -0.023747898514303284],
                                      [-1.0846301272960572, -0.8122096365035651, -0.6031602362003777]])
 def test_gamma_3d_on_tetrahedron_face_regression(x_units):
-    """Points ~1e-16 off a face's plane (issue 17 item 1; examples/bipi_gamma_accuracy.py's on-face points, in
+    """Points ~1e-16 off a face's plane (issue 17 item 1; reproductions/bipi-gamma-accuracy/run.py's on-face points, in
     units of h): the point term came from one rounding of the plane offset (0: chi = 1/2) and the face's solid
     angle from another (-1e-16: -1/2), so gamma was 1, not 1/2."""
     tri = SHAPES["tetrahedron"]

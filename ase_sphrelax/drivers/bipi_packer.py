@@ -144,7 +144,7 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, dr
     that the fill left out as too close to the boundary, ``-drop dx <= phi(r) <= 0``: fluid and
     walls are then one unbroken lattice, every wall 1 dx from the fluid. Without it (the
     default, walls strictly outside), a column of centres lying on a wall belongs to neither,
-    and that wall is 2 dx from the fluid: the wedge tank of ``examples/bipi_sph.py`` at
+    and that wall is 2 dx from the fluid: the wedge tank of ``reproductions/lib/bipi_sph.py`` at
     ``dx = 0.02`` is 102.5 dx wide, so the centres at ``x = 2.05`` lie on its right wall.
     :func:`add_walls`, which pairs the walls with a fill, passes the fill's default.
 
