@@ -562,6 +562,8 @@ def _read_history(path):
 
 
 def plot_fig7(out):
+    if not any((out / f"fig7_{name}_history.csv").exists() for name, _, _ in FIG7_RUNS):
+        return  # no histories here (the repository keeps only the figure): nothing to redraw
     plt = _plt()
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
     colours = {0.01: "tab:green", 0.02: "tab:blue", 0.04: "tab:red"}
