@@ -1,4 +1,4 @@
-"""The two remedies of examples/results/parvi/rest_vs_time/: fewer neighbours per support (``n_neighbours=N``, the
+"""The two remedies of reproductions/parvi-rest-vs-time/: fewer neighbours per support (``n_neighbours=N``, the
 variant token ``n_neighbours=N``) and a hold that grows with M (``hold_max="scaled"``, hold_rule.py eq. S1). Both
 leave the stationary density the predicted one in 1D and 2D; at their defaults they are the default run, bit for
 bit."""
