@@ -14,7 +14,8 @@ SCRIPTS = ["reproductions/parvi-highdim/run.py", "reproductions/parvi-logistic-g
            "reproductions/parvi-variants/run.py", "reproductions/parvi-steps/run.py",
            "reproductions/parvi-banana-m2000/diagnose_coarse.py", "reproductions/parvi-banana-m2000/svgd_cost.py",
            "reproductions/parvi-rest-vs-time/run_rest.py", "reproductions/parvi-rest-vs-time/summarize.py",
-           "reproductions/lib/parvi_run_sph.py"]
+           "reproductions/lib/parvi_run_sph.py", "reproductions/lib/parvi_means.py",
+           "reproductions/parvi-stationary/run.py"]
 #: the issue-18 keywords whose defaults change, with the values the stored results were made with
 PRE_CHANGE = dict(time_step="global", friction=None, score_every=1, n_neighbours=None, hold_max=4)
 
@@ -43,3 +44,21 @@ def test_run_sph_and_pinned_sampler_build_the_pre_change_configuration():
     assert (local._options["time_step"], local._options["friction"]) == ("local", "critical")
     sampler = pinned.pinned_sampler_class()(target.log_density, target.score, dim=2, n=50, x0=x0, steps=10)
     assert {k: sampler._options[k] for k in PRE_CHANGE} == PRE_CHANGE
+
+
+def test_means_are_per_seed_ratios_and_ratios_of_means():
+    means = load_script("reproductions/lib/parvi_means.py").means
+    rows = [dict(target="t", m=10, seed=s, method=meth, energy=e)
+            for s, meth, e in ((0, "iid", 1.0), (1, "iid", 3.0), (0, "sph", 2.0), (1, "sph", 3.0))]
+    sph = next(r for r in means(rows) if r["method"] == "sph")
+    assert sph["seeds"] == 2 and sph["energy_mean"] == 2.5
+    assert sph["over_iid_mean"] == pytest.approx((2.0 + 1.0) / 2)  # per seed: 2/1, 3/3
+    assert sph["over_iid_of_means"] == pytest.approx(2.5 / 2.0)
+
+
+def test_gzipped_results_round_trip(tmp_path):
+    io = load_script("reproductions/lib/parvi_io.py")
+    data = dict(rows=[dict(a=1.5)])
+    io.save_json(tmp_path / "x.json.gz", data)
+    assert io.load_json(tmp_path / "x.json.gz") == data
+    assert (tmp_path / "x.json.gz").read_bytes()[:2] == b"\x1f\x8b"  # gzip, not plain text

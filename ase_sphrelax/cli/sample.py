@@ -99,7 +99,7 @@ def add_arguments(parser):
                              "'+' (e.g. whiten+local+critical; default: default)")
     parser.add_argument("--rule", choices=("final", "optimal"), default="final",
                         help="which state to return: final (default) or the paper's optimal state (maximum mean "
-                             "density; measured 7-400x worse, see examples/results/parvi)")
+                             "density; measured 7-400x worse, see reproductions/parvi-baselines)")
     parser.add_argument("--init-scale", type=positive(float), default=None,
                         help="sd of the initial N(0, s^2 I) (default: centre and per-axis scale found from the "
                              "target's score by a short mode search)")

@@ -37,7 +37,7 @@ weight: any ``1 <= k < M`` works in any d. The resting state is derived in :mod:
 Neighbour search (:class:`KNNSearch`): a :class:`scipy.spatial.cKDTree` query of ``2k + 1`` points per particle
 builds a candidate list; later evaluations measure the distances to the candidates only and keep the k nearest,
 exact by a displacement bound, and rebuild where the bound fails. In 32-D at M = 2000 a kd-tree query is no
-faster than brute force (``examples/results/parvi/highdim/README.md`` has the timing): the reuse is what keeps a
+faster than brute force (``reproductions/parvi-highdim/README.md`` has the timing): the reuse is what keeps a
 step O(M k d).
 """
 from __future__ import annotations

@@ -39,7 +39,7 @@ def median_length_scale(x_pc, median_points=2000, seed=0):
 
     The distances of the distinct pairs come from :func:`scipy.spatial.distance.pdist` (the same values, to
     round-off, as the M x M x d difference array with its lower triangle that this used before 2026-12-02,
-    which cost 75-90 % of an SVGD step at M = 2000: examples/results/parvi/full_m2000_part3/svgd_cost.json).
+    which cost 75-90 % of an SVGD step at M = 2000: reproductions/parvi-banana-m2000/results/svgd_cost.json).
     """
     m = x_pc.shape[0]
     sub = x_pc

@@ -2,7 +2,7 @@
 
 Why. The CFL step is ``dt ∝ H ∝ M^(-1/d)``: at a fixed number of steps the physical time a run covers shrinks with
 M, and a target with a slow direction (the banana, x0 of standard deviation 10) is not spread at M = 2000 after 1000
-steps (examples/results/parvi/full_m2000_part3/). A fluid of ``M_c = M / k`` particles has supports ``k^(1/d)``
+steps (reproductions/parvi-banana-m2000/). A fluid of ``M_c = M / k`` particles has supports ``k^(1/d)``
 times wider, steps ``k^(1/d)`` times longer and costs ``1/k`` of the evaluations per step of a final particle: for
 the same evaluations per final particle it covers ``k^(1 + 1/d)`` times the time (8x in 2D with k = 4). The large
 scales settle there; the fine fluid then has only to relax the scale of one parent's cell.

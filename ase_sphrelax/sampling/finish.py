@@ -2,7 +2,7 @@
 
 Above a few dimensions the k-NN fluid does not rest at p (theory.py, eqs. K5-K7): on the 32-D logistic posterior
 its marginal sds are 1.10-1.24 of NUTS's and a few particles rest far in a tail
-(``examples/results/parvi/logistic_goal/``). ``finish=`` runs, after the fluid, a Markov kernel that leaves p
+(``reproductions/parvi-logistic-goal/``). ``finish=`` runs, after the fluid, a Markov kernel that leaves p
 invariant exactly, in the fluid's frame (the frozen whitening map ``x = c + L y``, or the particles' mean and
 Cholesky covariance factor without one; theory.py, eqs. G1-G5):
 

@@ -12,7 +12,7 @@ M = 500 and 8 at M = 2000 in 2D. The held score then also has a fixed age in phy
 displacement the hold tolerates, ``hold_tolerance min(H, 1/|s|)``, shrink like the step). Any ``hold_max`` keeps the
 resting states of ``score_every=1`` (:class:`~.sampler.ParVISampler`, ``score_every="adaptive"``), so the rule
 leaves the stationary density unchanged. The reference M and the base were chosen on the funnel and the banana
-(examples/results/parvi/rest_vs_time/).
+(reproductions/parvi-rest-vs-time/).
 """
 from __future__ import annotations
 

@@ -65,7 +65,7 @@ DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", 
 #: ``courant`` of ``time_step="local"`` (measured: 0.5 lets the funnel's mouth burst, 0.25 settles it).
 LOCAL_COURANT = 0.25
 #: ``time_step="local"``: None, or the factor by which a particle's step may grow per step (it may shrink at
-#: once). An experiment (examples/results/parvi/steps/): 1.05 removes the kinetic-energy bursts of the banana
+#: once). An experiment (reproductions/parvi-steps/): 1.05 removes the kinetic-energy bursts of the banana
 #: but did not lower the energy distances at 1000 steps; off by default.
 LOCAL_GROWTH = None
 
@@ -85,7 +85,7 @@ VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "frict
 VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max",
                     "finish_steps")
 #: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).
-HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: examples/results/parvi/full_m2000_part4/
+HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: reproductions/parvi-adaptive-hold/
 
 
 class ParticleScoreMemory(ScoreMemory):
@@ -253,7 +253,7 @@ class ParVISampler:
         evaluated together at every step. The trajectory is no longer the fluid's, but the resting
         states are the same (``F_a = 0``, ``v = 0`` for every step field) and the damped flow still
         descends the model's energy (theory.py, eqs. L1-L3; the discrete map need not: bursts of kinetic
-        energy were measured on the banana, examples/results/parvi/steps/): a stiff particle (the funnel's neck, a
+        energy were measured on the banana, reproductions/parvi-steps/): a stiff particle (the funnel's neck, a
         tail with a small H or a large score) no longer sets the step of the whole ensemble.
         ``trace["dt"]`` and ``trace["time"]`` are then the median particle's; ``info`` has
         ``dt_median`` and ``dt_min`` of the last step. Needs ``dt=None``; ``courant`` defaults to
@@ -269,7 +269,7 @@ class ParVISampler:
         particles rest on the typical-set shell (second moments of Gaussians right, radial spread not). Use
         ``whiten="covariance"`` on anisotropic targets. ``"knn-ratio"`` (experimental): a k-NN estimate of
         ``rho / p`` (theory.py, eqs. R1-R5; needs ``log_density``), free of that bias in the continuum but stiff and
-        slow to settle (examples/results/parvi/highdim/). Both need the score force with the isothermal EOS and
+        slow to settle (reproductions/parvi-highdim/). Both need the score force with the isothermal EOS and
         ``h="adaptive"``; viscosity options are not used (the friction damps the fluid).
     k : int or None
         Neighbours per particle of ``neighbours="knn"``/``"knn-ratio"`` (None: 20, at most n - 1); an error with
@@ -829,7 +829,7 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       Stein identities at rest, density p in the continuum limit, a typical-set shell above a few dimensions
       (theory.py, eqs. K1-K7). Combine with ``whiten="covariance"`` on anisotropic targets (the 10-D Gaussian of
       condition number 100: 0.4-1.1x the energy distance of i.i.d. samples at M = 100 and 500,
-      examples/results/parvi/highdim/). ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
+      reproductions/parvi-highdim/). ``neighbours="knn-ratio"``: experimental, see :class:`ParVISampler`.
     * ``friction="critical"`` — a drag critical along each principal direction of the target's curvature
       seen by the particles, renewed every ``friction_every`` steps; ``friction_ramp < 1`` starts any
       friction lower; friction never changes the stationary density (theory.py, eqs. F1-F3).
@@ -838,28 +838,28 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       per step of a final particle) settle the large scales first, each is split into k children that finish at
       n; ``steps`` remains the evaluations per final particle, both levels counted (:mod:`.coarse_to_fine`).
       The fine level is the one-level fluid started from the children: the same stationary density.
-      Measured at M = 2000 (examples/results/parvi/full_m2000_part3/): better than one level on the banana,
+      Measured at M = 2000 (reproductions/parvi-banana-m2000/): better than one level on the banana,
       worse on the funnel, short of 2x i.i.d. on both (the coarse level's error relaxes slowly too).
     * ``score_every=K`` — multiple time steps: the score evaluated every K-th SPH step and held in between
       (pressure and drag at every step); ``steps`` counts SPH steps (``steps / K`` evaluations per particle),
       so an evaluation covers K CFL steps of time; the resting states, hence the stationary density, are
       those of K = 1 (see :class:`ParVISampler`). Measured at M = 2000 with 1000 evaluations and
-      ``time_step="local", friction="critical"`` (examples/results/parvi/full_m2000_part3/): K = 4 takes the
+      ``time_step="local", friction="critical"`` (reproductions/parvi-banana-m2000/): K = 4 takes the
       banana below i.i.d. (0.1-0.35x) at ~5x the wall time, and loses the funnel (its neck's score changes
       within the hold). ``score_every="adaptive"`` (with ``hold_tolerance``, ``hold_max``) holds per particle: a
       particle re-evaluates only when it has moved ``hold_tolerance`` of ``min(H, 1 / |s|)`` or after ``hold_max`` held
       steps, the target called on those particles only; ``steps`` is then the evaluations per particle; the
       same resting states as K = 1 (see :class:`ParVISampler`). Measured with ``time_step="local",
-      friction="critical"`` at M = 2000, 1000 evaluations (examples/results/parvi/full_m2000_part4/): banana
+      friction="critical"`` at M = 2000, 1000 evaluations (reproductions/parvi-adaptive-hold/): banana
       0.14-0.50x and funnel 0.90-1.97x i.i.d. (3 seeds), the other 2D targets as K = 1. ``hold_max="scaled"``
       (:mod:`.hold_rule`) lengthens the hold like ``n^(1/dim)`` (4 at n = 500, 8 at n = 2000 in 2D) so that an
       evaluation covers the same physical time at any n; any hold keeps the resting states.
     * ``n_neighbours=N`` — about N particles per support instead of the default (32 in 2D): a smaller H resolves
       structures narrower than the default support (the banana's arms, the funnel's neck), whose resting state at
-      M = 500 is biased with 32 (examples/results/parvi/rest_vs_time/); exact in the continuum like any N, at the
+      M = 500 is biased with 32 (reproductions/parvi-rest-vs-time/); exact in the continuum like any N, at the
       price of a CFL step smaller by ``(N / 32)^(1/2)`` in 2D. Measured with ``time_step="local",
       friction="critical", score_every="adaptive", hold_max="scaled"`` and N = 12, 1000 evaluations, six 2D targets,
-      3 seeds (examples/results/parvi/rest_vs_time/): <= 0.94x i.i.d. at M = 500 and <= 1.18x at M = 2000 on every
+      3 seeds (reproductions/parvi-rest-vs-time/): <= 0.94x i.i.d. at M = 500 and <= 1.18x at M = 2000 on every
       target and seed; the funnel's M = 500 figure (0.85-0.87x) is a transient (2.4x with 2000 evaluations).
     * ``finish="mala"`` (with ``finish_steps``, default 200) — after the fluid, Metropolis-adjusted Langevin steps
       for every particle in the whitening map's coordinates (p-invariant exactly; theory.py, eqs. G3-G5): removes
@@ -867,7 +867,7 @@ def sample(log_density=None, score=None, n=500, dim=2, seed=0, **kwargs):
       (counted); ``finish="radial"`` redraws only the radii from the centre (the diagnosis of that bias). Measured
       on the 32-D logistic posterior with ``neighbours="knn", whiten="covariance", steps=540, finish_steps=200``
       (1008 evaluations per particle): means within 0.093 posterior sd and sds within 9 % of NUTS's at M = 500
-      (3 seeds), against 0.43 sd and 25 % for the fluid alone (examples/results/parvi/logistic_goal/).
+      (3 seeds), against 0.43 sd and 25 % for the fluid alone (reproductions/parvi-logistic-goal/).
 
     :func:`variant_options` turns a variant name such as ``"whiten+local+critical"`` into these options.
     """

@@ -56,7 +56,7 @@ itself in the default configuration, and the particles mapped back by ``x = c + 
   ``L' L'^T = L U diag(max(w, 1/g)) U^T L^T``; the particles' covariance in the new y has eigenvalues
   ``w / max(w, 1/g)`` (1 within the bound). Each renewed map is still an invertible linear change of variables
   with the state carried over exactly, so W3 holds for the final, frozen map whatever g: the bound chooses the
-  map, not the stationary density. Why it is needed (measured, ``examples/results/parvi/highdim/``, part
+  map, not the stationary density. Why it is needed (measured, ``reproductions/parvi-highdim/``, part
   ``renewals``): the k-NN fluid expanding from a narrow start flattens in some directions (covariance
   eigenvalues 4e-5 against 25 of the y covariance at step 50 in 10-D, M = 100). The map of the moment then
   shrinks 1e3-1e5-fold in those directions, the fluid must expand again by that factor in y, the next renewal
@@ -85,7 +85,7 @@ kick-drift-kick leapfrog of
 
 L3 is a statement about the flow; the discrete map (leapfrog with steps that change per particle and per step)
 is not guaranteed to descend H: on the banana the kinetic energy of a local-step run stops decaying and bursts
-(``examples/results/parvi/steps/README.md``), a growth limit on the steps removes the bursts. L2, the resting
+(``reproductions/parvi-steps/README.md``), a growth limit on the steps removes the bursts. L2, the resting
 states, holds for the discrete map whatever the steps.
 
 The path to rest differs from the fluid's (a particle with a large step moves further per step), which
@@ -129,7 +129,7 @@ the per-axis split of an anisotropic target, nor about the shape of the radial d
   i.i.d. nearest-neighbour distance is already 1.92), and it shrinks only like ``M^(-1/d)``. The estimate is then a
   heavy smoothing of rho across the distribution, and the resting state is not p: on the unit Gaussian it
   concentrates on the typical-set shell (measured radius standard deviations 0.14 in 10-D and 0.037 in 32-D at M =
-  500, against 0.70 for i.i.d. points, ``examples/results/parvi/highdim/``; a coordinate's kurtosis then is ``3 d /
+  500, against 0.70 for i.i.d. points, ``reproductions/parvi-highdim/``; a coordinate's kurtosis then is ``3 d /
   (d + 2)``, that of a uniform sphere). By K5 the shell has the right mean square radius, so second moments of
   Gaussians stay right (and the energy distance, which mostly sees location and scale, stays close to i.i.d.); on a
   target whose log-density is not quadratic the virial places the shell wrongly (the logistic posterior's
@@ -139,7 +139,7 @@ the per-axis split of an anisotropic target, nor about the shape of the radial d
   needs ``whiten="covariance"`` (item 1), under which the fluid sees a unit covariance.
 
   In 1D and 2D the ball is small except in the tails, where it spans the tail: the tails are thinned
-  (kurtosis below 3, measured in ``examples/results/parvi/highdim/``); the variance stays exact by K5.
+  (kurtosis below 3, measured in ``reproductions/parvi-highdim/``); the variance stays exact by K5.
 
 k-NN estimate of the ratio (``neighbours="knn-ratio"``, :class:`~ase_sphrelax.models.parvi_knn.KNNRatioParVIModel`).
 The smoothing of K7 is harmless for a quantity that is constant at the solution. With ``q_b = p(x_b)^(-beta)``,
@@ -298,7 +298,7 @@ add a bias of its own.
   (a Gibbs step in the coordinates of G1) for any fixed c, L. After the updates the output is
   ``q_u(u) pi(r | u)``: the radial conditional exact whatever the fluid left, the directions the fluid's ``q_u``.
   It is a diagnosis: if the fluid's error were its thin shell (K7), the refill would remove it; measured on the
-  32-D logistic posterior it does not (``examples/results/parvi/logistic_goal/``): the fluid's directions are
+  32-D logistic posterior it does not (``reproductions/parvi-logistic-goal/``): the fluid's directions are
   biased (they lie where p reaches farther, and a share of the particles is stranded in a far tail).
 * (G3) ``finish="mala"``: in y the target is ``p_y(y) ∝ p(c + L y)``, score ``L^T grad log p``; the proposal
   ``y' = y + (eps/2) grad log p_y(y) + sqrt(eps) xi``, ``xi ~ N(0, I)``, accepted with probability
@@ -313,7 +313,7 @@ add a bias of its own.
   ``eps kappa`` exceeds one, so with one eps fitted to the bulk such a particle never moves (measured: 1.2 % of
   the fluid's particles at the posterior's log-precision 2.97-2.98, beyond the largest of 4000 NUTS draws, 1.33,
   not moved by 1000 fixed-eps MALA steps; with the spread all are back in the bulk after 200-400 steps,
-  ``examples/results/parvi/logistic_goal/``, part ``spread``); the small steps of the mixture move them.
+  ``reproductions/parvi-logistic-goal/``, part ``spread``); the small steps of the mixture move them.
 * (G4) linear change of variables: for ``x~ = A x + b`` (A invertible), the target ``p~(x~) = p(A^-1 (x~ - b)) / |det A|``
   and the frame ``(A c + b, A L)``, the y of every particle is the same, ``p~_y`` differs from ``p_y`` by the constant
   ``-log |det A|`` and the score in y is the same (``(A L)^T grad log p~ = L^T grad log p``): with the same random

@@ -20,7 +20,7 @@ one may shrink the covariance the fluid sees by at most a factor :data:`RENEWAL_
 renewed); it may grow it freely. A fluid expanding from a narrow start flattens in some directions while it expands, and the
 covariance of the moment made that the map (measured in 10-D at M = 100 with ``neighbours="knn"``: eigenvalues
 4e-5 against 25 of the y covariance at step 50, a map whose smallest eigenvalue fell to 1e-6 - 1e-5 against the
-target's 0.1; ``examples/results/parvi/highdim/``, section 5).
+target's 0.1; ``reproductions/parvi-highdim/``, section 5).
 Every renewed map is still an invertible linear change of variables with the state carried over exactly, so
 the stationary density for the final, frozen map is p (W3) whatever the bound.
 """

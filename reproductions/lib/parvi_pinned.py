@@ -8,7 +8,9 @@ hold_max="scaled"``). The scripts of ``reproductions/parvi-*`` pass :data:`CLASS
 ``log_density, score, dim, n, x0, seed, progress`` excepted).
 
 :func:`run_benchmark` runs a script of ``benchmarks/`` (``bench_sampling``, ``bench_sampling_theory``) with its
-``ParVISampler`` replaced by :class:`PinnedSampler` (the same sampler, :data:`CLASSIC` under the caller's keywords)::
+``ParVISampler`` replaced by :class:`PinnedSampler` (the same sampler, :data:`CLASSIC` under the caller's keywords); for
+``bench_sampling`` the stored NUTS reference of the logistic posterior is restored first (``parvi_reference.py``)
+and found there (``bench_sampling.OUT``; give ``--out``)::
 
     python reproductions/lib/parvi_pinned.py bench_sampling --quick --out /tmp/quick
 """
@@ -58,8 +60,13 @@ if __name__ == "__main__":
     if len(sys.argv) < 2 or sys.argv[1] not in ("bench_sampling", "bench_sampling_theory"):
         raise SystemExit("usage: parvi_pinned.py {bench_sampling,bench_sampling_theory} [args]")
     sys.path.insert(0, str(ROOT))
+    sys.path.insert(0, str(ROOT / "reproductions"))
     if sys.argv[1] == "bench_sampling_theory":  # no arguments; its OUT is the only option: --out DIR
         out = sys.argv[sys.argv.index("--out") + 1] if "--out" in sys.argv else None
         run_benchmark("bench_sampling_theory", None, out)
-    else:
-        run_benchmark("bench_sampling", sys.argv[2:])
+    else:  # the logistic posterior's stored NUTS draws: bench_sampling looks for them in OUT (and --out)
+        from lib.parvi_reference import PATH, logistic_reference
+
+        if "logistic" in sys.argv or "--targets" not in sys.argv:
+            logistic_reference()
+        run_benchmark("bench_sampling", sys.argv[2:], out=PATH.parent)
