@@ -1,12 +1,12 @@
 """SPH-ParVI against standard samplers: the evaluation of issue 8, item 5.
 
-One command writes the report (tables, plots, JSON) under ``examples/results/parvi/``::
+One command writes the report (tables, plots, JSON) under ``reproductions/parvi-baselines/results/`` (registry entry ``parvi-baselines``)::
 
     .venv/bin/python benchmarks/bench_sampling.py            # the full evaluation
     .venv/bin/python benchmarks/bench_sampling.py --quick    # M in {100, 500}, 2 repeats, 400 steps: .../quick/
 
 The full run took about two hours on the 2-vCPU machine (SVGD at M = 2000 and SPH-ParVI in 10-D dominated; SVGD's
-median heuristic is 2.5-5x cheaper per step since 2026-12-02, examples/results/parvi/full_m2000_part3/svgd_cost.json).
+median heuristic is 2.5-5x cheaper per step since 2026-12-02, reproductions/parvi-banana-m2000/results/svgd_cost.json).
 
 Methods, all started from the same initial points N(0, I) (seeded per repeat), all returning M points:
 
@@ -64,7 +64,7 @@ from ase_sphrelax.sampling import tuning as tuning_rule  # noqa: E402
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler, variant_options  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-OUT = ROOT / "examples" / "results" / "parvi"
+OUT = ROOT / "reproductions" / "parvi-baselines" / "results"
 TARGETS = ["gaussian", "correlated", "ring8", "banana", "donut", "funnel", "gaussian10d", "logistic"]
 # Langevin step sizes (ULA and MALA), chosen per target for MALA acceptance in 0.4-0.9 at the bulk
 STEP = dict(gaussian=0.2, correlated=0.04, ring8=0.02, banana=0.05, donut=0.02, funnel=0.05, gaussian10d=0.02,
@@ -310,7 +310,7 @@ def main(argv=None):
                         help="the baseline samplers to run (default all: svgd ula mala emcee; SVGD, O(M^2), takes "
                              "~6 min per target at M = 2000 with 1000 evaluations here at load 8, pilots included; "
                              "~20 min per run before the median heuristic used pdist, 2026-12-02)")
-    parser.add_argument("--out", type=Path, default=None, help="default examples/results/parvi (quick: .../quick)")
+    parser.add_argument("--out", type=Path, default=None, help="default reproductions/parvi-baselines/results (quick: .../quick)")
     args = parser.parse_args(argv)
     try:
         sph = sph_methods(args.sph_variants)

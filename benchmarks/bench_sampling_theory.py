@@ -4,7 +4,7 @@
 
 For the unit Gaussian target in 1D (300 particles) and 2D (500 particles), every formulation and EOS is
 run to rest and the particles' per-component variance and kurtosis are compared with the hydrostatic
-prediction of :mod:`ase_sphrelax.sampling.theory`. Writes ``examples/results/parvi/stationary.md`` and
+prediction of :mod:`ase_sphrelax.sampling.theory`. Writes ``reproductions/parvi-stationary/results/stationary.md`` and
 ``stationary.json``.
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler  # noqa:
 from ase_sphrelax.sampling.targets import gaussian_target  # noqa: E402
 from ase_sphrelax.sampling.theory import predicted_gaussian_moments  # noqa: E402
 
-OUT = Path(__file__).resolve().parent.parent / "examples" / "results" / "parvi"
+OUT = Path(__file__).resolve().parent.parent / "reproductions" / "parvi-stationary" / "results"
 
 # (label, formulation, eos, sampler options by dimension); rho0 given explicitly where it matters
 CASES = [
