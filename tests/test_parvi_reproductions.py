@@ -57,8 +57,8 @@ def test_means_are_per_seed_ratios_and_ratios_of_means():
 
 
 def test_gzipped_results_round_trip(tmp_path):
-    io = load_script("reproductions/lib/parvi_io.py")
+    io = load_script("reproductions/lib/results_io.py")
     data = dict(rows=[dict(a=1.5)])
-    io.save_json(tmp_path / "x.json.gz", data)
-    assert io.load_json(tmp_path / "x.json.gz") == data
+    io.write_json(tmp_path / "x.json.gz", data)
+    assert io.read_json(tmp_path / "x.json.gz") == data
     assert (tmp_path / "x.json.gz").read_bytes()[:2] == b"\x1f\x8b"  # gzip, not plain text

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import gzip
 import json
 import sys
 import time
@@ -32,27 +31,12 @@ import numpy as np
 
 GEOMETRIES = Path(__file__).resolve().parents[3] / "shared" / "geometries"
 NEVER = 10**9  # a stopping-rule window longer than any run: fixed iteration counts
-
-
-def read_json(path):
-    """A JSON file, gzipped when its name ends in ``.gz``."""
-    path = Path(path)
-    with (gzip.open(path, "rt") if path.suffix == ".gz" else open(path)) as fh:
-        return json.load(fh)
-
-
-def write_json(path, obj):
-    """Write ``obj`` as JSON (indent 1), gzipped (no name or time stamp) when the name ends in ``.gz``."""
-    path = Path(path)
-    text = json.dumps(obj, indent=1)
-    if path.suffix == ".gz":
-        with open(path, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", filename="", mtime=0) as fh:
-            fh.write(text.encode())
-    else:
-        path.write_text(text)
 HB_SERIES = (1.2, 1.7, 2.0, 2.5, 3.0)
 CORNERS = {"top-left": ((-0.01, 0.24), (0.75, 1.01)), "top-right": ((1.20, 1.51), (0.70, 1.01))}
 FIG7_RUNS = [(f"{mode}_dx{dx:g}", mode, dx) for dx in (0.02, 0.04, 0.01) for mode in ("fixed", "rule2a")]
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # reproductions/, for lib
+from lib.results_io import read_json, write_json  # noqa: E402
 
 
 # -- running -----------------------------------------------------------------------------

@@ -51,8 +51,6 @@ the analytic ones (Monaghan's ODE). Writes ``drop_dx{dx}.json.gz`` and ``drop_dx
 from __future__ import annotations
 
 import argparse
-import gzip
-import json
 import math
 import os
 import sys
@@ -62,6 +60,9 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # BLAS threads collapse under contention here (FACTS.md)
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # reproductions/, for lib
+from lib.results_io import write_json  # noqa: E402
 
 WIDTH, DEPTH, WEDGE_HEIGHT = 2.05, 0.5, math.sqrt(2.0) / 8.0
 RHO0, G = 1000.0, 9.81
@@ -249,12 +250,6 @@ def run_case(args):
               f"max drop {r['max_drop']:.2f} dx; {r['steps']} steps in {wall:.0f} s", flush=True)
         write_json(out / f"{tag}.json.gz", results)
     return finish(results, out, tag, plot)
-
-
-def write_json(path, obj):
-    """Write ``obj`` as gzipped JSON (indent 1; no name or time stamp in the gzip header)."""
-    with open(path, "wb") as raw, gzip.GzipFile(fileobj=raw, mode="wb", filename="", mtime=0) as fh:
-        fh.write(json.dumps(obj, indent=1).encode())
 
 
 def finish(results, out, tag, plotter):

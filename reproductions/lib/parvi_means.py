@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from lib.parvi_io import load_json  # noqa: E402
+from lib.results_io import read_json as load_json  # noqa: E402
 
 
 def means(rows):

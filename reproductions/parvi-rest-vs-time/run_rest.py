@@ -37,7 +37,7 @@ from ase_sphrelax.sampling.convergence import assess_convergence, ensemble_momen
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 from lib import parvi_run_sph as run_sph  # noqa: E402  (build_sampler pins lib.parvi_pinned.CLASSIC)
-from lib.parvi_io import load_json, save_json  # noqa: E402
+from lib.results_io import read_json as load_json, write_json as save_json  # noqa: E402
 
 QUANTILES = (0.02, 0.05, 0.25, 0.5, 0.75, 0.95, 0.98)
 #: x0 bins: the funnel's neck (x1 | x0 ~ N(0, e^x0)), the banana's arms (x0 ~ N(0, 100))

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from lib.parvi_io import load_json  # noqa: E402
+from lib.results_io import read_json as load_json  # noqa: E402
 
 HERE = Path(__file__).resolve().parent / "results"  # this entry's results
 TAILS = dict(funnel=("share_below_m3", "share_below_m6"), banana=("share_abs_above_15", "share_abs_above_20"))
