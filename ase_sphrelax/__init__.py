@@ -73,6 +73,7 @@ _WHERE = {
     "ParVISampler": ".sampling.sampler",
     "sample": ".sampling.sampler",
     # the core
+    "SphrelaxWarning": ".checks",
     "Kernel": ".kernels",
     "get_kernel": ".kernels",
     "NeighborList": ".neighbors",

@@ -6,23 +6,35 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_positive", "finite_array", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SPHScaleWarning",
-           "NotConvergedWarning", "SpacingWarning", "spacing_mismatch", "ASE_DEFAULT_FMAX"]
+__all__ = ["check_positive", "finite_array", "check_dim", "check_skin", "resolve_dim", "DIM_RULE", "SphrelaxWarning", "SPHScaleWarning",
+           "NotConvergedWarning", "SpacingWarning", "PluginWarning", "spacing_mismatch", "ASE_DEFAULT_FMAX"]
 
 #: ``Optimizer.run(fmax=0.05)``: ASE's default, in eV/Angstrom
 ASE_DEFAULT_FMAX = 0.05
 
 
-class SPHScaleWarning(UserWarning):
+class SphrelaxWarning(UserWarning):
+    """Every warning of ase_sphrelax (and lammps_io) is of this class or a subclass of it.
+
+    Filter them all with ``warnings.simplefilter("ignore", ase_sphrelax.SphrelaxWarning)``; the
+    ``sphrelax`` command prints each one as one line, ``sphrelax COMMAND: warning: MESSAGE``.
+    """
+
+
+class PluginWarning(SphrelaxWarning, RuntimeWarning):
+    """A ``sphrelax`` plug-in (entry point) was skipped or shadowed."""
+
+
+class SPHScaleWarning(SphrelaxWarning):
     """Forces below ASE's default ``fmax``: an ASE optimiser run with its defaults stops at step 0."""
 
 
-class NotConvergedWarning(UserWarning):
+class NotConvergedWarning(SphrelaxWarning):
     """A run ended without reaching its own convergence criterion; the message names the criterion
     that failed (the result's ``info["converged"]`` is False and ``info["convergence_reason"]`` says why)."""
 
 
-class SpacingWarning(UserWarning):
+class SpacingWarning(SphrelaxWarning):
     """The particles are not at the spacing ``dx`` the model assumes (``N dx^d`` is not the region's measure)."""
 
 

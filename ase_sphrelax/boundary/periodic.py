@@ -27,6 +27,7 @@ import warnings
 
 import numpy as np
 
+from ..checks import SphrelaxWarning
 from ..domains.base import Domain
 
 __all__ = ["PeriodicCell", "PeriodicDomain", "PeriodicFacesWarning", "AXES"]
@@ -34,7 +35,7 @@ __all__ = ["PeriodicCell", "PeriodicDomain", "PeriodicFacesWarning", "AXES"]
 AXES = "xyz"
 
 
-class PeriodicFacesWarning(UserWarning):
+class PeriodicFacesWarning(SphrelaxWarning):
     """Boundary elements on the periodic faces were dropped."""
 
 

@@ -28,6 +28,7 @@ import warnings
 
 import numpy as np
 
+from ..checks import SphrelaxWarning
 from ..domains.loops import signed_area, vertex_array
 
 __all__ = ["BoundarySegments", "OrientationWarning", "EDGE_TO_DX_RATIO"]
@@ -36,7 +37,7 @@ __all__ = ["BoundarySegments", "OrientationWarning", "EDGE_TO_DX_RATIO"]
 EDGE_TO_DX_RATIO = 10.0
 
 
-class OrientationWarning(UserWarning):
+class OrientationWarning(SphrelaxWarning):
     """A boundary loop ran the wrong way round and was reversed."""
 
 

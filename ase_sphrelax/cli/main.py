@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from . import registry
 from .usage import UsageError
@@ -45,17 +46,37 @@ def build_parser(commands=None):
     return parser
 
 
+def one_line_warnings(command):
+    """A ``warnings.formatwarning`` that prints ``sphrelax COMMAND: warning: MESSAGE`` (one line, no file path)."""
+    prefix = PROG if command is None else f"{PROG} {command}"
+
+    def formatwarning(message, category, filename, lineno, line=None):
+        return f"{prefix}: warning: {' '.join(str(message).split())}\n"
+
+    return formatwarning
+
+
 def main(argv=None):
     """Run ``sphrelax`` with ``argv`` (default ``sys.argv[1:]``); return the exit code.
 
     A :class:`~ase_sphrelax.cli.usage.UsageError` is printed as one line and gives
-    code 2; any other exception propagates with its traceback.
+    code 2; any other exception propagates with its traceback. Warnings (every one of the
+    package is a :class:`~ase_sphrelax.checks.SphrelaxWarning`) print as one line,
+    ``sphrelax COMMAND: warning: MESSAGE``, through ``warnings.formatwarning`` (so that a caller
+    recording warnings, e.g. ``pytest.warns``, still receives them).
     """
-    args = build_parser().parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    command = next((w for w in words if not w.startswith("-")), None)
+    previous = warnings.formatwarning
+    warnings.formatwarning = one_line_warnings(command)
     try:
-        code = args._command.run(args)
-    except UsageError as error:
-        message = " ".join(str(error).split())
-        print(f"{PROG} {args.command}: error: {message}", file=sys.stderr)
-        return 2
-    return 0 if code is None else int(code)
+        args = build_parser().parse_args(argv)
+        try:
+            code = args._command.run(args)
+        except UsageError as error:
+            message = " ".join(str(error).split())
+            print(f"{PROG} {args.command}: error: {message}", file=sys.stderr)
+            return 2
+        return 0 if code is None else int(code)
+    finally:
+        warnings.formatwarning = previous

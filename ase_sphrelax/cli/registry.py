@@ -90,15 +90,19 @@ def _collect(builtins, group):
     for ep in sorted(_entry_points(tuple(sys.path)).select(group=group), key=lambda ep: ep.name):
         if ep.name in source:
             if source[ep.name] != ep.value:  # the same plug-in seen twice on sys.path is no conflict
+                from ..checks import PluginWarning  # here, not at the top: building the parser stays light
+
                 warnings.warn(f"{group} entry point {ep.name!r} ({ep.value}) ignored: {ep.name!r} is "
-                              f"already {source[ep.name]}", RuntimeWarning, stacklevel=2)
+                              f"already {source[ep.name]}", PluginWarning, stacklevel=2)
             continue
         source[ep.name] = ep.value
         try:
             found[ep.name] = ep.load()
         except Exception as error:  # noqa: BLE001 - a broken plug-in must not break the other commands
+            from ..checks import PluginWarning
+
             warnings.warn(f"{group} entry point {ep.name!r} ({ep.value}) skipped: "
-                          f"{type(error).__name__}: {error}", RuntimeWarning, stacklevel=2)
+                          f"{type(error).__name__}: {error}", PluginWarning, stacklevel=2)
     return found
 
 

@@ -44,7 +44,7 @@ from ase import Atoms
 from ase.constraints import FixAtoms
 from ase.optimize.optimize import Optimizer
 
-from ..checks import NotConvergedWarning, check_positive
+from ..checks import NotConvergedWarning, SpacingWarning, check_positive
 
 __all__ = ["BIPIPacker", "initial_fill", "wall_layers", "wall_particles", "add_walls", "pack", "STAGES", "FLUID", "WALL"]
 
@@ -121,7 +121,7 @@ def periodic_cell(atoms, boundary, dx):
         ratio = boundary.periodic.period_c[i] / dx
         if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio):
             warnings.warn(f"the period along {'xyz'[i]} is {ratio:.6g} dx, not a whole number: the Cartesian start's "
-                          "spacing across the periodic seam differs from dx", UserWarning, stacklevel=3)
+                          "spacing across the periodic seam differs from dx", SpacingWarning, stacklevel=3)
     atoms.set_cell(cell)
     atoms.set_celldisp(disp)
     atoms.pbc = pbc

@@ -11,12 +11,12 @@ import math
 import numbers
 import warnings
 
-from ..checks import check_positive
+from ..checks import SphrelaxWarning, check_positive
 
 __all__ = ["NothingRelaxedWarning", "check_c", "calculator_h", "mark_scaled", "warn_if_nothing_relaxed"]
 
 
-class NothingRelaxedWarning(UserWarning):
+class NothingRelaxedWarning(SphrelaxWarning):
     """An optimiser run stopped at step 0 because ``fmax`` exceeded every force: nothing was relaxed."""
 
 

@@ -36,7 +36,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 from ase.calculators.calculator import PropertyNotImplementedError
 
-from ..checks import check_dim, check_positive, check_skin
+from ..checks import SphrelaxWarning, check_dim, check_positive, check_skin
 from ..domains.base import Domain
 from ..kernels import get_kernel
 
@@ -45,7 +45,7 @@ __all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning"]
 SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
 
 
-class ParticlesOutsideWarning(UserWarning):
+class ParticlesOutsideWarning(SphrelaxWarning):
     """Particles far outside the domain at the first evaluation (:meth:`FanModel.warn_far_outside`)."""
 
 
