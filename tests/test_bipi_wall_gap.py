@@ -2,7 +2,8 @@
 
 The wedge tank is 102.5 dx wide at dx = 0.02: the cell centres at x = 2.05 lie on its right wall,
 ``initial_fill`` drops them (within dx/8 of the boundary) and walls strictly outside skipped them too,
-leaving a 2 dx gap there. ``add_walls`` now takes the centres the fill dropped.
+leaving a 2 dx gap there. ``add_walls`` now takes the centres the fill dropped, moved to just outside the
+boundary (``JUST_OUTSIDE`` dx: no wall particle inside the fluid, issue 31).
 """
 
 import numpy as np
@@ -11,7 +12,8 @@ from examples_loader import load_script
 
 from ase_sphrelax.boundary import BoundarySegments
 from ase_sphrelax.domains import Polygon
-from ase_sphrelax.drivers.bipi_packer import DROP_FRACTION, FLUID, WALL, add_walls, initial_fill, wall_particles
+from ase_sphrelax.drivers.bipi_packer import (DROP_FRACTION, FLUID, JUST_OUTSIDE, WALL, add_walls, initial_fill,
+                                              wall_particles)
 
 
 def _example():
@@ -36,11 +38,12 @@ def test_wedge_tank_walls_one_dx_from_the_fluid(dx):
     both = example.with_walls(initial_fill(boundary, dx), boundary, dx, example.H_OVER_DX * dx, example.DEPTH)
     gap_left, gap_right = _side_gaps(both, dx)
     assert gap_left == pytest.approx(1.0, abs=1e-9)
-    assert gap_right == pytest.approx(gap_left, abs=1e-9)
+    assert gap_right == pytest.approx(1.0, abs=2 * JUST_OUTSIDE)  # at 0.02 the column on the wall, moved just outside
     from scipy.spatial import cKDTree
 
     d, _ = cKDTree(both.positions[:, :2]).query(both.positions[:, :2], k=2)
-    assert d[:, 1].min() == pytest.approx(dx, rel=1e-9)  # one lattice: no two particles closer than dx
+    assert d[:, 1].min() == pytest.approx(dx, rel=2 * JUST_OUTSIDE)  # one lattice: no two particles closer than dx
+    assert np.all(boundary.domain.phi(both.positions[both.arrays["type"] == WALL, :2]) > 0)
 
 
 def test_strict_walls_keep_the_old_gap():
@@ -55,7 +58,8 @@ def test_strict_walls_keep_the_old_gap():
 @pytest.mark.parametrize("drop", [0.0, DROP_FRACTION, 0.3])
 def test_fill_and_walls_are_one_lattice(drop):
     """Brute force: the fill with ``drop`` and the walls with the same ``drop`` partition the grid's centres
-    with phi <= layers dx, on a tank whose edges pass through centres (phi = 0 up to rounding)."""
+    with phi <= layers dx, on a tank whose edges pass through centres (phi = 0 up to rounding); the walls among
+    them that are not outside are moved just outside, by at most ``drop dx``."""
     loop = [[0.0, 0.0], [0.4, 0.0], [0.5, 0.1], [0.6, 0.0], [1.0, 0.0], [1.0, 0.5], [0.0, 0.5]]
     boundary, dx, k = BoundarySegments.from_polygon(Polygon([loop])), 0.05, 3
     fluid = initial_fill(boundary, dx, drop=drop)
@@ -68,7 +72,9 @@ def test_fill_and_walls_are_one_lattice(drop):
     got = key(fluid.positions) + key(walls.positions)
     assert len(got) == len(set(got)) and set(got) == set(key(expected))
     phi = boundary.domain.phi(walls.positions[:, :2])
-    assert phi.min() >= -drop * dx and phi.max() <= k * dx * (1 + 1e-12)
+    assert phi.min() > 0 and phi.max() <= k * dx * (1 + 1e-12)
+    grid = (np.round(walls.positions[:, :2] / dx - 0.5) + 0.5) * dx
+    assert np.abs(walls.positions[:, :2] - grid).max() <= drop * dx + 2 * JUST_OUTSIDE * dx
 
 
 def test_drop_is_checked():

@@ -112,17 +112,28 @@ def add_arguments(parser):
     add_progress_argument(parser)
     add_size_argument(parser)
     parser.add_argument("--walls", type=positive(int), nargs="?", const=0, default=None, metavar="K",
-                        help="also write wall particles: K layers (default ceil(h/dx)) of the Step-1 grid outside the "
-                             "boundary, with the cell centres Step 1 dropped within dx/8 of it; packed.extxyz then "
-                             "carries a 'type' column (1 fluid, 2 wall)")
+                        help="also write wall particles outside the boundary: K layers (default ceil(h/dx)) of the "
+                             "Step-1 grid (the cell centres Step 1 dropped within dx/8 of the boundary moved to just "
+                             "outside it) or packed (--wall-mode); none inside the fluid and none within 0.5 dx of a "
+                             "fluid particle (those are left out); packed.extxyz then carries a 'type' column (1 fluid, "
+                             "2 wall). Walls surround the whole boundary unless --open-top or --surface leaves the "
+                             "free surface open")
+    surface = parser.add_mutually_exclusive_group()
+    surface.add_argument("--open-top", action="store_true",
+                         help="with --walls: the top of the boundary (its largest y in 2D, z in 3D) is a free "
+                              "surface: no wall particle at or above it (no lid)")
+    surface.add_argument("--surface", type=float, default=None, metavar="Y",
+                         help="with --walls: the free surface's height (y in 2D, z in 3D), at or above the top of the "
+                              "fluid: no wall particle at or above it")
     parser.add_argument("--periodic", nargs="+", default=None, metavar="AXIS",
                         help="periodic axes: x, y or 'x y' in 2D; x, y, z in 3D (edges on the periodic faces are "
                              "dropped; the period is the boundary's extent unless --cell gives it)")
     parser.add_argument("--cell", nargs="+", default=None, metavar="L",
                         help="with --periodic: the cell lengths along x, y (and z in 3D), one per axis of the boundary; "
                              "0 takes the boundary's extent")
-    parser.add_argument("--wall-mode", choices=("grid", "packed"), default="grid",
-                        help="--walls on the Step-1 grid (default) or BIPI-packed in the band, in layers along the walls")
+    parser.add_argument("--wall-mode", choices=("grid", "packed"), default=None,
+                        help="with --walls: on the Step-1 grid (default) or BIPI-packed in the band, in layers along "
+                             "the walls")
     parser.add_argument("--strict", action="store_true", help="set-up warnings (e.g. --h below 1.5) become errors")
     for name, obj in methods.items():
         if hasattr(obj, "add_arguments"):
@@ -158,8 +169,12 @@ def parse_cell(values, dim):
     return lengths
 
 
-def periodic_boundary(boundary, periodic, cell):
-    """The boundary made periodic by ``--periodic``/``--cell`` (one printed line on dropped face elements)."""
+def periodic_boundary(boundary, periodic, cell, dx=None):
+    """The boundary made periodic by ``--periodic``/``--cell`` (one printed line on dropped face elements).
+
+    With ``dx``: a period taken from the boundary's extent (no ``--cell`` length along that axis) must be a
+    whole number of ``dx`` (a usage error otherwise: the spacing across the seam would differ from dx).
+    """
     if periodic is None:
         if cell is not None:
             raise UsageError("--cell needs --periodic (the axes it makes periodic)")
@@ -179,8 +194,39 @@ def periodic_boundary(boundary, periodic, cell):
             print(f"sphrelax pack: {w.message}")
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if dx is not None:
+        for i in out.periodic.axes:
+            if lengths is not None and lengths[i] > 0:
+                continue  # the user gave this period
+            ratio = out.periodic.period_c[i] / dx
+            if abs(ratio - round(ratio)) > 1e-6 * max(1.0, ratio):
+                axis = "xyz"[i]
+                raise UsageError(f"--periodic {axis}: the boundary's extent along {axis} is "
+                                 f"{out.periodic.period_c[i]:.6g} = {ratio:.6g} dx, not a whole number of dx (the "
+                                 "spacing across the periodic seam would differ from dx); give the period with --cell "
+                                 f"or a dx that divides it (e.g. {out.periodic.period_c[i] / max(1, round(ratio)):.6g})")
     print(f"periodic in {out.periodic.label}: period {out.periodic.period_c[out.pbc].tolist()}")
     return out
+
+
+def surface_height(args, boundary):
+    """``--open-top``/``--surface``: the height at and above which no wall particle is built, or None."""
+    if args.walls is None:
+        for given, name in ((args.wall_mode is not None, "--wall-mode"), (args.open_top, "--open-top"),
+                            (args.surface is not None, "--surface")):
+            if given:
+                raise UsageError(f"{name} needs --walls (it sets how the wall particles are built)")
+        return None
+    up = boundary.dim - 1
+    top = float(boundary.domain.bounds[1][up])
+    if args.open_top:
+        return top
+    if args.surface is None:
+        return None
+    if not math.isfinite(args.surface) or args.surface < top - 1e-9 * max(1.0, abs(top)):
+        raise UsageError(f"--surface {args.surface:g}: the fluid reaches {'yz'[up - 1]} = {top:.6g}, above the free "
+                         "surface (it would have no side walls there); give a height at or above it, or --open-top")
+    return float(args.surface)
 
 
 def run(args):
@@ -193,7 +239,8 @@ def run(args):
         path = Path(args.boundary)
         if not path.is_file():
             raise UsageError(f"--boundary {args.boundary!r}: no such file")
-        boundary = periodic_boundary(as_boundary(path), args.periodic, args.cell)
+        boundary = periodic_boundary(as_boundary(path), args.periodic, args.cell, dx=args.dx)
+        surface = surface_height(args, boundary)
         if args.walls is not None and args.wall_mode == "packed" and boundary.dim != 2:
             raise UsageError(f"--wall-mode packed: needs a 2D boundary (edge file), got a {boundary.dim}D one")
         if args.walls is not None and args.wall_mode == "packed" and args.periodic:
@@ -242,10 +289,22 @@ def run(args):
         from ..drivers.bipi_packer import add_walls
         from ..drivers.bipi_walls import add_packed_walls
 
-        export = (add_packed_walls if args.wall_mode == "packed" else add_walls)(export, boundary, args.dx,
-                                                                                 layers=args.walls or None, h=h)
-        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers, {args.wall_mode} "
-              "(type 2; fluid type 1)")
+        mode = args.wall_mode or "grid"
+        up = boundary.dim - 1
+        if mode == "packed":
+            import shapely
+
+            lo, hi = boundary.domain.bounds
+            pad = float((hi - lo).max()) + 10.0 * (args.walls or 10) * args.dx
+            clip = None if surface is None else shapely.box(lo[0] - pad, lo[1] - pad, hi[0] + pad, surface)
+            export = add_packed_walls(export, boundary, args.dx, layers=args.walls or None, h=h, clip=clip)
+        else:
+            keep = None if surface is None else (lambda r: r[:, up] < surface)
+            export = add_walls(export, boundary, args.dx, layers=args.walls or None, h=h, keep=keep)
+        open_side = "" if surface is None else f", none at or above the free surface {'yz'[up - 1]} = {surface:g}"
+        print(f"wall particles: {export.info['n_wall']} in {export.info['wall_layers']} layers, {mode} "
+              f"(type 2; fluid type 1){open_side}; {export.info['n_wall_dropped']} left out within 0.5 dx of the "
+              "fluid")
     write(out / "packed.extxyz", export, format="extxyz")
     plot_concentration_gradient(atoms, packer.calc, out / "packed.png",
                                 title=f"{path.name}: dx = {args.dx:g}, h = {ratio:g} dx; 2a {summary['iterations_2a']}, "
@@ -255,7 +314,8 @@ def run(args):
                    periodic=[bool(p) for p in atoms.pbc[:boundary.dim]], cell=atoms.cell.array.tolist(),
                    wall_time_s=wall, n_wall=int(export.info.get("n_wall", 0)),
                    wall_layers=export.info.get("wall_layers"),
-                   wall_mode=args.wall_mode if args.walls is not None else None)
+                   wall_mode=(args.wall_mode or "grid") if args.walls is not None else None,
+                   n_wall_dropped=int(export.info.get("n_wall_dropped", 0)), surface=surface)
     (out / "summary.json").write_text(json.dumps(dict(summary=summary, parameters=packer.todict(),
                                                       history=packer.history, converged=converged,
                                                       convergence_reason=reason, **provenance(args, COMMAND)),

@@ -46,7 +46,8 @@ from ase.optimize.optimize import Optimizer
 
 from ..checks import NotConvergedWarning, SpacingWarning, check_positive
 
-__all__ = ["BIPIPacker", "initial_fill", "wall_layers", "wall_particles", "add_walls", "pack", "STAGES", "FLUID", "WALL"]
+__all__ = ["BIPIPacker", "initial_fill", "wall_layers", "wall_particles", "add_walls", "pack", "STAGES", "FLUID", "WALL",
+           "MIN_GAP", "JUST_OUTSIDE"]
 
 STAGES = ("2a", "2b", "2c")
 CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
@@ -138,15 +139,19 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, dr
     The solid side of every wall, on the same Cartesian grid as :func:`initial_fill` (same
     ``origin``), so that fluid and wall particles continue one lattice: a cell centre ``r`` is a
     wall particle when ``0 < phi(r) <= layers dx`` (``phi`` the domain's signed distance,
-    negative inside). Not packed against the wall (Step 1 only).
+    negative inside). Not packed against the wall (Step 1 only). No wall particle is ever inside
+    the domain (issue 31).
 
     With ``drop`` (the ``drop`` given to :func:`initial_fill`) the band also takes the centres
-    that the fill left out as too close to the boundary, ``-drop dx <= phi(r) <= 0``: fluid and
-    walls are then one unbroken lattice, every wall 1 dx from the fluid. Without it (the
-    default, walls strictly outside), a column of centres lying on a wall belongs to neither,
-    and that wall is 2 dx from the fluid: the wedge tank of ``reproductions/lib/bipi_sph.py`` at
-    ``dx = 0.02`` is 102.5 dx wide, so the centres at ``x = 2.05`` lie on its right wall.
-    :func:`add_walls`, which pairs the walls with a fill, passes the fill's default.
+    that the fill left out as too close to the boundary, ``-drop dx <= phi(r) <= 0``, each moved
+    along the normal of its closest boundary point to just outside it (``phi =``
+    :data:`JUST_OUTSIDE` ``dx``; at most ``drop dx`` from its cell centre): fluid and walls are
+    then one unbroken lattice, every wall about 1 dx from a Step-1 fluid particle, and no wall
+    inside. Without it (the default, only ``phi > 0``), a column of centres lying on a wall
+    belongs to neither, and that wall is 2 dx from the fluid: the wedge tank of
+    ``reproductions/lib/bipi_sph.py`` at ``dx = 0.02`` is 102.5 dx wide, so the centres at ``x = 2.05`` lie
+    on its right wall. :func:`add_walls`, which pairs the walls with a fill, passes the fill's
+    default.
 
     Parameters
     ----------
@@ -162,7 +167,8 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, dr
         ``keep(r_pd) -> bool array``: a further filter (e.g. no wall above a free surface).
     drop : float or None
         Fraction of ``dx``: also take the centres with ``-drop dx <= phi <= 0`` (those
-        ``initial_fill(..., drop=drop)`` leaves out); ``None``: only ``phi > 0``.
+        ``initial_fill(..., drop=drop)`` leaves out), moved to just outside; ``None``: only
+        ``phi > 0``.
 
     Returns
     -------
@@ -194,7 +200,10 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, dr
         r_pd = np.stack([g.ravel() for g in grids], axis=1)
         phi_p = domain.phi(r_pd)
         near = (phi_p > 0.0) if drop is None else (phi_p >= -drop * dx)
-        r_pd = r_pd[near & (phi_p <= layers * dx)]
+        band = near & (phi_p <= layers * dx)
+        r_pd, phi_p = r_pd[band], phi_p[band]
+        if drop is not None:
+            r_pd = _just_outside(domain, r_pd, phi_p, dx)
         if keep is not None and len(r_pd):
             r_pd = r_pd[np.asarray(keep(r_pd), dtype=bool)]
         found.append(r_pd)
@@ -209,18 +218,62 @@ def wall_particles(boundary, dx, layers=None, h=None, origin=None, keep=None, dr
     return walls
 
 
-def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, walls=None, drop=DROP_FRACTION):
+#: where :func:`wall_particles` puts the centres on or just inside the boundary: ``phi`` = this times dx
+JUST_OUTSIDE = 1e-6
+#: :func:`add_walls`' default: no wall particle closer than this (times dx) to a fluid particle
+MIN_GAP = 0.5
+
+
+def _just_outside(domain, r_pd, phi_p, dx):
+    """``r_pd`` with the points at ``phi <= JUST_OUTSIDE dx`` moved along the normal to ``phi = JUST_OUTSIDE dx``;
+    a point the move does not take outside (a corner's ambiguous normal) is left out."""
+    target = JUST_OUTSIDE * dx
+    move = phi_p <= target
+    if not move.any():
+        return r_pd
+    r_pd = r_pd.copy()
+    for _ in range(3):
+        idx = np.nonzero(move)[0]
+        phi_m, n_mc = domain.phi_and_normal(r_pd[idx])
+        norm = np.linalg.norm(n_mc[:, : r_pd.shape[1]], axis=1)
+        step = np.where(norm > 0, (target - phi_m) / np.where(norm > 0, norm, 1.0) ** 2, 0.0)
+        r_pd[idx] += step[:, None] * n_mc[:, : r_pd.shape[1]]
+        move[idx] = domain.phi(r_pd[idx]) <= 0.5 * target
+        if not move.any():
+            return r_pd
+    return r_pd[~move]
+
+
+def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, walls=None, drop=DROP_FRACTION,
+              min_gap=MIN_GAP):
     """``atoms`` (fluid, ``type`` FLUID) followed by :func:`wall_particles` (``type`` WALL).
 
     Returns a new Atoms with ``atoms``' cell, pbc and info, without constraints or calculator;
     ``info["n_fluid"]`` and ``info["n_wall"]`` count the kinds. ``walls``: wall particles made
     elsewhere (:mod:`~ase_sphrelax.drivers.bipi_walls`), used instead of the grid ones.
     ``drop``: passed to :func:`wall_particles`; the default, :func:`initial_fill`'s, makes the
-    grid walls also take the cell centres the fill dropped within ``dx/8`` of the boundary, so
-    every wall is 1 dx from a Step-1 fluid (``None``: walls strictly outside, ``phi > 0``).
+    grid walls also take the cell centres the fill dropped within ``dx/8`` of the boundary, moved
+    to just outside it, so every wall is about 1 dx from a Step-1 fluid (``None``: walls strictly
+    outside, ``phi > 0``).
+
+    Whatever made them, the walls kept are never inside the domain (``phi > 0``) and none is
+    closer than ``min_gap dx`` (default :data:`MIN_GAP`, 0.5) to a fluid particle of ``atoms``
+    (periodic images included): the others are left out, counted in ``info["n_wall_dropped"]``
+    (a packed fluid's boundary layer can sit within 0.5 dx of the boundary, closer than a grid
+    wall just outside it).
     """
+    from ..boundary import as_boundary
+
+    boundary = as_boundary(boundary)
+    if not (np.isfinite(min_gap) and min_gap >= 0):
+        raise ValueError(f"min_gap must be a fraction of dx >= 0, got {min_gap!r}")
     if walls is None:
         walls = wall_particles(boundary, dx, layers=layers, h=h, origin=origin, keep=keep, drop=drop)
+    dim = boundary.domain.dim
+    bad = ~(boundary.domain.phi(walls.positions[:, :dim]) > 0.0)
+    if len(atoms) and len(walls) and min_gap > 0:
+        bad |= _nearest_distance(walls.positions, atoms.positions, atoms, dim) < min_gap * dx
+    walls = walls[~bad] if bad.any() else walls
     out = atoms.copy()
     out.set_constraint()
     out.calc = None
@@ -231,8 +284,22 @@ def add_walls(atoms, boundary, dx, layers=None, h=None, origin=None, keep=None, 
     walls.cell, walls.pbc = out.cell, out.pbc
     walls.set_atomic_numbers(np.full(len(walls), out.numbers[0] if len(out) else 1))
     out += walls
-    out.info.update(n_fluid=len(atoms), n_wall=len(walls), wall_layers=walls.info["wall_layers"])
+    out.info.update(n_fluid=len(atoms), n_wall=len(walls), wall_layers=walls.info["wall_layers"],
+                    n_wall_dropped=int(bad.sum()))
     return out
+
+
+def _nearest_distance(r_pc, fluid_qc, atoms, dim):
+    """Distance from each ``r_pc`` to the nearest of ``fluid_qc`` and their periodic images (``atoms``' cell)."""
+    from scipy.spatial import cKDTree
+
+    points = [np.asarray(fluid_qc, dtype=float)[:, :dim]]
+    for i in range(dim):
+        if atoms.pbc[i]:
+            shift = np.asarray(atoms.cell[i], dtype=float)[:dim]
+            points = [p + k * shift for p in points for k in (-1, 0, 1)]
+    d, _ = cKDTree(np.concatenate(points)).query(np.asarray(r_pc, dtype=float)[:, :dim])
+    return d
 
 
 class BIPIPacker(Optimizer):
