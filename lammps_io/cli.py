@@ -155,14 +155,17 @@ def _spacing(atoms, dim, dx):
 
 
 def write_vtk(atoms, path, dim=None):
-    """Legacy ASCII VTK polydata: points, one vertex per particle, point arrays
-    (velocities, forces, per-particle arrays of ``atoms.arrays`` with 1 or 3 components)."""
+    """Legacy ASCII VTK unstructured grid: points, one vertex cell (VTK_VERTEX) per particle, point arrays
+    (velocities, forces, per-particle arrays of ``atoms.arrays`` with 1 or 3 components).
+
+    An unstructured grid, not polydata: ParaView reads both, meshio (``meshio.read``) only the former."""
     dim = infer_dim(atoms) if dim is None else dim
     n = len(atoms)
-    lines = ["# vtk DataFile Version 3.0", f"ase_sphrelax particles (dim {dim})", "ASCII", "DATASET POLYDATA",
+    lines = ["# vtk DataFile Version 3.0", f"ase_sphrelax particles (dim {dim})", "ASCII", "DATASET UNSTRUCTURED_GRID",
              f"POINTS {n} double"]
     lines += [f"{x:.17g} {y:.17g} {z:.17g}" for x, y, z in atoms.positions]
-    lines += [f"VERTICES {n} {2 * n}"] + [f"1 {i}" for i in range(n)]
+    lines += [f"CELLS {n} {2 * n}"] + [f"1 {i}" for i in range(n)]
+    lines += [f"CELL_TYPES {n}"] + ["1"] * n  # VTK_VERTEX
     fields = []
     for name, arr in atoms.arrays.items():
         if name in ("positions", "numbers"):

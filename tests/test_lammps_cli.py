@@ -24,7 +24,7 @@ def test_export_extxyz_and_vtk(tmp_path):
     np.testing.assert_allclose(back.positions, atoms.positions)
     cli_export(atoms, tmp_path / "a.vtk")
     text = (tmp_path / "a.vtk").read_text().splitlines()
-    assert "POINTS 12 double" in text and "VERTICES 12 24" in text and "SCALARS phi double 1" in text
+    assert "POINTS 12 double" in text and "CELLS 12 24" in text and "SCALARS phi double 1" in text
     start = text.index("POINTS 12 double") + 1
     np.testing.assert_allclose(np.array([line.split() for line in text[start:start + 12]], float), atoms.positions)
     with pytest.raises(ValueError, match="--format"):

@@ -28,7 +28,8 @@ MAX_STEPS = 50000  # the dynamics' default step cap; reaching it unconverged exi
 __all__ = ["add_arguments", "run", "load_profile"]
 
 PROFILE_HELP = ("eq46 (Eq. 46, with --delta), eq49 (Eq. 49, 2D, with --p), uniform, or module:function "
-                "(a vectorised callable (N, dim) -> (N,))")
+                "(a vectorised callable (N, dim) -> (N,); the module must be importable: put its folder on "
+                "PYTHONPATH, e.g. PYTHONPATH=. for ./module.py)")
 
 
 def add_arguments(parser):
@@ -64,7 +65,10 @@ def add_arguments(parser):
     parser.add_argument("--polish-steps", type=non_negative_int, default=4000,
                         help="LBFGS steps of the least-squares polish (4000)")
     parser.add_argument("--max-steps", type=positive(int), default=None,
-                        help="step cap of the dynamics (default 50000; given: a fixed length, exit 0 even unconverged)")
+                        help="step cap of the dynamics (default 50000; given: a fixed length, exit 0 even "
+                             "unconverged); it changes nothing else: each pre-split stage still lasts at most "
+                             "50000/(K+1) steps, and a cap reached before the last split splits the particles "
+                             "there, so the result has --n particles)")
     parser.add_argument("--max-wall", type=positive(float), default=None,
                         help="wall-time cap of the dynamics in seconds (a cap like --max-steps: exit 0 even unconverged)")
     parser.add_argument("--eps-min", type=positive(float), default=1e-8, help="stop at epsilon below this (1e-8)")
@@ -94,8 +98,14 @@ def load_profile(name, dim, delta=0.1, p=1.0):
 
     module_name, _, attr = name.partition(":")
     try:
-        obj = getattr(importlib.import_module(module_name), attr)
-    except (ImportError, AttributeError) as exc:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise UsageError(f"--profile {name!r}: cannot import {module_name!r} ({exc}); the module must be importable: "
+                         f"put its folder on PYTHONPATH, e.g. PYTHONPATH=. for ./{module_name.replace('.', '/')}.py"
+                         ) from None
+    try:
+        obj = getattr(module, attr)
+    except AttributeError as exc:
         raise UsageError(f"--profile {name!r}: cannot load it ({exc})") from None
     if not callable(obj):
         raise UsageError(f"--profile {name!r} is not callable")
@@ -166,6 +176,8 @@ def run(args):
                            finish=args.finish if args.form == "log" else "none",
                            polish_steps=args.polish_steps,
                            max_steps=MAX_STEPS if args.max_steps is None else args.max_steps,
+                           # the pre-split stages' length follows the default cap, not --max-steps (a cap only)
+                           stage_steps=MAX_STEPS // (args.split + 1) if args.split else None, split_at_cap=True,
                            **({} if args.max_wall is None else dict(max_wall=args.max_wall)),
                            eps_min=args.eps_min, progress=show_progress(args), seed=args.seed, epsilon_min=eps_teo)
     atoms = result["atoms"]

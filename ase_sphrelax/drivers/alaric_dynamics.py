@@ -375,7 +375,7 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
 def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
                   form="log", polish=None, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
                   progress=False, seed=0, epsilon_min=None, boundary="auto", finish="none", wall_form="linear",
-                  **dynamics):
+                  split_at_cap=False, **dynamics):
     """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
     least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
 
@@ -403,6 +403,12 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
 
     ``wall_form``: the calculator's domain wall, ``"linear"`` (default) or ``"quadratic"`` (no force jump at the
     boundary; :class:`~ase_sphrelax.calculators.alaric.ALARICCalculator`), also in the polish.
+
+    ``split_at_cap``: when the dynamics stops at its cap (``max_steps`` or ``max_wall``) with splitting stages left,
+    split the particles anyway, so that the result has the final N (unrelaxed after the last split; the verdict
+    stays "not converged"). False (default): the result keeps the particles of the stage the cap interrupted.
+    The pre-split stages last ``stage_steps`` steps (a keyword of :class:`ALARICDynamics`; default
+    ``max_steps // (splits + 1)``: pass it to keep the stages when changing the cap, as ``sphrelax density`` does).
 
     Returns
     -------
@@ -435,6 +441,11 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
                          **dynamics)
     dyn.run(max_steps)
     trace = [dict(e, phase="dynamics") for e in dyn.trace]
+    if split_at_cap and dyn.splits_left > 0 and dyn.stop_reason in ("max_steps", "max_wall"):
+        while dyn.splits_left > 0:
+            dyn._split()
+        trace.append(dict(trace[-1] if trace else {}, step=dyn.nsteps, epsilon=float(calc.results["epsilon"]),
+                          n=len(atoms), stage=dyn.stage, phase="split at the cap"))
     if finish == "squares" and dyn.stop_reason == "epsilon_dot" and dyn.nsteps < max_steps:
         first = dyn
         calc.set(form="squares")  # a fresh state: H solved again, the Eq. 44 mass at the first evaluation
