@@ -12,6 +12,19 @@ paper's cases: m, kg, s).
 
 Particle kinds: ``atoms.arrays["type"]`` holds :data:`FLUID` (1) or :data:`WALL` (2); without it
 every particle is fluid. Masses are ``rho0 dx^dim`` per particle (one mass per LAMMPS type).
+
+Checks before LAMMPS starts (a one-line ValueError naming the parameter, issue 31): ``dx`` must be
+the fluid's spacing (the median nearest-neighbour distance, within a factor :data:`SPACING_FACTOR`)
+and ``h`` between :data:`H_OVER_DX` times it (so swapping h and dx is caught); the tank needs wall
+particles and lengths, ``g`` and ``c0`` in one unit system (:func:`hydrostatic_tank`); the drop must
+start as a disc (:func:`elliptic_drop`).
+
+Verdict after the run: ``stable`` is False, with a :class:`FlowUnstableWarning`, when the kinetic
+energy grew past the stated limit (the tank: :data:`TANK_KE_LIMIT` times ``M g H``, its potential
+energy scale; the drop: :data:`DROP_KE_GROWTH` times its initial kinetic energy, which the drop
+only loses) or when fluid particles were thrown out (the tank: beyond the start's bounding box
+grown by ``h``; the drop: outside the analytic ellipse grown by ``2 h``) or became NaN.
+``ke_history`` starts with the true kinetic energy at t = 0.
 """
 from __future__ import annotations
 
@@ -22,16 +35,73 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from ase_sphrelax.checks import check_positive
+from ase_sphrelax.checks import SphrelaxWarning, check_positive
 
 from ._library import import_lammps, new_lammps
 from .box import infer_dim
 from .data_file import write_data
 
-__all__ = ["FLUID", "WALL", "hydrostatic_tank", "elliptic_drop", "elliptic_drop_axes", "tait_pressure"]
+__all__ = ["FLUID", "WALL", "hydrostatic_tank", "elliptic_drop", "elliptic_drop_axes", "tait_pressure",
+           "FlowUnstableWarning", "TANK_KE_LIMIT", "DROP_KE_GROWTH"]
 
 FLUID, WALL = 1, 2
 DENSITY_MODES = ("summation", "continuity")
+#: ``h / dx`` outside this range is refused (LAMMPS' Lucy kernel support; 2-4 dx is usual)
+H_OVER_DX = (1.5, 6.0)
+#: ``dx`` must be within this factor of the fluid's median nearest-neighbour distance
+SPACING_FACTOR = 1.5
+#: the tank is unstable when its kinetic energy exceeds this fraction of ``M g H`` (settled tanks: below 1e-4;
+#: alpha = 0.1 runs of examples/results/bipi_sph that went unstable: above 0.1)
+TANK_KE_LIMIT = 1e-2
+#: the drop is unstable when its kinetic energy exceeds this multiple of its initial one (it only loses energy)
+DROP_KE_GROWTH = 1.5
+#: ``G_SI`` (m/s^2) over ``g`` converts the tank's lengths to metres; a depth outside this range (m) is refused
+#: (``hydrostatic_tank(check_units=False)`` for a deeper tank: a 20 mm tank given in mm is "20 m" deep in SI)
+G_SI, DEPTH_RANGE_M = 9.81, (1e-3, 20.0)
+#: ``c0 / sqrt(g H)`` outside this range is refused (Mach 0.1 is c0 = 10 sqrt(g H))
+C0_RANGE = (3.0, 1000.0)
+
+
+class FlowUnstableWarning(SphrelaxWarning):
+    """A LAMMPS flow run blew up: its kinetic energy grew past the stated limit, or particles were thrown out."""
+
+
+def _check_spacing(atoms, kinds, h, dx, who):
+    """dx against the fluid's spacing and h against dx, before LAMMPS starts (one-line ValueErrors)."""
+    from scipy.spatial import cKDTree
+
+    check_positive("h", h)
+    check_positive("dx", dx)
+    dim = infer_dim(atoms)
+    fluid = atoms.positions[kinds == FLUID, :dim]
+    if len(fluid) >= 2:
+        d, _ = cKDTree(fluid).query(fluid, k=2)
+        spacing = float(np.median(d[:, 1]))
+        if not (spacing / SPACING_FACTOR <= dx <= spacing * SPACING_FACTOR):
+            hint = " (h and dx swapped?)" if abs(h / spacing - 1.0) < 0.5 else ""
+            raise ValueError(f"{who}: dx = {dx:g} but the fluid particles are spaced about {spacing:.4g} (median "
+                             f"nearest-neighbour distance): dx must be the particle spacing{hint}")
+    lo, hi = H_OVER_DX
+    if not lo <= h / dx <= hi:
+        hint = " (h and dx swapped?)" if h < dx else ""
+        raise ValueError(f"{who}: h = {h:g} is {h / dx:.3g} dx; h is the kernel support radius and must be "
+                         f"{lo:g}-{hi:g} dx{hint}")
+
+
+def _verdict(result, ke_over, limit_text, n_out, where, who, failure=None):
+    """``stable`` and its reason into ``result``; a FlowUnstableWarning when it is False."""
+    import warnings
+
+    reasons = [] if failure is None else [f"LAMMPS stopped at t = {result['t_reached']:.4g}: {failure}"]
+    if not np.isfinite(ke_over) or ke_over > 1.0:
+        reasons.append(f"the kinetic energy grew past {limit_text}")
+    if n_out:
+        reasons.append(f"{n_out} fluid particle(s) thrown out ({where}) or lost")
+    result.update(stable=not reasons, stability_reason="; ".join(reasons) if reasons else
+                  f"kinetic energy within {limit_text}, no particle thrown out")
+    if reasons:
+        warnings.warn(f"{who}: unstable run: {result['stability_reason']}", FlowUnstableWarning, stacklevel=3)
+    return result
 
 
 def tait_pressure(rho, rho0, c0):
@@ -55,8 +125,10 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
     """The shared LAMMPS run: write the data file, set up the SPH styles, run in chunks, observe.
 
     ``observe(lmp, n, time)`` is called at t = 0 and after every chunk and returns a dict that is
-    appended to the history. Returns ``(history, (x_pc, rho_p), n_fluid, n_wall, steps, dt)``, with the final
-    positions and densities gathered once, after the last chunk.
+    appended to the history. Returns ``(history, (x_pc, rho_p), n_fluid, n_wall, steps, dt, failure)``, with the
+    final positions and densities gathered once, after the last chunk; ``failure`` is None, or the first line of
+    the LAMMPS error that stopped a blown-up run (e.g. "Too many neighbor bins" when particles fly off), after
+    which the history ends and the positions are those LAMMPS still holds (NaN if it cannot give them).
     """
     if len(atoms) == 0:
         raise ValueError("atoms: need at least one particle, got an empty Atoms")
@@ -136,17 +208,25 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
             v = np.zeros((n, 3))
             v[:, :] = velocities
             lmp.scatter_atoms("v", 1, 3, (3 * n * ctypes.c_double)(*v.ravel()))
-        lmp.command("run 0")
+        lmp.command("run 0")  # computes the thermo output of step 0: KE(0) is the true initial kinetic energy
         history = [observe(lmp, n, 0.0)]
         done = 0
+        failure = None
         while done < steps:
             k = min(chunk, steps - done)
-            lmp.command(f"run {k} pre no post no")
+            try:
+                lmp.command(f"run {k} pre no post no")
+            except Exception as error:  # noqa: BLE001 - LAMMPS raises a bare Exception; a blow-up is a result
+                failure = (str(error).strip().splitlines() or ["LAMMPS error"])[0]
+                break
             done += k
             history.append(observe(lmp, n, done * dt))
             if bar is not None:
                 bar.update(k)
-        final = (_gather(lmp, "x", n, 3), _gather(lmp, "rho", n, 1))
+        try:
+            final = (_gather(lmp, "x", n, 3), _gather(lmp, "rho", n, 1))
+        except Exception:  # noqa: BLE001 - after a LAMMPS error
+            final = (np.full((n, 3), np.nan), np.full(n, np.nan))
         lmp.close()
     finally:
         os.chdir(cwd)
@@ -154,7 +234,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
             bar.close()
         if tmp is not None:
             tmp.cleanup()
-    return history, final, int((kinds == FLUID).sum()), int((kinds == WALL).sum()), steps, dt
+    return history, final, int((kinds == FLUID).sum()), int((kinds == WALL).sum()), steps, dt, failure
 
 
 def _gather(lmp, name, n, width):
@@ -164,7 +244,7 @@ def _gather(lmp, name, n, width):
 
 def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_end=1.0, dt=None, samples=100,
                      density="continuity", hydrostatic_start=True, depth_bins=10, nthreads=1, workdir=None,
-                     progress=True):
+                     progress=True, check_units=True):
     """A tank of water at rest under gravity, run in LAMMPS; return its kinetic energy and pressures.
 
     Parameters
@@ -207,15 +287,27 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
         OpenMP threads of LAMMPS.
     progress : bool
         A tqdm bar over the time steps.
+    check_units : bool
+        Refuse a depth outside :data:`DEPTH_RANGE_M` metres (the lengths converted with ``g``: a tank in mm
+        with g in m/s^2 is 1000 times too deep) and a ``c0`` outside :data:`C0_RANGE` times ``sqrt(g H)``.
+
+    Raises
+    ------
+    ValueError
+        Before LAMMPS starts: no wall particles, lengths/g/c0 of different unit systems (``check_units``),
+        ``dx`` not the fluid's spacing or ``h`` outside :data:`H_OVER_DX` dx (module docstring).
 
     Returns
     -------
     dict
-        ``ke_history`` (list of (time, KE)), ``ke_final``, ``ke_max``, ``pressure_profile`` (list of
-        (depth, mean p of the fluid particles in the bin, hydrostatic rho0 g depth)),
-        ``pressure_error`` (mean ``|p - rho0 g depth| / (rho0 g H)`` over the bins), ``max_drop``
-        (largest downward displacement of a fluid particle / dx), ``n_fluid``, ``n_wall``,
-        ``steps``, ``dt``, ``c0``, ``depth``, ``h``, ``dx``.
+        ``ke_history`` (list of (time, KE), from the true KE at t = 0), ``ke_final``, ``ke_max``,
+        ``pressure_profile`` (list of (depth, mean p of the fluid particles in the bin, hydrostatic
+        rho0 g depth)), ``pressure_error`` (mean ``|p - rho0 g depth| / (rho0 g H)`` over the bins),
+        ``max_drop`` (largest downward displacement of a fluid particle / dx), ``n_fluid``, ``n_wall``,
+        ``steps``, ``dt``, ``c0``, ``depth``, ``h``, ``dx``; ``stable`` (False, with a
+        :class:`FlowUnstableWarning`, when ``ke_max`` exceeded :data:`TANK_KE_LIMIT` ``M g H`` or fluid
+        particles left the start's bounding box grown by ``h``, or LAMMPS stopped), ``stability_reason``,
+        ``ke_over_mgh``, ``n_thrown``, ``t_reached``, ``lammps_error``.
     """
     kinds = _kinds(atoms)
     dim = infer_dim(atoms)
@@ -223,12 +315,27 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     fluid = kinds == FLUID
     if not fluid.any():
         raise ValueError("atoms: no fluid particle (every atoms.arrays['type'] is WALL)")
+    if not (kinds == WALL).any():
+        raise ValueError("hydrostatic_tank: atoms has no wall particles (atoms.arrays['type'] == 2): the water would "
+                         "fall freely; add them, e.g. ase_sphrelax.drivers.bipi_packer.add_walls")
     check_positive("g", g)
     check_positive("depth_bins", depth_bins)
+    _check_spacing(atoms, kinds, h, dx, "hydrostatic_tank")
     surface = float(atoms.positions[fluid, up].max()) + 0.5 * dx
     bottom = float(atoms.positions[fluid, up].min()) - 0.5 * dx
     depth = surface - bottom
-    c0 = 10.0 * math.sqrt(g * depth) if c0 is None else float(c0)
+    metres = depth * G_SI / g
+    if check_units and not DEPTH_RANGE_M[0] <= metres <= DEPTH_RANGE_M[1]:
+        raise ValueError(f"hydrostatic_tank: the water is {depth:.4g} deep, {metres:.4g} m with g = {g:g} taken as "
+                         f"m/s^2 (allowed {DEPTH_RANGE_M[0]:g}-{DEPTH_RANGE_M[1]:g} m): c0, g, depth and dx must be "
+                         "in one unit system (positions in mm? give metres, or g in mm/s^2; check_units=False "
+                         "for a tank this deep)")
+    c0 = 10.0 * math.sqrt(g * depth) if c0 is None else check_positive("c0", c0)
+    mach = c0 / math.sqrt(g * depth)
+    if check_units and not C0_RANGE[0] <= mach <= C0_RANGE[1]:
+        raise ValueError(f"c0 = {c0:g} is {mach:.3g} sqrt(g H) (g = {g:g}, depth H = {depth:.4g}); it must be "
+                         f"{C0_RANGE[0]:g}-{C0_RANGE[1]:g} sqrt(g H) (10 is Mach 0.1): c0, g, depth and dx must be in "
+                         "one unit system")
     start_up = atoms.positions[:, up].copy()
     rho_start = None
     if hydrostatic_start:
@@ -236,9 +343,9 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
         rho_start = rho0 * (1.0 + rho0 * g * depth_p / (c0 * c0 * rho0 / 7.0)) ** (1.0 / 7.0)
 
     def observe(lmp, n, time):
-        return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]) if time else 0.0)
+        return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]))
 
-    history, (x_pc, rho_p), n_fluid, n_wall, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end,
+    history, (x_pc, rho_p), n_fluid, n_wall, steps, dt, failure = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end,
                                                dt=dt, samples=samples, density=density, nthreads=nthreads,
                                                workdir=workdir, progress=progress, desc="hydrostatic tank",
                                                observe=observe, rho_p=rho_start)
@@ -253,11 +360,20 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
             profile.append((float(mid), float(p_p[inside].mean()), float(rho0 * g * mid)))
     scale = rho0 * g * depth
     ke = [(r["time"], r["ke"]) for r in history]
-    return dict(ke_history=ke, ke_final=ke[-1][1], ke_max=max(k for _, k in ke), pressure_profile=profile,
-                pressure_error=float(np.mean([abs(p - ph) for _, p, ph in profile]) / scale),
-                max_drop=float((start_up[fluid] - x_pc[fluid, up]).max() / dx), positions=x_pc, density_p=rho_p,
-                n_fluid=n_fluid, n_wall=n_wall,
-                steps=steps, dt=dt, c0=c0, depth=depth, h=float(h), dx=float(dx), density=density)
+    ke_max = max(k for _, k in ke)
+    energy_scale = rho0 * dx**dim * n_fluid * g * depth  # M g H
+    lo_c = atoms.positions[:, :dim].min(axis=0) - h
+    hi_c = atoms.positions[:, :dim].max(axis=0) + h
+    x_f = x_pc[fluid, :dim]
+    thrown = ~np.all(np.isfinite(x_f), axis=1) | np.any((x_f < lo_c) | (x_f > hi_c), axis=1)
+    result = dict(ke_history=ke, ke_final=ke[-1][1], ke_max=ke_max, pressure_profile=profile,
+                  pressure_error=float(np.mean([abs(p - ph) for _, p, ph in profile]) / scale) if profile else np.nan,
+                  max_drop=float((start_up[fluid] - x_pc[fluid, up]).max() / dx), positions=x_pc, density_p=rho_p,
+                  n_fluid=n_fluid, n_wall=n_wall, ke_over_mgh=float(ke_max / energy_scale), n_thrown=int(thrown.sum()),
+                  t_reached=float(ke[-1][0]), lammps_error=failure,
+                  steps=steps, dt=dt, c0=c0, depth=depth, h=float(h), dx=float(dx), density=density)
+    return _verdict(result, ke_max / (TANK_KE_LIMIT * energy_scale), f"{TANK_KE_LIMIT:g} M g H",
+                    int(thrown.sum()), "beyond the start's bounding box grown by h", "hydrostatic_tank", failure)
 
 
 def elliptic_drop_axes(a0, t, radius=1.0):
@@ -302,13 +418,23 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
     center : array-like or None
         The drop's centre (default the particles' mean).
 
+    Raises
+    ------
+    ValueError
+        Before LAMMPS starts: wall particles, a start that is not a disc (second moments in a ratio
+        above 1.05, or an extent other than ``R``), ``dx`` not the spacing or ``h`` outside
+        :data:`H_OVER_DX` dx.
+
     Returns
     -------
     dict
         ``history`` (list of dicts: time, a and b from the particles' second moments ``a = 2
-        sqrt(<x^2>)``, a and b from their extents, KE, the analytic a and b), ``axis_error`` (max
-        over samples of ``|a - a_exact| / R`` from the moments), ``n``, ``steps``, ``dt``, ``c0``,
-        ``radius``.
+        sqrt(<x^2>)``, a and b from their extents, KE (at t = 0 the true initial KE), the analytic
+        a and b), ``axis_error`` (max over samples of ``|a - a_exact| / R`` from the moments), ``n``,
+        ``steps``, ``dt``, ``c0``, ``radius``; ``stable`` (False, with a :class:`FlowUnstableWarning`,
+        when the KE exceeded :data:`DROP_KE_GROWTH` times ``ke0`` or particles ended outside the
+        analytic ellipse grown by ``2 h``, or LAMMPS stopped), ``stability_reason``, ``ke0``,
+        ``ke_growth``, ``n_thrown``, ``t_reached``, ``lammps_error``.
     """
     kinds = _kinds(atoms)
     if (kinds == WALL).any():
@@ -316,22 +442,27 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
     if infer_dim(atoms) != 2:
         raise ValueError("elliptic_drop: needs 2D particles at z = 0")
     check_positive("a0", a0)
+    _check_spacing(atoms, kinds, h, dx, "elliptic_drop")
     centre = atoms.positions[:, :2].mean(axis=0) if center is None else np.asarray(center, dtype=float)[:2]
     rel = atoms.positions[:, :2] - centre
     radius = float(np.sqrt(2.0 * np.mean((rel**2).sum(axis=1)))) * 1.0  # a uniform disc: <r^2> = R^2 / 2
+    _check_disc(rel, radius, dx)
     c0 = 14.0 * a0 * radius if c0 is None else float(c0)
     v_pc = np.zeros((len(atoms), 3))
     v_pc[:, 0] = a0 * rel[:, 0]
     v_pc[:, 1] = -a0 * rel[:, 1]
 
+    final = {}
+
     def observe(lmp, n, time):
         x = _gather(lmp, "x", n, 3)[:, :2]
+        final["x"] = x
         r = x - x.mean(axis=0)
-        return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]) if time else 0.0,
+        return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]),
                     a_moment=float(2.0 * np.sqrt(np.mean(r[:, 0] ** 2))), b_moment=float(2.0 * np.sqrt(np.mean(r[:, 1] ** 2))),
                     a_extent=float(np.abs(r[:, 0]).max() + 0.5 * dx), b_extent=float(np.abs(r[:, 1]).max() + 0.5 * dx))
 
-    history, _, n_fluid, _, steps, dt = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0, t_end=t_end,
+    history, _, n_fluid, _, steps, dt, failure = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0, t_end=t_end,
                                           dt=dt, samples=samples, density=density, nthreads=nthreads,
                                           workdir=workdir, progress=progress, desc="elliptic drop", observe=observe,
                                           velocities=v_pc)
@@ -340,5 +471,31 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
     for record, a, b in zip(history, a_exact, b_exact):
         record.update(a_exact=float(a), b_exact=float(b))
     error = max(abs(r["a_moment"] - r["a_exact"]) for r in history) / radius
-    return dict(history=history, axis_error=float(error), n=n_fluid, steps=steps, dt=dt, c0=c0, radius=radius,
-                a0=float(a0), h=float(h), dx=float(dx), density=density)
+    ke0 = history[0]["ke"]
+    ke_max = max(r["ke"] for r in history)
+    x = final["x"] - final["x"].mean(axis=0)
+    a, b = history[-1]["a_exact"] + 2.0 * h, history[-1]["b_exact"] + 2.0 * h
+    thrown = ~np.all(np.isfinite(x), axis=1) | ((x[:, 0] / a) ** 2 + (x[:, 1] / b) ** 2 > 1.0)
+    result = dict(history=history, axis_error=float(error), n=n_fluid, steps=steps, dt=dt, c0=c0, radius=radius,
+                  a0=float(a0), h=float(h), dx=float(dx), density=density, ke0=float(ke0),
+                  ke_growth=float(ke_max / ke0) if ke0 > 0 else np.inf, n_thrown=int(thrown.sum()),
+                  t_reached=float(history[-1]["time"]), lammps_error=failure)
+    return _verdict(result, ke_max / (DROP_KE_GROWTH * ke0) if ke0 > 0 else np.inf,
+                    f"{DROP_KE_GROWTH:g} KE(0)", int(thrown.sum()), "outside the analytic ellipse grown by 2 h",
+                    "elliptic_drop", failure)
+
+
+def _check_disc(rel_pc, radius, dx, tol=0.05):
+    """The drop's start must be a disc: equal second moments along every direction (an ellipse is refused) and
+    an extent of R (``R = sqrt(2 <r^2>)``; a square or a ring is refused), within ``tol`` R (plus dx for the
+    extent)."""
+    cov = rel_pc.T @ rel_pc / len(rel_pc)
+    lam = np.linalg.eigvalsh(cov)
+    aspect = float(np.sqrt(lam[-1] / lam[0])) if lam[0] > 0 else np.inf
+    if aspect > 1.0 + tol:
+        raise ValueError(f"elliptic_drop: atoms must start as a disc; their second moments give axes in the ratio "
+                         f"{aspect:.3g} (an ellipse; at most {1 + tol:g} allowed)")
+    extent = float(np.sqrt((rel_pc**2).sum(axis=1)).max()) + 0.5 * dx
+    if abs(extent / radius - 1.0) > tol + dx / radius:
+        raise ValueError(f"elliptic_drop: atoms must start as a disc; they reach {extent:.4g} from the centre while "
+                         f"a uniform disc of their second moment has radius {radius:.4g} (not a filled disc)")
