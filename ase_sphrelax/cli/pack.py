@@ -14,8 +14,11 @@ error), as for ``sphrelax relax``.
 --periodic x (x, y or "x y" in 2D; x, y, z in 3D) makes the boundary periodic along those axes: the
 edges (or triangles) on the periodic faces, e.g. the ends of a channel drawn as a closed rectangle, are
 dropped (a line says how many), gamma and the pair sums see the periodic images, and packed.extxyz carries
-the periodic cell. The period is the boundary's extent along the axis unless --cell gives it (one length
-per axis of the boundary; 0 takes the extent).
+the periodic cell. The period is the boundary's extent along the axis, which must then be a whole number of
+dx (a usage error otherwise), unless --cell gives it (one length per axis of the boundary; 0 takes the extent).
+
+--walls adds wall particles outside the boundary (type 2; the fluid is type 1), none inside the fluid and none
+within 0.5 dx of a fluid particle; --open-top or --surface Y leaves the free surface open (no lid).
 
 Before the fill the particle count and memory are estimated and printed; past --max-particles
 (default 2e7) the fill is refused.
@@ -127,7 +130,8 @@ def add_arguments(parser):
                               "fluid: no wall particle at or above it")
     parser.add_argument("--periodic", nargs="+", default=None, metavar="AXIS",
                         help="periodic axes: x, y or 'x y' in 2D; x, y, z in 3D (edges on the periodic faces are "
-                             "dropped; the period is the boundary's extent unless --cell gives it)")
+                             "dropped; the period is the boundary's extent, which must then be a whole number of "
+                             "dx, unless --cell gives it)")
     parser.add_argument("--cell", nargs="+", default=None, metavar="L",
                         help="with --periodic: the cell lengths along x, y (and z in 3D), one per axis of the boundary; "
                              "0 takes the boundary's extent")
