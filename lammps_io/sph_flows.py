@@ -51,7 +51,7 @@ H_OVER_DX = (1.5, 6.0)
 #: ``dx`` must be within this factor of the fluid's median nearest-neighbour distance
 SPACING_FACTOR = 1.5
 #: the tank is unstable when its kinetic energy exceeds this fraction of ``M g H`` (settled tanks: below 1e-4;
-#: alpha = 0.1 runs of examples/results/bipi_sph that went unstable: above 0.1)
+#: alpha = 0.1 runs of reproductions/bipi-fig13-14 that went unstable: above 0.1)
 TANK_KE_LIMIT = 1e-2
 #: the drop is unstable when its kinetic energy exceeds this multiple of its initial one (it only loses energy)
 DROP_KE_GROWTH = 1.5
