@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
 
 from .common import (EXIT_NOT_CONVERGED, add_output_arguments, add_progress_argument, output_folder, provenance,
                      show_progress)
