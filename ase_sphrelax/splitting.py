@@ -58,7 +58,8 @@ def split_particles(atoms, h, number_density, dim, n_h=None, seed=0):
     ----------
     atoms : Atoms
         Modified in place: particle ``a`` stays (the centre of its pattern) and ``p - 1`` new
-        particles are appended per particle; masses are divided by ``p``; velocities are copied.
+        particles are appended per particle; masses are divided by ``p``; velocities are copied;
+        ``info["dx"]`` (the spacing, when there) becomes the spacing after the split, ``dx / p^(1/d)``.
     h, number_density : ndarray (N,)
         Support radius ``H_a`` and number density ``n_a`` of each particle (e.g. the ALARIC
         calculator's ``smoothing_lengths`` and ``number_density``).
@@ -103,4 +104,6 @@ def split_particles(atoms, h, number_density, dim, n_h=None, seed=0):
     extra = atoms[np.repeat(np.arange(n), p - 1)]
     extra.positions = new_pos.reshape(-1, 3)
     atoms.extend(extra)
+    if "dx" in atoms.info:  # the spacing after the split: p particles in each old particle's volume
+        atoms.info["dx"] = float(atoms.info["dx"]) / p ** (1.0 / dim)
     return np.concatenate([h, np.repeat(h, p - 1)]) / p ** (1.0 / dim)

@@ -18,9 +18,14 @@ from ..models import alaric as model
 from ..neighbors import NeighborList
 from .base import SPHCalculator
 
-__all__ = ["ALARICCalculator", "FLOOR", "PAPER_OMEGA_FLOOR", "QUADRATIC_WALL_FACTOR", "WALL_FORMS", "needed_ghosts"]
+__all__ = ["ALARICCalculator", "FLOOR", "PAPER_ETA", "PAPER_OMEGA_FLOOR", "QUADRATIC_WALL_FACTOR", "WALL_FORMS",
+           "needed_ghosts"]
 
 PAPER_OMEGA_FLOOR = 0.05  # form="paper" only (no energy there): its default floor of Omega in the forces
+# form="paper": default eta (n H^d = eta^d, support H) and background pressure; the one-ingredient-at-a-time study
+# reproductions/alaric-eq29-stability chose them (README there)
+PAPER_ETA = 2.5
+BACKGROUND_PRESSURES = ("deficit",)
 FLOOR = 1e-4  # default density floor of ln rho*, relative to the largest target value at the particles
 # default Verlet skin, relative to the mean H at the first evaluation, as Fan's 0.1 h: 0.2 listed 1.17x (2D) / 1.29x
 # (3D) the pairs at 1e5; ALARICDynamics on Fig. 13 rebuilds at nearly every step with either (0.2: 89 %, 0.1: 100 %
@@ -99,13 +104,30 @@ class ALARICCalculator(SPHCalculator):
         the first evaluation), whose minimum is the paper's fixed point ``rho_a = rho*(x_a)``.
         ``"paper"``: Eq. 29, ``P_a = c_s^2 (rho_a - rho*(x_a))`` in the pressure term, no body force;
         non-conservative: forces only (``energy`` raises PropertyNotImplementedError); the log
-        potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`).
+        potential, a monitor, is ``results["monitor"]`` (:meth:`monitor`). By default it runs with the
+        constant background pressure ``background_pressure="deficit"`` and ``eta = PAPER_ETA`` (2.5), the stable
+        recipe of the study ``reproductions/alaric-eq29-stability``; ``background_pressure=0`` and
+        ``eta=3.0`` give the bare Eq. 29 (which pairs particles for Delta <= 0.1 in Eq. 46).
     background : float
         ``form="squares"`` or ``"paper"``: a background pressure ``beta c_s^2 rho`` (``beta`` = ``background``)
         added to the form's pressure, so that it stays positive near equilibrium (no tensile instability where
         ``|rho - rho*| < beta rho``). In ``"squares"`` it is the energy ``beta sum_a m c_s^2 ln rho_a`` (exact
         gradient: the isothermal pressure force, no body force), which shifts the minimum away from
         ``rho_a = rho*(x_a)`` by an amount that vanishes with ``beta``. Default 0.
+    background_pressure : "deficit", float or None
+        ``form="paper"`` only: a pressure ``P_B``, the same for every particle, added to Eq. 29's
+        ``P_a = c_s^2 (rho_a - rho*_a)``. ``"deficit"`` (the paper form's default, None): at every evaluation
+        ``P_B = c_s^2 max_a (rho*_a - rho_a)_+``, the smallest constant that makes every ``P_a + P_B >= 0``, so the
+        pressure is never tensile (the pairing instability of Eq. 29 at Eq. 46's low-density well). A number: that
+        fixed ``P_B >= 0``; ``0`` switches it off. In the continuum a constant pressure exerts no force; in the
+        symmetric SPH force (Eq. 34) it adds ``-m P_B sum_b m [1/(Omega_a rho_a^2) grad_a W_ab(H_a) +
+        1/(Omega_b rho_b^2) grad_a W_ab(H_b)]``, which is ``-grad`` of ``-P_B sum_b m / rho_b`` (minus ``P_B`` times
+        the SPH volume) for a fixed ``P_B``: a force towards evenly spaced particles that vanishes on a regular
+        arrangement (the zeroth-order error of SPH). With ``"deficit"``, ``P_B = 0`` wherever ``rho_a >= rho*_a``
+        for every particle, so the paper's fixed point (``rho_a = rho*_a``; ``rho - rho* = const >= 0`` before the
+        Eq. 44 mass reset) is still an exact fixed point. ``P_B`` depends on the state through the max: the
+        dynamics stay non-conservative, a driver (the form has no energy; ``energy`` raises). The conservative
+        forms refuse a non-zero value (their pressure is the gradient of their energy; ``background`` is theirs).
     omega_floor : float or None
         ``form="paper"`` only (it has no energy, so no gradient to keep): Omega (Eq. 13) is replaced by
         ``max(Omega, omega_floor)`` in its forces; default :data:`PAPER_OMEGA_FLOOR` (0.05), ``0`` for the
@@ -161,6 +183,7 @@ class ALARICCalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
     default_parameters = dict(target_density=None, dim=None, target_gradient=None, mass=None, cs2=1.0,
                               kernel="wendland_c4", eta=None, form="log", omega_floor=None, domain=None,
+                              background_pressure=None,
                               boundary="wall", background=0.0, wall_form="linear",
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None)
 
@@ -205,6 +228,13 @@ class ALARICCalculator(SPHCalculator):
         if p.background > 0.0 and p.form == "log":
             raise ValueError("background is for form='squares' or 'paper' (the log form's pressure c_s^2 rho is "
                              "positive already), got form='log'")
+        if p.background_pressure is not None and p.background_pressure not in BACKGROUND_PRESSURES:
+            bp = p.background_pressure
+            if isinstance(bp, str) or not (np.isfinite(bp) and bp >= 0.0):
+                raise ValueError(f"background_pressure must be 'deficit', a finite number >= 0 or None, got {bp!r}")
+        if p.form != "paper" and p.background_pressure not in (None, 0, 0.0):
+            raise ValueError(f"background_pressure is for form='paper' only (form={p.form!r} has an energy whose "
+                             f"gradient is its pressure; see background), got {p.background_pressure!r}")
         if p.omega_floor is not None:
             if p.form != "paper":
                 raise ValueError(f"omega_floor is for form='paper' only (form={p.form!r} has an energy whose exact "
@@ -245,7 +275,10 @@ class ALARICCalculator(SPHCalculator):
         p = self.parameters
         self.target = model.Target(p.target_density, dim, p.target_gradient, p.fd_step)
         self.kernel = get_kernel(p.kernel, dim)
-        self.eta = sph.default_eta(self.kernel) if p.eta is None else p.eta
+        if p.eta is not None:
+            self.eta = p.eta
+        else:
+            self.eta = PAPER_ETA if p.form == "paper" else sph.default_eta(self.kernel)
         self.origin = np.zeros(dim) if p.origin is None else np.asarray(p.origin, dtype=float).reshape(-1)
         if self.origin.shape != (dim,):
             raise ValueError(f"origin must be {dim} finite numbers or None (the atoms are {dim}D), got {p.origin!r}")
@@ -258,6 +291,15 @@ class ALARICCalculator(SPHCalculator):
         if p.wall_length is not None:
             return p.wall_length
         return QUADRATIC_WALL_FACTOR * (float(p.domain.volume) / n) ** (1.0 / d)
+
+    def background_pressure_value(self, rho_p, target_p):
+        """``P_B`` of ``form="paper"`` for densities ``rho_p`` and targets ``target_p``: ``c_s^2 max_a (rho*_a -
+        rho_a)_+`` for ``"deficit"`` (the default), else the given number."""
+        p = self.parameters
+        bp = "deficit" if p.background_pressure is None else p.background_pressure
+        if bp == "deficit":
+            return p.cs2 * max(float(np.max(target_p - rho_p)), 0.0)
+        return float(bp)
 
     # -- public controls for the dynamics (ALARICDynamics) ----------------------------------------------
     def set_mass(self, mass):
@@ -481,8 +523,9 @@ class ALARICCalculator(SPHCalculator):
             pr_p = cs2 / (omega_p * rho_p)  # P / (Omega rho^2), P = c_s^2 rho
         elif p.form == "squares":  # de/drho / Omega, e = c_s^2 (rho - rho*)^2 / (2 rho_ref)
             pr_p = cs2 * (rho_p - target_p) / (self._rho_ref * omega_p)
-        else:  # Eq. 29: P_eff = c_s^2 (rho - rho*)
-            pr_p = cs2 * (rho_p - target_p) / (omega_p * rho_p**2)
+        else:  # Eq. 29: P_eff = c_s^2 (rho - rho*), plus the constant background pressure P_B
+            p_b = self.background_pressure_value(rho_p, target_p)
+            pr_p = (cs2 * (rho_p - target_p) + p_b) / (omega_p * rho_p**2)
         if p.background > 0.0:  # P += beta c_s^2 rho (squares: the gradient of beta sum m c_s^2 ln rho)
             pr_p = pr_p + p.background * cs2 / (omega_p * rho_p)
         d = self.dim

@@ -51,7 +51,9 @@ def add_arguments(parser):
                              "L = 0.1 (V/N)^(1/d)) or quadratic m c^2 phi^2/(2 L^2) (L = 0.5 (V/N)^(1/d): no force "
                              "jump at the boundary, reproductions/alaric-fig8-3d-isolate)")
     parser.add_argument("--form", choices=("log", "paper", "squares"), default="log",
-                        help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29), squares")
+                        help="force of the dynamics: log (the ALARIC potential, default), paper (Eq. 29 with the "
+                             "background pressure c^2 max(rho* - rho)_+ and eta = 2.5, "
+                             "reproductions/alaric-eq29-stability), squares")
     parser.add_argument("--finish", choices=("none", "squares"), default="none",
                         help="squares: after the log potential stops by epsilon_dot, continue the dynamics on the "
                              "least-squares potential (fixed point rho = rho*; it empties density wells, so "
@@ -207,6 +209,7 @@ def run(args):
                    max_relative_error=diagnostics["max_relative_error"],
                    zero_target_particles=diagnostics["zero_target_particles"],
                    zero_region_particles=diagnostics["zero_region_particles"], regions=diagnostics["regions"],
+                   n_outside=int(result["n_outside"]),
                    mass=float(calc.mass), wall_time_s=wall,
                    **provenance(args, "density"))
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
@@ -216,6 +219,9 @@ def run(args):
     print(f"max |rho/rho* - 1|: {diagnostics['max_relative_error']}; per decade of rho*/max: "
           + ", ".join(f"[{r['target_range'][0]:.0e}, {r['target_range'][1]:.0e}] n={r['n']} eps={r['epsilon']:.2e} "
                       f"rms|rho/rho*-1|={r['rms_relative_error']:.2e}" for r in diagnostics["regions"]))
+    if result["n_outside"]:
+        print(f"warning: {result['n_outside']} of {len(atoms)} particles ended outside the domain (summary.json "
+              f"n_outside)")
     print(("converged: " if result["converged"] else "NOT CONVERGED: ") + result["convergence_reason"])
     print(f"wall time: {wall:.1f} s")
     print(f"wrote {out / 'relaxed.extxyz'}, {out / 'density.png'}, {out / 'trace.json'}, {out / 'summary.json'}")

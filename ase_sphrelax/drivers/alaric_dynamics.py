@@ -344,6 +344,8 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
     """Equal particles to start from: ``n`` equispaced on the periodic interval ``[-1, 1)`` in 1D
     (cell ``[0, 2)``, origin -1: the paper's Sec. 4.1 set-up), or a jittered lattice filling
     ``domain`` (default the unit disc / ball, Sec. 4.3-4.4) thinned at random to exactly ``n`` in 2D/3D.
+    ``atoms.info["dx"]`` is the mean spacing, ``(V / n)^(1/d)`` (``2 / n`` in 1D); splitting divides it by
+    ``p^(1/d)`` (:func:`~ase_sphrelax.splitting.split_particles`).
 
     Returns ``(atoms, origin, domain)``.
     """
@@ -356,6 +358,7 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
         pos = np.zeros((n, 3))
         pos[:, 0] = (np.arange(n) + 0.5) * 2.0 / n
         atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[2.0, 0.0, 0.0], pbc=[True, False, False])
+        atoms.info["dx"] = 2.0 / n
         return atoms, np.array([-1.0]), None
     if domain is None:
         domain = Circle((0.0, 0.0), 1.0) if dim == 2 else Sphere((0.0, 0.0, 0.0), 1.0)
@@ -369,13 +372,14 @@ def start_atoms(n, dim, domain=None, seed=0, jitter=0.1):
         atoms = atoms[keep]
     atoms.set_cell(np.zeros((3, 3)))
     atoms.pbc = False
+    atoms.info["dx"] = (float(domain.volume) / n) ** (1.0 / dim)  # the mean spacing of the n kept particles
     return atoms, np.zeros(dim), domain
 
 
 def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, domain=None, origin=None,
                   form="log", polish=None, polish_steps=4000, max_steps=50000, eps_min=1e-8, eps_dot_min=1e-8,
                   progress=False, seed=0, epsilon_min=None, boundary="auto", finish="none", wall_form="linear",
-                  split_at_cap=False, **dynamics):
+                  split_at_cap=False, calculator_options=None, **dynamics):
     """ALARIC's recipe: S+F+V dynamics with ``splits`` splitting stages, then (``polish``) LBFGS on the
     least-squares potential (``form="squares"``, whose minimum is ``rho_a = rho*(x_a)``).
 
@@ -401,6 +405,13 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     edge particles' density is about half the target and dominates epsilon (Fig. 13:
     ``reproductions/alaric-fig13``).
 
+    ``form="paper"`` (Eq. 29) runs the calculator's stable recipe by default: the background pressure
+    ``P_B = c_s^2 max_a (rho*_a - rho_a)_+`` and ``eta = 2.5``
+    (:class:`~ase_sphrelax.calculators.alaric.ALARICCalculator`, study ``reproductions/alaric-eq29-stability``);
+    it is a driver (no energy), not a gradient descent.
+    ``calculator_options``: further :class:`~ase_sphrelax.calculators.alaric.ALARICCalculator` keywords (e.g.
+    ``eta``, ``kernel``, ``background_pressure``, ``omega_floor``).
+
     ``wall_form``: the calculator's domain wall, ``"linear"`` (default) or ``"quadratic"`` (no force jump at the
     boundary; :class:`~ase_sphrelax.calculators.alaric.ALARICCalculator`), also in the polish.
 
@@ -418,7 +429,9 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         N, stage, phase), ``steps``, ``force_calls``, ``stop_reason``, ``wall_time``, ``converged`` and
         ``convergence_reason`` (:func:`~ase_sphrelax.models.alaric.convergence_verdict`; a
         :class:`~ase_sphrelax.checks.NotConvergedWarning` when False), ``diagnostics``
-        (:func:`~ase_sphrelax.models.alaric.density_diagnostics`: max ``|rho/rho* - 1|`` and epsilon per region).
+        (:func:`~ase_sphrelax.models.alaric.density_diagnostics`: max ``|rho/rho* - 1|`` and epsilon per region),
+        ``n_outside``: the particles outside ``domain`` at the end (``phi > 0``; 0 without a domain), with a
+        ``UserWarning`` when there are any (a soft ``wall_form="quadratic"`` wall can leave some outside).
     """
     from ..calculators.alaric import ALARICCalculator
     from ..models.alaric import reset_mass, resolve_boundary
@@ -429,7 +442,8 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     boundary = resolve_boundary(boundary, domain)
     finish = _resolve_finish(finish, dim)
     calc = ALARICCalculator(target_density=target_density, target_gradient=target_gradient, dim=dim, form=form,
-                            domain=domain, origin=origin, boundary=boundary, wall_form=wall_form)
+                            domain=domain, origin=origin, boundary=boundary, wall_form=wall_form,
+                            **(calculator_options or {}))
     atoms.calc = calc
     bar = None
     if progress:
@@ -483,13 +497,20 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     periods = [float(np.linalg.norm(atoms.cell[c])) for c in range(dim) if atoms.pbc[c]]
     converged, reason = convergence_verdict(dyn.stop_reason, diagnostics, res["smoothing_lengths"], periods,
                                             epsilon_min)
+    n_outside = 0
+    if domain is not None:  # a soft wall (wall_form="quadratic") may leave particles outside: count and say so
+        n_outside = int(np.count_nonzero(np.asarray(domain.phi(calc.points(atoms.positions, atoms))) > 0.0))
+        if n_outside:
+            warnings.warn(f"ALARIC: {n_outside} of {len(atoms)} particles ended outside the domain (wall_form="
+                          f"{calc.parameters.wall_form!r}; a stiffer wall, a smaller wall_length, keeps them in)",
+                          UserWarning, stacklevel=2)
     if not converged:
         warnings.warn(f"ALARIC did not converge: {reason} (epsilon {eps_final:.3g}, max |rho/rho* - 1| "
                       f"{diagnostics['max_relative_error']})", NotConvergedWarning, stacklevel=2)
     return dict(atoms=atoms, calculator=calc, dynamics=dyn, epsilon=eps_final, epsilon_dynamics=eps_dyn, trace=trace,
                 steps=dyn.nsteps, force_calls=force_calls, stop_reason=dyn.stop_reason,
                 wall_time=time.perf_counter() - t0, converged=converged, convergence_reason=reason,
-                diagnostics=diagnostics)
+                diagnostics=diagnostics, n_outside=n_outside)
 
 
 def _resolve_finish(finish, dim):
