@@ -17,7 +17,10 @@ fixed number of particles); to first order in ``rho - rho*`` it is the paper's e
 ``p_eff = c_s^2 (rho - rho*)`` (Eq. 29-30). The paper's own form, ``P_a = c_s^2 (rho_a - rho*(x_a))``
 inside the pressure term, is :data:`FORMS` ``"paper"``: not the gradient of any energy
 (non-conservative); its equilibrium is ``rho - rho* = const`` (Eq. 43), which the mass reset of
-Eq. 44 drives to zero.
+Eq. 44 drives to zero. Bare, it pairs particles where ``P_eff < 0`` (Eq. 46's well, Delta <= 0.1: a tensile
+instability); the calculator adds by default the constant background pressure
+``P_B = c_s^2 max_a (rho*_a - rho_a)_+`` (so ``P_eff + P_B >= 0``; zero at the fixed point, which it keeps) with
+``eta = 2.5`` (``reproductions/alaric-eq29-stability``).
 
 Where ``rho* = 0``
 ------------------
