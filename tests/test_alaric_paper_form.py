@@ -12,6 +12,7 @@ from ase import Atoms
 
 from ase_sphrelax import ALARICCalculator
 from ase_sphrelax.calculators.alaric import PAPER_ETA
+from ase_sphrelax.checks import NotConvergedWarning
 from ase_sphrelax.drivers.alaric_dynamics import relax_density, start_atoms
 from ase_sphrelax.models import alaric as model
 from ase_sphrelax.splitting import split_particles
@@ -114,17 +115,18 @@ def test_info_dx_is_the_spacing_after_the_split(dim):
 @pytest.mark.filterwarnings("ignore::ase_sphrelax.checks.NotConvergedWarning")
 def test_relax_density_reports_the_particles_a_soft_wall_left_outside():
     """A quadratic wall soft enough (wall_length 10) lets the pressure push edge particles out: counted in
-    n_outside, with a UserWarning that says how many."""
+    n_outside, and the run is not converged (the warning says how many left)."""
     from ase_sphrelax.domains import Circle
 
     density, gradient = model.uniform(1.0)
     atoms, origin, domain = start_atoms(60, 2, domain=Circle((0.0, 0.0), 1.0))
-    with pytest.warns(UserWarning, match=r"\d+ of 60 particles ended outside the domain"):
+    with pytest.warns(NotConvergedWarning, match=r"\d+ of 60 particles ended outside the domain"):
         res = relax_density(atoms, density, 2, target_gradient=gradient, domain=domain, origin=origin,
                             boundary="wall", wall_form="quadratic", max_steps=150,
                             calculator_options=dict(wall_length=10.0))
     outside = int(np.count_nonzero(domain.phi(atoms.positions[:, :2]) > 0))
     assert res["n_outside"] == outside > 0
+    assert res["converged"] is False and "outside the domain" in res["convergence_reason"]
 
 
 def test_cli_summary_has_n_outside(tmp_path):

@@ -219,9 +219,6 @@ def run(args):
     print(f"max |rho/rho* - 1|: {diagnostics['max_relative_error']}; per decade of rho*/max: "
           + ", ".join(f"[{r['target_range'][0]:.0e}, {r['target_range'][1]:.0e}] n={r['n']} eps={r['epsilon']:.2e} "
                       f"rms|rho/rho*-1|={r['rms_relative_error']:.2e}" for r in diagnostics["regions"]))
-    if result["n_outside"]:
-        print(f"warning: {result['n_outside']} of {len(atoms)} particles ended outside the domain (summary.json "
-              f"n_outside)")
     print(("converged: " if result["converged"] else "NOT CONVERGED: ") + result["convergence_reason"])
     print(f"wall time: {wall:.1f} s")
     print(f"wrote {out / 'relaxed.extxyz'}, {out / 'density.png'}, {out / 'trace.json'}, {out / 'summary.json'}")

@@ -430,8 +430,9 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
         ``convergence_reason`` (:func:`~ase_sphrelax.models.alaric.convergence_verdict`; a
         :class:`~ase_sphrelax.checks.NotConvergedWarning` when False), ``diagnostics``
         (:func:`~ase_sphrelax.models.alaric.density_diagnostics`: max ``|rho/rho* - 1|`` and epsilon per region),
-        ``n_outside``: the particles outside ``domain`` at the end (``phi > 0``; 0 without a domain), with a
-        ``UserWarning`` when there are any (a soft ``wall_form="quadratic"`` wall can leave some outside).
+        ``n_outside``: the particles outside ``domain`` at the end (``phi > 0``; 0 without a domain); any makes
+        ``converged`` False, the reason saying how many (a soft ``wall_form="quadratic"`` wall can leave some
+        outside).
     """
     from ..calculators.alaric import ALARICCalculator
     from ..models.alaric import reset_mass, resolve_boundary
@@ -500,10 +501,11 @@ def relax_density(atoms, target_density, dim, target_gradient=None, splits=0, do
     n_outside = 0
     if domain is not None:  # a soft wall (wall_form="quadratic") may leave particles outside: count and say so
         n_outside = int(np.count_nonzero(np.asarray(domain.phi(calc.points(atoms.positions, atoms))) > 0.0))
-        if n_outside:
-            warnings.warn(f"ALARIC: {n_outside} of {len(atoms)} particles ended outside the domain (wall_form="
-                          f"{calc.parameters.wall_form!r}; a stiffer wall, a smaller wall_length, keeps them in)",
-                          UserWarning, stacklevel=2)
+        if n_outside:  # not the answer asked for, whatever epsilon says
+            outside = (f"{n_outside} of {len(atoms)} particles ended outside the domain (wall_form="
+                       f"{calc.parameters.wall_form!r}; a stiffer wall, a smaller wall_length, keeps them in)")
+            reason = outside if converged else f"{outside}; {reason}"
+            converged = False
     if not converged:
         warnings.warn(f"ALARIC did not converge: {reason} (epsilon {eps_final:.3g}, max |rho/rho* - 1| "
                       f"{diagnostics['max_relative_error']})", NotConvergedWarning, stacklevel=2)
