@@ -46,6 +46,7 @@ LAYERS = (
     ("calculators", ("ase_sphrelax.calculators",)),
     ("build", ("ase_sphrelax.build", "ase_sphrelax.splitting")),
     ("drivers", ("ase_sphrelax.drivers",)),
+    ("flows", ("ase_sphrelax.flows",)),
     ("analysis", ("ase_sphrelax.analysis", "ase_sphrelax.plotting")),
     ("sampling", ("ase_sphrelax.sampling",)),
     ("export formats", ("ase_sphrelax.io",)),
