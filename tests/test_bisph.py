@@ -54,7 +54,7 @@ def test_mass_conserved():
     sim = channel(width, 10 * dx, dx, force=1.0, mu=1.0)
     rng = np.random.default_rng(3)
     sim.rho = sim.rho0 * (1.0 + 0.01 * rng.standard_normal(len(sim.r)))
-    bt, gamma = sim._walls()
+    bt, gamma = sim.walls()
     rate = sim.density_rate(bt, gamma, v_pc=np.zeros_like(sim.v))  # diffusion only
     volume = sim.mass / sim.rho
     scale = np.sum(volume * gamma * np.abs(rate))
@@ -127,7 +127,7 @@ def test_gradient_of_linear_field_next_to_a_wall():
 
     exact = np.array([2.0, 3.0])
     err = np.linalg.norm(sim.gradient(f(sim.r), wall_value=f) - exact, axis=1) / np.linalg.norm(exact)
-    _, gamma = sim._walls()
+    _, gamma = sim.walls()
     near = gamma < 1.0 - 1e-12
     assert near.sum() > 100 and (~near).sum() > 100
     assert err[~near].max() <= 1e-3

@@ -14,6 +14,8 @@ _WHERE = {
     "tank": ".scene",
     "channel": ".scene",
     "cartesian_fill": ".scene",
+    "poiseuille": ".scene",
+    "wall_distance": ".scene",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

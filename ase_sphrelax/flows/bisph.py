@@ -231,11 +231,14 @@ class BISPH:
         Height of the free surface: enables the hydrostatic pressure error,
         ``p_ref = rho0 |F| (surface - y)``.
     kernel : str
+    wall_band : float
+        Eq. 21's band in dx (the paper's 0.5); 0 switches the compressed density off
+        (``p_s = p(rho_a) + rho_a c0 (v_s - v_a).n_s``), for controlled experiments.
     """
 
     def __init__(self, boundary, positions, dx, rho0=1000.0, c0=None, mu=10.0, body_force=(0.0, -9.81),
                  h_over_dx=4.0, p_background=0.0, delta=0.1, hydrostatic=True, density=None, velocities=None,
-                 surface=None, kernel="wendland_c2"):
+                 surface=None, kernel="wendland_c2", wall_band=WALL_BAND):
         self.boundary = as_boundary(boundary)
         if self.boundary.dim != 2:
             raise ValueError(f"boundary must be 2D (BISPH is a 2D solver), got a {self.boundary.dim}D boundary")
@@ -259,6 +262,9 @@ class BISPH:
             raise ValueError(f"delta must be >= 0, got {delta!r}")
         self.delta = float(delta)
         self.hydrostatic = bool(hydrostatic)
+        if not 0.0 <= wall_band <= 1.0:
+            raise ValueError(f"wall_band must be in [0, 1] (Eq. 21's band in dx; the paper's 0.5), got {wall_band!r}")
+        self.wall_band = float(wall_band)
         self.surface = None if surface is None else float(surface)
         self.kernel = get_kernel(kernel, 2)
         n = len(r)
@@ -318,8 +324,9 @@ class BISPH:
         return float(np.sqrt(np.mean((p - ref) ** 2)))
 
     # -- the right-hand side --------------------------------------------------------------
-    def _walls(self):
-        """Neighbours and boundary terms at the current positions."""
+    def walls(self):
+        """Neighbours and boundary terms at the current positions: ``(BoundaryTerms, gamma_p)``
+        (``gamma_p`` floored at 1e-3 for the divisions)."""
         self.nlist.update(self.r, self.cell, self.pbc)
         bt = self.integrals.compute(self.nlist, self.r, terms=True)
         return bt, np.maximum(bt.gamma_p, GAMMA_FLOOR)
@@ -337,7 +344,7 @@ class BISPH:
         n = len(self.r)
         div_w, gp_w, lap_w, pw = np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty(n)
         _wall_terms(pairs.start_p, pairs.element_k, pairs.distance_k, bt.grad_k, self._seg, rho, p, v_pc, vs,
-                    self.rho0, self.c0, self.p_background, self.dx, WALL_BAND * self.dx, SHEAR_FLOOR * self.dx,
+                    self.rho0, self.c0, self.p_background, self.dx, self.wall_band * self.dx, SHEAR_FLOOR * self.dx,
                     div_w, gp_w, lap_w, pw)
         return div_w, gp_w, lap_w
 
@@ -368,7 +375,7 @@ class BISPH:
     def acceleration(self, bt=None, gamma=None):
         """``D v/Dt`` of Eq. 17 at the current state, (N, 3)."""
         if bt is None:
-            bt, gamma = self._walls()
+            bt, gamma = self.walls()
         p = self.pressure()
         vol = self.mass / self.rho
         out = MOMENTUM.compute(self.nlist, self.r, self._kernel_params(), dict(vol_s=vol, p_s=p, v_sc=self.v),
@@ -384,7 +391,7 @@ class BISPH:
         """``D rho/Dt`` of Eq. 16 at the current positions and densities with velocities ``v_pc``
         (default the state's), (N,)."""
         if bt is None:
-            bt, gamma = self._walls()
+            bt, gamma = self.walls()
         v_pc = self.v if v_pc is None else v_pc
         hx, hy = (self.rho0 * self.force[:2] / self.c0**2) if self.hydrostatic else (0.0, 0.0)
         params = dict(self._kernel_params(), hx=float(hx), hy=float(hy))
@@ -409,7 +416,7 @@ class BISPH:
         ``tests/test_bisph.py``: see the report there).
         """
         f_p = np.asarray(f_p, dtype=float)
-        bt, gamma = self._walls()
+        bt, gamma = self.walls()
         out = np.zeros((len(self.r), 2))
         for c in range(2):
             v = np.zeros_like(self.v)
@@ -429,7 +436,7 @@ class BISPH:
         """One symplectic Euler step: ``v^{n+1}`` from Eq. 17 at step n, then ``rho^{n+1}`` from
         Eq. 16 with ``v^{n+1}`` and ``x^{n+1} = x^n + dt v^{n+1}``; returns ``dt``."""
         dt = self.time_step() if dt is None else float(dt)
-        bt, gamma = self._walls()
+        bt, gamma = self.walls()
         self.v += dt * self.acceleration(bt, gamma)
         self.rho += dt * self.density_rate(bt, gamma)
         self.r += dt * self.v

@@ -14,7 +14,7 @@ from ..boundary import BoundarySegments, as_boundary
 from ..checks import check_positive
 from .bisph import BISPH, tait_density
 
-__all__ = ["cartesian_fill", "tank", "channel", "wall_distance"]
+__all__ = ["cartesian_fill", "tank", "channel", "poiseuille", "wall_distance"]
 
 DROP_FRACTION = 0.125  # BIPI2D drops grid particles within dx/8 of the boundary
 

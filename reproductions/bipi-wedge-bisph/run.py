@@ -71,16 +71,19 @@ def main(argv=None):
     parser.add_argument("--out", default="reproductions/bipi-wedge-bisph/results")
     parser.add_argument("--dx", type=float, default=0.02)
     parser.add_argument("--t-end", type=float, default=1.5)
+    parser.add_argument("--wall-band", type=float, default=0.5,
+                        help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
+    parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     walls = tank_walls()
-    summary = dict(dx=args.dx, h_support=H_OVER_DX * args.dx, h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end,
+    summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx, h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end,
                    mu=MU, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
     curves = {}
     for name, (r, info) in starts(args.dx).items():
         print(f"start {name}: {len(r)} particles {info}", flush=True)
-        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0)
+        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band)
         gap = wall_distance(r, walls) / args.dx
         info = dict(info, wall_distance_min_dx=float(gap.min()), n_within_half_dx=int((gap < 0.5).sum()))
         t = time.perf_counter()
@@ -94,8 +97,8 @@ def main(argv=None):
     runs = summary["runs"]
     summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
     summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    with gzip.open(out / "ke.json.gz", "wt") as f:
+    (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
+    with gzip.open(out / f"ke{args.tag}.json.gz", "wt") as f:
         json.dump(curves, f)
     print(json.dumps(summary, indent=1))
 
