@@ -27,18 +27,20 @@ Choices the paper leaves open (stated, each a parameter where it matters):
       lap v_a = (1/gamma_a) [sum_b 2 V_b v_ab (x_ab . grad_a W)/(r^2 + eta^2)
                              - sum_s 2 (v_a - v_s) |grad gamma_as| / max(delta_as, dx/4)]
 
-  (Ferrand et al.'s ``(mu_a + mu_s)``: the factor 2 of the wall term matches Morris' 2, whose sum
-  over a truncated support is ``2 grad v . grad gamma`` to first order; with ``1`` a linear shear
-  layer at a wall sees a spurious Laplacian ``(dv/dn) |grad gamma|`` and the Poiseuille profile
-  slips, by 15 % of u_max at 20 particles across), with ``eta^2 = 0.01 h_B^2`` and ``delta_as`` the particle's distance to segment ``s`` (the floor
-  only guards a particle that Eq. 21 failed to keep off the wall). The particle-consistent-gradient
+  The factor 2 of the wall term matches Morris' 2: over a support cut by a wall, Morris' sum of a
+  linear shear ``v = G n`` is ``2 G |grad gamma|`` to first order (twice the continuous
+  ``int_Omega grad v . grad_x W dy = G |grad gamma|``), so a wall term of factor 1 leaves a
+  spurious Laplacian ``G |grad gamma|`` next to the wall (measured: the Poiseuille profile slipped
+  by 15 % of u_max at 20 particles across; 0.85 % with the factor 2). ``eta^2 = 0.01 h_B^2``;
+  ``delta_as`` is the particle's distance to segment ``s`` (the floor only guards a particle that
+  Eq. 21 failed to keep off the wall). The particle-consistent-gradient
   form of the paper's Fig. 14b is **not** implemented.
 * **Density diffusion**: Molteni & Colagrossi (2009), ``D_a = (delta h_B c0 / gamma_a) sum_b V_b
   psi_ab . grad_a W``, ``psi_ab = 2 (rho_b - rho_a - rho_ba^H) (x_b - x_a)/(r^2 + eta^2)``,
   ``delta = 0.1``. With ``hydrostatic=True`` (tanks under gravity) the hydrostatic density difference
   ``rho_ba^H = rho0 F . (x_b - x_a) / c0^2`` is removed first (Fourtakas et al. 2019, Comput. Fluids
-  190:209): plain Molteni-Colagrossi diffuses the hydrostatic density gradient itself and drains the
-  bottom layer of a tank, because its truncated sum near walls has no wall flux.
+  190:209): plain Molteni-Colagrossi diffuses the hydrostatic density gradient itself wherever its
+  sum is truncated (walls, free surface), which has no wall flux to balance it (not measured here).
 * **Kernel**: Wendland C2 with the paper's ``h_B = 2 dx`` (BIPI2D's ``hsml`` 0.02 at dx 0.01); in this
   package's convention (``h`` is the support, ``h = 2 h_B``) that is ``h = 4 dx``.
 * **Time step** (the paper's Eq. 19 did not survive in our copy of the text; the usual WCSPH rule of

@@ -9,9 +9,11 @@ region (the free surface as its top edge, as BIPI2D packs). Each runs in
 :class:`ase_sphrelax.flows.BISPH` (BIPI Eqs. 16-21: rho0 1000, g 9.81, mu 10 Pa s, Wendland C2 with
 h_B = 2 dx, i.e. support 4 dx; Molteni-Colagrossi delta 0.1 with the hydrostatic part removed;
 c0 = 10 sqrt(2 g H)), hydrostatic at t = 0, in the same tank walled up to 1 m (the walls above the
-water are never reached). Records each start's smallest distance to a wall (in dx) and how
-many particles start within dx/2 of one (inside Eq. 21's compressed-density band). Writes ``summary.json`` (run-averaged KE of each start, their ratio,
-the final KE and pressure error, the packing's iterations) and ``ke.json.gz`` (KE(t) of each).
+water are never reached). Records each start's smallest distance to a wall (in dx) and how many
+particles start within dx/2 of one (inside Eq. 21's compressed-density band). Writes
+``summary{tag}.json`` (run-averaged KE of each start, their ratio, the final KE and pressure error,
+the packing's iterations) and ``ke{tag}.json.gz`` (KE(t) of each). ``--wall-band 0`` switches
+Eq. 21 off (the controlled experiment).
 """
 from __future__ import annotations
 
@@ -78,8 +80,8 @@ def main(argv=None):
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     walls = tank_walls()
-    summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx, h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end,
-                   mu=MU, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
+    summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx,
+                   h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end, mu=MU, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
     curves = {}
     for name, (r, info) in starts(args.dx).items():
         print(f"start {name}: {len(r)} particles {info}", flush=True)
@@ -89,7 +91,8 @@ def main(argv=None):
         t = time.perf_counter()
         hist = sim.run(args.t_end, record_every=args.t_end / 300)
         scale = RHO0 * G * DEPTH
-        summary["runs"][name] = dict(info, n=len(r), steps=hist.steps, run_wall_time_s=round(time.perf_counter() - t, 1),
+        summary["runs"][name] = dict(info, n=len(r), steps=hist.steps,
+                                     run_wall_time_s=round(time.perf_counter() - t, 1),
                                      ke_mean=hist.mean_ke(), ke_final=hist.ke[-1],
                                      pressure_error_final=hist.pressure_error[-1] / scale)
         curves[name] = dict(t=hist.t, ke=hist.ke, pressure_error=hist.pressure_error)
