@@ -143,5 +143,9 @@ def test_bad_input_is_one_line():
         BISPH(walls, [[0.5, 0.5]], 0.1, c0=-1.0)
     with pytest.raises(ValueError, match="positions"):
         BISPH(walls, np.zeros((0, 2)), 0.1, c0=1.0)
+    with pytest.raises(ValueError, match="wall_band"):
+        BISPH(walls, [[0.5, 0.5]], 0.1, c0=1.0, wall_band=2.0)
+    with pytest.raises(ValueError, match="c0 must be given"):
+        BISPH(walls, [[0.5, 0.5]], 0.1)
     with pytest.raises(ValueError, match="fill"):
         cartesian_fill(walls, 0.1, fill_height=-1.0)
