@@ -12,8 +12,8 @@ from ase_sphrelax.cli import main
 
 def test_sample_a_builtin_target(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["sample", "--target", "donut", "--n", "200", "--steps", "60", "--out", str(out),
-                 "--no-progress"]) == 0
+    assert main(["sample", "--target", "donut", "--n", "200", "--steps", "60", "--variant", "classic", "--out",
+                 str(out), "--no-progress"]) == 0  # classic: 60 SPH steps, a score at every one (n_score below)
     assert "200 samples in 2D" in capsys.readouterr().out
     x = np.load(out / "samples.npy")
     assert x.shape == (200, 2) and np.all(np.isfinite(x))

@@ -13,6 +13,7 @@ import pytest
 
 from ase_sphrelax.checks import NotConvergedWarning
 from ase_sphrelax.cli import main
+from ase_sphrelax.sampling import CLASSIC
 from ase_sphrelax.sampling.convergence import assess_convergence, ensemble_moments
 from ase_sphrelax.sampling.sampler import ParVIDivergence, ParVISampler
 from ase_sphrelax.sampling.targets import gaussian_target
@@ -24,10 +25,11 @@ def _gaussian(mean, sd):
 
 
 def _run(target, **kwargs):
-    """Run and return (result, the NotConvergedWarnings raised)."""
+    """Run in the configuration these tests were written for (CLASSIC, issue 31) and return (result, the
+    NotConvergedWarnings raised)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = ParVISampler(target.log_density, target.score, dim=target.dim, **kwargs).run()
+        res = ParVISampler(target.log_density, target.score, dim=target.dim, **dict(CLASSIC, **kwargs)).run()
     return res, [w for w in caught if issubclass(w.category, NotConvergedWarning)]
 
 
@@ -80,11 +82,9 @@ def test_optimal_rule_returning_the_start_is_not_converged():
 def test_cli_optimal_rule_exits_non_zero_and_says_which_step(tmp_path, capsys, monkeypatch):
     from ase_sphrelax.cli import sample as sample_cli
 
-    monkeypatch.setattr(sample_cli, "DEFAULT_STEPS", 80)  # the stopping rule, short for the test
-    monkeypatch.setattr(sample_cli, "DEFAULT_MAX_STEPS", 160)
-    out = tmp_path / "banana"
-    code = main(["sample", "--target", "banana", "--n", "200", "--rule", "optimal", "--out", str(out),
-                 "--no-progress"])
+    out = tmp_path / "banana"  # the stopping rule (classic), short for the test
+    code = main(["sample", "--target", "banana", "--n", "200", "--rule", "optimal", "--variant", "classic", "--steps",
+                 "80", "--max-steps", "160", "--out", str(out), "--no-progress"])
     summary = json.loads((out / "summary.json").read_text())
     captured = capsys.readouterr()
     if summary["chosen_step"] == 0:
@@ -93,8 +93,8 @@ def test_cli_optimal_rule_exits_non_zero_and_says_which_step(tmp_path, capsys, m
     assert not summary["converged"] and summary["convergence_reason"] in captured.err
     assert summary["seed"] == 0 and summary["target"] == "banana" and summary["parameters"]["rule"] == "optimal"
     # a fixed number of steps asked for: exit 0, the verdict still recorded
-    code = main(["sample", "--target", "banana", "--n", "200", "--rule", "optimal", "--steps", "80", "--out",
-                 str(tmp_path / "fixed"), "--no-progress"])
+    code = main(["sample", "--target", "banana", "--n", "200", "--rule", "optimal", "--steps", "80", "--variant",
+                 "classic", "--out", str(tmp_path / "fixed"), "--no-progress"])
     assert code == 0
     assert json.loads((tmp_path / "fixed" / "summary.json").read_text())["converged"] is False
 
@@ -156,7 +156,7 @@ def test_tiny_target_starts_at_its_scale_and_a_forced_wide_start_names_the_scale
     np.testing.assert_allclose(res.samples, 1e-6 * unit.samples, rtol=1e-5, atol=1e-12)
     assert res.info["converged"] == unit.info["converged"]
     with pytest.raises(ParVIDivergence, match=r"target's scale.*1\.e-06.*leave init_scale and x0 unset"):
-        ParVISampler(target.log_density, target.score, n=150, steps=300, init_scale=1.0).run()
+        ParVISampler(target.log_density, target.score, n=150, init_scale=1.0, **dict(CLASSIC, steps=300)).run()
 
 
 def test_tiny_target_with_only_a_log_density_differences_at_its_scale():
@@ -164,7 +164,7 @@ def test_tiny_target_with_only_a_log_density_differences_at_its_scale():
     target = _gaussian([3e-6, 0.0], 1e-6)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = ParVISampler(log_density=target.log_density, n=150, steps=300, seed=2).run()
+        res = ParVISampler(log_density=target.log_density, n=150, seed=2, **dict(CLASSIC, steps=300)).run()
     _assert_honest(res, [w for w in caught if issubclass(w.category, NotConvergedWarning)], target.mean, 1e-6)
     assert res.info["converged"], res.info["convergence_reason"]
 
@@ -215,7 +215,7 @@ def test_cli_divergence_and_a_nan_target_are_one_line(tmp_path, capsys, truncate
     # 1/(alpha (p + eps)) jumps to 1/(alpha eps) where p = 0: the paper's pressure diverges at once
     out = tmp_path / "div"
     code = main(["sample", "--target", f"{truncated_module}:log_density", "--dim", "2", "--n", "200", "--formulation",
-                 "pressure-inverse", "--steps", "80", "--out", str(out), "--no-progress"])
+                 "pressure-inverse", "--steps", "80", "--variant", "classic", "--out", str(out), "--no-progress"])
     err = capsys.readouterr().err
     assert code == sample_cli.EXIT_NOT_CONVERGED and "diverged at step" in err and len(err.strip().splitlines()) == 1
     summary = json.loads((out / "summary.json").read_text())

@@ -8,33 +8,37 @@ Examples::
 ``--target`` is a built-in target (gaussian, correlated, ring8, banana, donut, funnel, gaussian10d,
 logistic) or ``module:function``, a vectorised log-density ``(M, d) -> (M,)`` (``--dim`` is then
 required; ``--score module:function`` adds its gradient, otherwise it is taken by central differences).
-The run uses SPH-ParVI's default configuration (score force, isothermal EOS with alpha = c0^2,
-adaptive h, friction 1 / the target's scale) unless options change it. Writes ``OUT/samples.npy`` (M, d),
-``OUT/samples.extxyz`` (particles as atoms: positions for d <= 3, the per-atom array ``sample`` for
-any d), ``OUT/trace.json`` (the run's trace and parameters), ``OUT/summary.json`` (every parameter,
-the seed, the target, ``converged`` and its reason) and ``OUT/samples.png`` (2D: particles over the
-target's contours; 1D: histogram and density; d > 2: pair marginals of the first axes).
+The run uses SPH-ParVI's default configuration, the API's (``ase_sphrelax.sampling.sampler.DEFAULTS``: score
+force, isothermal EOS with alpha = c0^2, adaptive h with about 12 neighbours in 2D, local time steps, the critical
+friction, the per-particle score hold, 1000 score evaluations per particle) unless options change it;
+``--variant classic`` is the configuration that was the default before (``ase_sphrelax.sampling.CLASSIC``).
+Writes ``OUT/samples.npy`` (M, d), ``OUT/samples.extxyz`` (particles as atoms: positions for d <= 3, the
+per-atom array ``sample`` for any d), ``OUT/trace.json`` (the run's trace and parameters), ``OUT/summary.json``
+(every parameter, the seed, the target, ``converged``, ``at_rest``, the verdict's figures and the reason) and
+``OUT/samples.png`` (2D: particles over the target's contours; 1D: histogram and density; d > 2: pair marginals
+of the first axes).
 
-Convergence: the run is judged at its end by the drift of the ensemble's mean and covariance and of
-its kinetic energy over the last half of the run, against their Monte-Carlo standard errors
-(``ase_sphrelax.sampling.convergence``). Before any work the target is checked: a score that points
+Convergence: ``converged`` needs the fluid at rest (the drift of the ensemble's mean and covariance and of
+its kinetic energy over the last half of the run, against their Monte-Carlo standard errors,
+``ase_sphrelax.sampling.convergence``) and the samples passing a check against the target
+(``ase_sphrelax.sampling.verdict``: a short exact MALA chain from the particles that must not move their means
+and second moments beyond a calibrated bound, and a mode search whose modes the particles must not miss; a
+missed mode restarts the run once from the modes found). summary.json has ``at_rest`` and the check's figures
+under ``verdict``. Before any work the target is checked: a score that points
 away from the mass everywhere, or that does not match the central differences of ``--target``'s
 log-density, is a usage error; the initial particles are placed at the scale (and mode) found from
 the score unless ``--init-scale`` is given.
 
-Variants (issue 18): ``--variant whiten+local+critical`` runs the fluid in whitened coordinates, with
-per-particle time steps and the critical friction (``ase_sphrelax.sampling.sampler.variant_options``:
-``default``, ``whiten``, ``local``, ``critical``, ``name=number`` for friction, courant, whiten_every,
-whiten_until, friction_every, friction_ramp, joined by ``+``); none changes the stationary density.
+Variants: ``--variant whiten+mala`` adds options to the default (``ase_sphrelax.sampling.sampler.variant_options``;
+the tokens are listed in ``--help``, joined by ``+``); none changes the stationary density.
 
-Length: without ``--steps`` the run stops by its own rule: 600 steps, doubled while it is not
-converged, up to ``--max-steps`` (default 9600). ``--steps N`` alone is a fixed length;
-``--steps N --max-steps K`` starts the rule at N.
+Length: the API's rule: ``--steps`` (default 1000) score evaluations per particle with the default per-particle
+hold (SPH steps with ``--variant classic`` or ``score_every=1``). ``--max-steps K`` (only with a fixed score
+cadence, e.g. ``--variant classic``) doubles the length while the run is not at rest, up to K.
 
-Exit status: 0 when the run converged, or when ``--steps`` alone fixed the length (an unconverged
-run then warns and records ``converged: false``); 3 when the stopping rule reached its cap without
-converging, or the run diverged (the last line says why, summary.json has the reason); 2 for a
-usage error (one line, before any work).
+Exit status: 0 when the run converged, or when ``--steps`` fixed the length (an unconverged run then warns
+and records ``converged: false``); 3 when it did not converge without ``--steps``, or the run diverged (the
+last line says why, summary.json has the reason); 2 for a usage error (one line, before any work).
 """
 from __future__ import annotations
 
@@ -46,10 +50,9 @@ __all__ = ["add_arguments", "run", "EXIT_NOT_CONVERGED", "DEFAULT_STEPS"]
 
 #: exit status of a run of the default length that did not converge (or diverged)
 EXIT_NOT_CONVERGED = 3
-#: the first length of a run when ``--steps`` is not given; the stopping rule then doubles it while the run
-#: is not converged, up to DEFAULT_MAX_STEPS (unconverged there: exit EXIT_NOT_CONVERGED)
-DEFAULT_STEPS = 600
-DEFAULT_MAX_STEPS = 16 * DEFAULT_STEPS
+#: the length of a run when ``--steps`` is not given: the API's (``sampler.DEFAULTS["steps"]``, 1000 score evaluations
+#: per particle; a variant that sets its own, as ``classic``'s 600 SPH steps, keeps it)
+DEFAULT_STEPS = 1000
 
 FORMULATIONS = ("force", "pressure-log", "pressure-inverse")
 EOS = ("isothermal", "tait")
@@ -84,19 +87,17 @@ def add_arguments(parser):
                         help="kernel support radius h as a length (not in units of dx, as relax's --h), or "
                              "'adaptive' (default: per-particle H from the density)")
     parser.add_argument("--steps", type=positive(int), default=None,
-                        help=f"a fixed number of time steps: the run exits 0 even if it did not converge (default: "
-                             f"the stopping rule: {DEFAULT_STEPS} steps, doubled while not converged up to "
-                             f"--max-steps; exit {EXIT_NOT_CONVERGED} if still not converged)")
+                        help=f"the run's length, given: the run exits 0 even if it did not converge (default: the "
+                             f"API's, 1000 score evaluations per particle, 600 SPH steps with --variant classic; "
+                             f"exit {EXIT_NOT_CONVERGED} if not converged)")
     parser.add_argument("--max-steps", type=positive(int), default=None,
-                        help=f"the stopping rule's cap (default {DEFAULT_MAX_STEPS} without --steps; with --steps N "
-                             f"the rule starts at N)")
+                        help="the stopping rule: double the length while the fluid is not at rest, up to this "
+                             "(only with a fixed score cadence, e.g. --variant classic; default: no doubling)")
     parser.add_argument("--friction", type=_friction, default=None,
                         help="drag coefficient, or 'critical' (a drag critical along each principal direction of "
-                             "the target's curvature; default 1 / the target's scale found from its score: 1 for a "
-                             "unit target)")
-    parser.add_argument("--variant", default="default",
-                        help="SPH-ParVI variant: tokens default, whiten, local, critical or name=number, joined by "
-                             "'+' (e.g. whiten+local+critical; default: default)")
+                             "the target's curvature; the default; with --variant classic the default is 1 / the "
+                             "target's scale found from its score: 1 for a unit target)")
+    parser.add_argument("--variant", default="default", help=_variant_help())
     parser.add_argument("--rule", choices=("final", "optimal"), default="final",
                         help="which state to return: final (default) or the paper's optimal state (maximum mean "
                              "density; measured 7-400x worse, see reproductions/parvi-baselines)")
@@ -106,6 +107,14 @@ def add_arguments(parser):
     parser.add_argument("--seed", type=int, default=0, help="random seed of the initial particles (default 0)")
     add_output_arguments(parser, "sample_out", "samples.npy, samples.extxyz, trace.json, summary.json, samples.png")
     add_progress_argument(parser)
+
+
+def _variant_help():
+    from ..sampling.sampler import VARIANT_NUMBERS, VARIANT_TOKENS
+
+    return (f"SPH-ParVI variant: tokens joined by '+', each one of {', '.join(VARIANT_TOKENS)} or name=number for "
+            f"{', '.join(VARIANT_NUMBERS)} (e.g. whiten+mala; default: default, the API's default configuration; "
+            f"classic: the configuration that was the default before)")
 
 
 def _load_callable(spec, what):
@@ -178,7 +187,7 @@ def run(args):
     import warnings
 
     from ..checks import NotConvergedWarning
-    from ..sampling.sampler import ParVIDivergence, ParVISampler, variant_options
+    from ..sampling.sampler import DEFAULTS, ParVIDivergence, ParVISampler, variant_options
     from ..sampling.targets import TARGET_NAMES, get_target
 
     with usage_errors():
@@ -196,23 +205,30 @@ def run(args):
                 raise UsageError("--dim is required with a module:function target")
             dim = args.dim
         fixed = args.steps is not None and args.max_steps is None
-        max_steps = None if fixed else args.max_steps or DEFAULT_MAX_STEPS
-        if max_steps is not None and max_steps < (args.steps or DEFAULT_STEPS):
-            raise UsageError(f"--max-steps must be >= --steps ({args.steps or DEFAULT_STEPS}), got {max_steps}")
         if isinstance(args.friction, float) and args.friction < 0:
             raise UsageError(f"--friction must be >= 0 or 'critical', got {args.friction}")
         try:
             options = variant_options(args.variant)
         except ValueError as error:
             raise UsageError(f"--variant: {error}") from None
+        if args.steps is not None:
+            options["steps"] = args.steps
+        steps = options.setdefault("steps", DEFAULT_STEPS)
+        if args.max_steps is not None:
+            if options.get("score_every", DEFAULTS["score_every"]) == "adaptive":
+                raise UsageError("--max-steps doubles a run of SPH steps: not with the default per-particle score "
+                                 "hold (its --steps are evaluations); add --variant classic (or score_every=1)")
+            if args.max_steps < steps:
+                raise UsageError(f"--max-steps must be >= --steps ({steps}), got {args.max_steps}")
         if args.friction is not None:
-            if "friction" in options:
+            tokens = args.variant.strip().split("+")
+            if "critical" in tokens or any(token.startswith("friction=") for token in tokens):
                 raise UsageError(f"--friction {args.friction} and --variant {args.variant!r} both set the friction: "
                                  f"give one")
             options["friction"] = args.friction
+        max_steps = args.max_steps
         sampler = ParVISampler(log_density=log_density, score=score, dim=dim, n=args.n, formulation=args.formulation,
-                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support,
-                               steps=DEFAULT_STEPS if args.steps is None else args.steps, max_steps=max_steps,
+                               eos=args.eos, alpha=args.alpha, c0=args.c0, h=args.support, max_steps=max_steps,
                                rule=args.rule, init_scale=args.init_scale, seed=args.seed,
                                progress=show_progress(args), **options)
         sampler.look_at_target()  # a score of the wrong sign or of another target: exit 2 before any work
@@ -247,7 +263,9 @@ def run(args):
                  mean=x.mean(axis=0).tolist(), variance=x.var(axis=0).tolist())
     (out / "trace.json").write_text(json.dumps(dict(info=info, trace=trace, **costs), indent=1))
     converged = bool(result.info["converged"])
-    summary.update(converged=converged, convergence_reason=result.info["convergence_reason"],
+    verdict = info.get("verdict", {})
+    summary.update(converged=converged, at_rest=verdict.get("at_rest"), verdict=verdict,
+                   convergence_reason=result.info["convergence_reason"],
                    chosen_step=result.info["chosen_step"], parameters=info, **costs)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     _plot(out / "samples.png", x, log_density)

@@ -152,7 +152,7 @@ def refill_radii(x_pc, log_density, centre_c, l_cc, sweeps, rng, width=1.0, max_
 
 
 def mala_finish(x_pc, log_density, score, centre_c, l_cc, steps, rng, spread=FINISH_STEP_SPREAD,
-                acceptance=FINISH_ACCEPTANCE):
+                acceptance=FINISH_ACCEPTANCE, record=None):
     """Metropolis-adjusted Langevin steps for every particle in the frame ``x = c + L y`` (module docstring; G3).
 
     Parameters
@@ -167,6 +167,9 @@ def mala_finish(x_pc, log_density, score, centre_c, l_cc, steps, rng, spread=FIN
         MALA steps per particle; the first ``steps // 4`` adapt ``eps`` (from ``d^(-1/3)``, ``log eps += a - 0.574``
         with ``a`` the ensemble's acceptance of the step), the rest draw ``eps = eps_max * spread^(-U)``.
     rng : numpy.random.Generator
+    record : callable or None
+        Called as ``record(step, x_pc)`` after every step (``step`` from 0; the adaptation's steps are the first
+        ``steps // 4``), e.g. to average statistics along the chains (:func:`~.verdict.mala_check`).
 
     Returns
     -------
@@ -211,5 +214,7 @@ def mala_finish(x_pc, log_density, score, centre_c, l_cc, steps, rng, spread=FIN
         else:
             rates.append(rate)
             accepted_p += accept
+        if record is not None:
+            record(step, to_x(y_pc))
     return to_x(y_pc), dict(eps_max=eps, acceptance=float(np.mean(rates)) if rates else None, adapt_steps=adapt,
                             stuck_share=float(np.mean(accepted_p == 0)) if rates else None)

@@ -28,8 +28,12 @@ error naming ``score``.
 
 At the end the run is judged (:mod:`.convergence`): the drift of the ensemble's mean and
 covariance and of its kinetic energy over the last half of the run against their Monte-Carlo
-standard errors. ``info["converged"]`` and ``info["convergence_reason"]`` say the verdict; a run
-that is not converged warns with :class:`~ase_sphrelax.checks.NotConvergedWarning`.
+standard errors: the fluid at rest. Then (:mod:`.verdict`, ``check=True``) the samples are checked against
+the target: a short exact MALA chain from them must not move their moments beyond a calibrated bound, and a
+mode search must find no mode the particles miss (a missed one restarts the run once from the modes found).
+``info["converged"]`` (at rest and the check passed) and ``info["convergence_reason"]`` say the verdict,
+``info["verdict"]`` has ``at_rest`` and the check's figures; a run that is not converged warns with
+:class:`~ase_sphrelax.checks.NotConvergedWarning`.
 
 Divergence (a step too large, a force that explodes) is detected after every step — non-finite
 positions or velocities, or a kinetic energy beyond ``1e6`` times its scale — and raised as
@@ -56,11 +60,28 @@ from .result import SampleResult
 from .target_checks import check_score_matches_log_density, locate_target, probe_target
 from .whitening import AffineMap, check_whiten
 
-__all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS", "variant_options", "VARIANT_TOKENS"]
+__all__ = ["ParVISampler", "ParVIDivergence", "sample", "DEFAULTS", "CLASSIC", "variant_options", "VARIANT_TOKENS"]
 
-#: The default configuration: score force, isothermal EOS with alpha = c0^2 (stationary density p).
+#: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).
+HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: reproductions/parvi-adaptive-hold/
+#: The default ``n_neighbours`` ("auto") in 2D, where it was measured (reproductions/parvi-rest-vs-time/); in other
+#: dimensions "auto" is the model's own default (12 is below the kernel's self-weight bound from 4-D on).
+AUTO_NEIGHBOURS_2D = 12
+
+#: The default configuration (issue 31): score force, isothermal EOS with alpha = c0^2 (stationary density p), local
+#: time steps, the critical friction, the per-particle score hold lengthened with M, ``n_neighbours="auto"`` (12 in
+#: 2D) and a fixed budget of ``steps = 1000`` score evaluations per particle: the configuration that met every 2D
+#: goal (reproductions/parvi-rest-vs-time/: <= 0.94x i.i.d. at M = 500 on six 2D targets, 3 seeds). The API's
+#: :func:`sample` / :class:`ParVISampler` and ``sphrelax sample`` share it, length included.
 DEFAULTS = dict(formulation="force", eos="isothermal", alpha=1.0, h="adaptive", viscosity="linear",
-                viscosity_alpha=0.1, friction=None, steps=600, courant=0.5, rule="final")
+                viscosity_alpha=0.1, friction="critical", steps=1000, courant=0.5, rule="final", time_step="local",
+                score_every="adaptive", hold_max="scaled", n_neighbours="auto")
+
+#: The configuration that was the default before issue 31 (global CFL step, friction 1 / the target's scale, the
+#: score at every step, the model's default neighbour number, 600 steps): ``ParVISampler(..., **CLASSIC)`` or
+#: ``--variant classic`` reproduces those runs bit for bit (``check=False`` also restores the old meaning of
+#: ``converged``, the fluid at rest, without the verdict's evidence; CLASSIC leaves the check on).
+CLASSIC = dict(time_step="global", friction=None, score_every=1, hold_max=HOLD_MAX, n_neighbours=None, steps=600)
 
 #: ``courant`` of ``time_step="local"`` (measured: 0.5 lets the funnel's mouth burst, 0.25 settles it).
 LOCAL_COURANT = 0.25
@@ -71,8 +92,9 @@ LOCAL_GROWTH = None
 
 
 #: The named ingredients of the issue-18 variants, joined by "+" in :func:`variant_options`.
-VARIANT_TOKENS = dict(default={}, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
-                      critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4), knn=dict(neighbours="knn"),
+VARIANT_TOKENS = dict(default={}, classic=CLASSIC, whiten=dict(whiten="covariance"), local=dict(time_step="local"),
+                      critical=dict(friction="critical"), coarse=dict(coarse_to_fine=4, score_every=1),
+                      knn=dict(neighbours="knn"),
                       **{"score_every=adaptive": dict(score_every="adaptive")},
                       **{"hold_max=scaled": dict(hold_max="scaled")},
                       **{"knn-ratio": dict(neighbours="knn-ratio")}, mala=dict(finish="mala"),
@@ -84,8 +106,6 @@ VARIANT_NUMBERS = ("friction", "courant", "whiten_every", "whiten_until", "frict
 #: Numeric variant options that are integers.
 VARIANT_INTEGERS = ("whiten_every", "friction_every", "coarse_to_fine", "score_every", "k", "hold_max",
                     "finish_steps")
-#: ``score_every="adaptive"``: the defaults of ``hold_tolerance`` and ``hold_max`` (see :class:`ParVISampler`).
-HOLD_TOLERANCE, HOLD_MAX = 0.02, 4  # measured: reproductions/parvi-adaptive-hold/
 
 
 class ParticleScoreMemory(ScoreMemory):
@@ -174,6 +194,10 @@ def _progress(total, enabled, desc):
 class ParVISampler:
     """SPH-ParVI sampler (see the module docstring).
 
+    The defaults are :data:`DEFAULTS` (issue 31: local steps, critical friction, the scaled per-particle score hold,
+    12 neighbours in 2D, 1000 evaluations per particle); ``**CLASSIC`` (:data:`CLASSIC`) restores the configuration
+    that was the default before (global step, friction ``1 / s``, a score at every step, 600 steps).
+
     Parameters
     ----------
     log_density, score : callable or None
@@ -186,19 +210,21 @@ class ParVISampler:
     formulation, eos, alpha, c0, rho0, gamma, kernel, viscosity, viscosity_alpha, nu,
     regularisation, density, diffusion, eps, n_neighbours
         Passed to :class:`~ase_sphrelax.models.parvi.ParVIModel`; ``c0`` defaults to
-        ``sqrt(alpha)`` (isothermal: stationary density exactly p).
+        ``sqrt(alpha)`` (isothermal: stationary density exactly p). ``n_neighbours="auto"`` (default):
+        :data:`AUTO_NEIGHBOURS_2D` (12) in 2D, the model's own default in other dimensions; None: the model's.
     h : "adaptive" or float
     h_schedule : {"constant", "anneal"}
     h_end : float or None
         Final support of the annealing (default ``h / 3``).
     steps : int
+        SPH steps, or with ``score_every="adaptive"`` (the default) score evaluations per particle (default 1000).
     dt : float or None
         Fixed time step; None: the CFL step (times ``courant``) at every step.
     courant : float or None
         Factor on the CFL step; None: 0.5 (``DEFAULTS``), or :data:`LOCAL_COURANT` with ``time_step="local"``.
     friction : float, None or "critical"
-        Drag coefficient beta >= 0; None (default): ``1 / s``, s the geometric mean of the target's
-        per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
+        Default ``"critical"``. Drag coefficient beta >= 0; None (CLASSIC's): ``1 / s``, s the geometric mean of
+        the target's per-axis scale found by :meth:`look_at_target` (1 for a unit target, or when no scale is
         found). The drag sets the time the fluid takes to settle, ``~ beta s^2``, while the CFL
         step scales with s: ``beta = 1 / s`` makes the number of steps to rest the same at any scale.
         ``"critical"``: a matrix drag, critical along each principal direction of the particles'
@@ -246,7 +272,7 @@ class ParVISampler:
     whiten_until : float
         Fraction of ``steps`` after which the ``"covariance"`` map is frozen (default 0.5).
     time_step : {"global", "local"}
-        ``"global"`` (default): one step for all particles, ``courant`` times the CFL step of the
+        ``"global"`` (CLASSIC's): one step for all particles, ``courant`` times the CFL step of the
         smallest support and the largest acceleration (:meth:`ParVIModel.cfl_step`). ``"local"``:
         local time stepping (steady-state CFD): every particle is kicked, drifted and damped with its
         own CFL step (:meth:`ParVIModel.cfl_steps`, from its own H, acceleration and sound speed), all
@@ -287,7 +313,7 @@ class ParVISampler:
     coarse_share : float
         In (0, 1): the share of the evaluations spent on the coarse level (default 0.5).
     score_every : int
-        1 (default): the score is evaluated at every step. K > 1: multiple time steps: the score force is
+        1 (CLASSIC's): the score is evaluated at every step. K > 1: multiple time steps: the score force is
         evaluated at every K-th step and held (the positions of that step's score) over the K - 1 SPH steps in
         between, while pressure, viscosity and drag are recomputed at every step; ``steps`` counts the SPH steps,
         so a run costs ``steps / K`` score evaluations per particle (counted). The step stays the CFL step of the
@@ -316,7 +342,8 @@ class ParVISampler:
         re-evaluation (default :data:`HOLD_TOLERANCE`).
     hold_max : int or "scaled"
         ``score_every="adaptive"``: the most SPH steps a particle holds its score after the step that evaluated it,
-        so it is evaluated at least every ``hold_max + 1`` steps (default :data:`HOLD_MAX`). ``"scaled"``:
+        so it is evaluated at least every ``hold_max + 1`` steps (CLASSIC's: :data:`HOLD_MAX`). ``"scaled"``
+        (default):
         ``round(HOLD_MAX (n / 500)^(1/dim))`` (:mod:`.hold_rule`, eq. S1; 4 at n = 500, 8 at n = 2000 in 2D), so that
         the physical time per evaluation does not shrink with n as the CFL step does; ``parameters["hold_max"]``
         is the number used.
@@ -335,18 +362,23 @@ class ParVISampler:
         ``alternatives["fluid"]`` the particles before it. The convergence verdict is the fluid's.
     finish_steps : int
         Steps (``"mala"``) or slice updates (``"radial"``) per particle of the finish (default 200).
+    check : bool
+        True (default): ``converged`` also needs the samples to pass the check against the target
+        (:mod:`.verdict`: an exact MALA chain and a mode search, their evaluations in ``n_check_density`` /
+        ``n_check_score``; a missed mode restarts the run once). False: ``converged`` is the fluid at rest only.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
                  eos=DEFAULTS["eos"], alpha=DEFAULTS["alpha"], c0=None, rho0=None, gamma=7.0, kernel="wendland_c2",
-                 h=DEFAULTS["h"], h_schedule="constant", h_end=None, n_neighbours=None,
+                 h=DEFAULTS["h"], h_schedule="constant", h_end=None, n_neighbours=DEFAULTS["n_neighbours"],
                  viscosity=DEFAULTS["viscosity"], viscosity_alpha=DEFAULTS["viscosity_alpha"], nu=0.05,
                  regularisation=0.0, density="summation", diffusion=0.1, eps=1e-10, steps=DEFAULTS["steps"], dt=None,
                  courant=None, friction=DEFAULTS["friction"], rule=DEFAULTS["rule"], x0=None,
                  init_scale=None, seed=0, record_every=10, progress=False, max_steps=None, whiten=None,
-                 whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
+                 whiten_every=50, whiten_until=0.5, time_step=DEFAULTS["time_step"], friction_every=50,
                  friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5,
-                 score_every=1, hold_tolerance=HOLD_TOLERANCE, hold_max=HOLD_MAX, finish=None, finish_steps=200):
+                 score_every=DEFAULTS["score_every"], hold_tolerance=HOLD_TOLERANCE, hold_max=DEFAULTS["hold_max"],
+                 finish=None, finish_steps=200, check=True):
         self._options = {name: value for name, value in locals().items() if name != "self"}  # for the levels
         self.coarse_to_fine, self.coarse_share = check_coarse_options(coarse_to_fine, coarse_share)
         self.finish, self.finish_steps = check_finish(finish, finish_steps, rule)
@@ -365,8 +397,9 @@ class ParVISampler:
             raise ValueError(f"hold_max must be an integer >= 1 or 'scaled', got {hold_max!r}")
         self.adaptive_hold = score_every == "adaptive"
         if self.adaptive_hold and (coarse_to_fine is not None or max_steps is not None):
-            raise ValueError("score_every='adaptive' counts steps as evaluations: give coarse_to_fine=None and "
-                             "max_steps=None")
+            name = "coarse_to_fine" if coarse_to_fine is not None else "max_steps"
+            raise ValueError(f"{name}: score_every='adaptive' counts steps as evaluations (the default since issue "
+                             f"31): give score_every=1 (or **CLASSIC) with {name}")
         self.score_every = "adaptive" if self.adaptive_hold else int(score_every)
         self.hold_tolerance, self.hold_max = float(hold_tolerance), int(hold_max)
         self._record_period = self.hold_max if self.adaptive_hold else self.score_every
@@ -391,7 +424,8 @@ class ParVISampler:
         if time_step not in ("global", "local"):
             raise ValueError(f"time_step must be 'global' or 'local', got {time_step!r}")
         if time_step == "local" and dt is not None:
-            raise ValueError(f"time_step='local' takes each particle's CFL step: give dt=None, got dt={dt!r}")
+            raise ValueError(f"dt: time_step='local' takes each particle's CFL step: give dt=None (or "
+                             f"time_step='global', the default's only other choice), got dt={dt!r}")
         if max_steps is not None and (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
                                       or max_steps < steps):
             raise ValueError(f"max_steps must be None or an integer >= steps ({steps}), got {max_steps!r}")
@@ -407,10 +441,15 @@ class ParVISampler:
             raise ValueError(f"whiten_until must be a number in [0, 1], got {whiten_until!r}")
         self.whiten_every, self.whiten_until = int(whiten_every), float(whiten_until)
         self.map = None
+        self._callables_x = (log_density, score)  # the user's target in x (the verdict's check runs there)
         if self.whiten is not None:  # the fluid sees the pull-back p_y (whitening.py, eqs. W1, W2)
             self.map = AffineMap(np.zeros(int(dim)), np.eye(int(dim)) if isinstance(self.whiten, str) else self.whiten)
             log_density = None if log_density is None else self.map.log_density_y(log_density)
             score = None if score is None else self.map.score_y(score)
+        if not isinstance(check, bool):
+            raise ValueError(f"check must be True or False, got {check!r}")
+        self.check = check
+        self._may_restart = True  # verdict.py: one restart from the modes found, not more
         self._friction_from_target = friction is None
         self.target = ParticleScoreMemory(log_density, score, dim, n=int(n))
         if neighbours not in ("kernel", "knn", "knn-ratio"):
@@ -424,6 +463,8 @@ class ParVISampler:
             raise ValueError(f"k: the number of neighbours of neighbours='knn' or 'knn-ratio'; give one of those or "
                              f"k=None, got k={k!r}")
         else:
+            if isinstance(n_neighbours, str) and n_neighbours == "auto":  # 12 in 2D (AUTO_NEIGHBOURS_2D)
+                n_neighbours = AUTO_NEIGHBOURS_2D if dim == 2 else None
             self.model = ParVIModel(self.target, int(dim), formulation=formulation, eos=eos, alpha=alpha, c0=c0,
                                     rho0=rho0, gamma=gamma, kernel=kernel, h=h, n_neighbours=n_neighbours,
                                     viscosity=viscosity, viscosity_alpha=viscosity_alpha, nu=nu,
@@ -482,7 +523,8 @@ class ParVISampler:
                                neighbours=neighbours, k=getattr(self.model, "k", None),
                                coarse_to_fine=self.coarse_to_fine, coarse_share=self.coarse_share,
                                score_every=self.score_every, hold_tolerance=self.hold_tolerance,
-                               hold_max=self.hold_max, finish=self.finish, finish_steps=self.finish_steps)
+                               hold_max=self.hold_max, finish=self.finish, finish_steps=self.finish_steps,
+                               check=self.check)
 
     def look_at_target(self):
         """The checks before any work (:mod:`~ase_sphrelax.sampling.target_checks`), on their own counter:
@@ -604,12 +646,38 @@ class ParVISampler:
                     n_density=self.target.n_density - n_density)
         return r, info
 
+    def _scores_evaluated(self):
+        """Scores evaluated so far, per point: ``n_score``, or without a score function the central differences'
+        density evaluations over their 2 d per point (the budget of ``score_every="adaptive"``)."""
+        if self.target.has_score:
+            return self.target.n_score
+        return self.target.n_density // (2 * self.dim)
+
     def _h_at(self, step):
         if self.h_schedule == "constant" or self.steps == 0:
             return self.h_start
         return self.h_start * (self.h_end / self.h_start) ** (min(step, self.steps) / self.steps)
 
     def run(self):
+        """Integrate (:meth:`run_fluid`), then judge the samples (:mod:`.verdict`); returns the SampleResult.
+
+        ``info["converged"]`` is True only when the fluid is at rest and (with ``check=True`` and a log-density) the
+        samples pass the verdict's evidence against the target: a short exact MALA chain started from them moves
+        no mean or second moment beyond its Bonferroni-corrected Monte-Carlo bound, and no mode found by a mode
+        search is short of its Laplace share. A missed mode restarts the run once from the modes found.
+        ``info["verdict"]`` has ``at_rest`` and the check's figures; ``info["convergence_reason"]`` says why.
+        Warns :class:`NotConvergedWarning` when not converged.
+        """
+        from .verdict import judge_run
+
+        result = self._run_coarse_to_fine() if self.coarse_to_fine is not None else self.run_fluid()
+        result = judge_run(self, result)
+        if not result.info["converged"]:
+            warnings.warn(f"SPH-ParVI did not converge after {result.info['steps']} steps: "
+                          f"{result.info['convergence_reason']}", NotConvergedWarning, stacklevel=2)
+        return result
+
+    def run_fluid(self):
         """Integrate and return a :class:`~ase_sphrelax.sampling.result.SampleResult`.
 
         ``trace`` columns: ``step, time, dt, mean_density, kinetic, energy`` (NaN where the
@@ -619,11 +687,9 @@ class ParVISampler:
         ``converged``, ``convergence_reason`` and ``convergence`` (the numbers of
         :func:`~ase_sphrelax.sampling.convergence.assess_convergence`), ``start_centre``,
         ``start_scale``, ``target_scale``, ``n_check_density``, ``n_check_score`` (the checks'
-        own evaluations, not in ``n_density``/``n_score``). Warns :class:`NotConvergedWarning`
-        when not converged.
+        own evaluations, not in ``n_density``/``n_score``). ``converged`` here is the fluid at rest only;
+        :meth:`run` adds the verdict's evidence (and the warning).
         """
-        if self.coarse_to_fine is not None:
-            return self._run_coarse_to_fine()
         t0 = time.perf_counter()
         model = self.model
         self._dt_p = None  # the local steps of the previous step (LOCAL_GROWTH)
@@ -702,7 +768,7 @@ class ParVISampler:
                 self.target.hold = step % self.score_every != 0  # score_every: the score of the last K-th step
             ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % (self.record_every *
                                                                                    self._record_period) == 0)
-            if self.adaptive_hold and self.target.n_score >= budget:
+            if self.adaptive_hold and self._scores_evaluated() >= budget:
                 limit = step  # the evaluation budget is spent
             v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
             fallback += ev.fallback
@@ -767,12 +833,9 @@ class ParVISampler:
                     target_scale=self.target_scale.tolist(), n_check_density=probe.n_density,
                     n_check_score=probe.n_score)
         if self.adaptive_hold:
-            info["hold_moved_share"] = moved / max(self.target.n_score, 1)
+            info["hold_moved_share"] = moved / max(self._scores_evaluated(), 1)
         if finished is not None:
             info["finish_info"] = finish_info
-        if not verdict["converged"]:
-            warnings.warn(f"SPH-ParVI did not converge after {step} steps: {verdict['reason']}",
-                          NotConvergedWarning, stacklevel=3)
         return SampleResult(np.array(samples), n_density=self.target.n_density, n_score=self.target.n_score,
                             wall_time=time.perf_counter() - t0, trace={k: np.array(val) for k, val in trace.items()},
                             info=info, alternatives=dict(final=np.array(r), optimal=np.array(best["samples"]),
@@ -787,17 +850,15 @@ class ParVISampler:
         options = dict(self._options, coarse_to_fine=None)
         x0 = None if self.x0 is None else self.x0[:n_coarse]
         coarse = ParVISampler(**dict(options, n=n_coarse, steps=coarse_steps, x0=x0, max_steps=None, rule="final",
-                                     finish=None))
-        with warnings.catch_warnings():  # the coarse level's verdict goes to info["coarse"]
-            warnings.simplefilter("ignore", NotConvergedWarning)
-            coarse_result = coarse.run()
+                                     finish=None, check=False))
+        coarse_result = coarse.run_fluid()  # its verdict (at rest) goes to info["coarse"]
         r_pc, ev = coarse.final_state
         volume_p = np.broadcast_to(np.asarray(ev.mass, dtype=float) / ev.rho, (n_coarse,))
         children = split_into_children(r_pc, volume_p, child_counts(self.n, n_coarse), seed=self.seed)
         if coarse.map is not None:
             children = coarse.map.to_x(children)
-        fine = ParVISampler(**dict(options, steps=fine_steps, x0=children))
-        result = fine.run()
+        fine = ParVISampler(**dict(options, steps=fine_steps, x0=children, check=False))
+        result = fine.run_fluid()  # judged by run()
         result.n_score += coarse_result.n_score
         result.n_density += coarse_result.n_density
         result.wall_time = time.perf_counter() - t0
