@@ -5,7 +5,8 @@ with issue 18 (``time_step="local", friction="critical", score_every="adaptive",
 hold_max="scaled"``). The scripts of ``reproductions/parvi-*`` pass :data:`CLASSIC` under their own keywords
 (``ParVISampler(..., **classic(n=m, steps=s, **options))``), so that they keep making the stored results:
 :data:`CLASSIC` is every keyword default of ``ParVISampler.__init__`` as of git 7e290ea (the data arguments
-``log_density, score, dim, n, x0, seed, progress`` excepted).
+``log_density, score, dim, n, x0, seed, progress`` excepted), and ``check=False``: the verdict's check against the
+target (``sampling/verdict.py``), which came later, can restart a run from missed modes and so change its samples.
 
 :func:`run_benchmark` runs a script of ``benchmarks/`` (``bench_sampling``, ``bench_sampling_theory``) with its
 ``ParVISampler`` replaced by :class:`PinnedSampler` (the same sampler, :data:`CLASSIC` under the caller's keywords); for
@@ -27,7 +28,8 @@ CLASSIC = dict(formulation="force", eos="isothermal", alpha=1.0, c0=None, rho0=N
                steps=600, dt=None, courant=None, friction=None, rule="final", init_scale=None, record_every=10,
                max_steps=None, whiten=None, whiten_every=50, whiten_until=0.5, time_step="global", friction_every=50,
                friction_ramp=1.0, neighbours="kernel", k=None, coarse_to_fine=None, coarse_share=0.5, score_every=1,
-               hold_tolerance=0.02, hold_max=4, finish=None, finish_steps=200)
+               hold_tolerance=0.02, hold_max=4, finish=None, finish_steps=200,
+               check=False)  # no verdict check (and no restart from missed modes): the samples the studies stored
 
 
 def classic(**own):
