@@ -229,7 +229,7 @@ def test_results_page_is_the_regeneration(registry):
 PROSE = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "reproductions").glob("*/README.md"))]
 ROLE = re.compile(r"\{rep\}`([^`]+)`")
 MARKER = re.compile(r"<!--\s*rep\s+(\S+)\s*-->")
-NUMBER_BEFORE = re.compile(r"(-?[0-9][0-9.,]*(?:e-?[0-9]+)?)\s*(?:%|x|s|×)?\s*\**\)?\s*$")
+NUMBER_BEFORE = re.compile(r"(-?[0-9][0-9.,]*(?:e-?[0-9]+)?|\btrue|\bfalse)\s*(?:%|x|s|×)?\s*\**\)?\s*$")
 
 
 def test_every_prose_reference_resolves(registry):
