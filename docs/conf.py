@@ -3,11 +3,19 @@ from __future__ import annotations
 
 import os
 import sys
+import types
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "docs" / "_ext"))
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+# autosummary's recursive walk imports every module; ``python -m ase_sphrelax.cli`` would run ``sphrelax``
+# with Sphinx's argv and exit: a mock of it is skipped by the walk
+_cli_main = types.ModuleType("ase_sphrelax.cli.__main__")
+_cli_main.__sphinx_mock__ = True
+sys.modules.setdefault("ase_sphrelax.cli.__main__", _cli_main)
 
 import ase_sphrelax  # noqa: E402
 
@@ -25,6 +33,8 @@ extensions = [
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
+    "rep_role",      # {rep}`ID:NAME`: a number of the reproductions registry, linked to its entry
+    "cli_options",   # {cli-options} COMMAND: an option table generated from the argparse parser
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "**.ipynb_checkpoints", "gallery/*.md5", "gallery/*.py", "gallery/*.ipynb",

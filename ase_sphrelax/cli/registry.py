@@ -42,6 +42,7 @@ COMMANDS = {
     "density": "ase_sphrelax.cli.density",
     "pack": "ase_sphrelax.cli.pack",
     "reproduce": "ase_sphrelax.cli.reproduce",
+    "data": "ase_sphrelax.cli.data",
 }
 
 #: built-in methods per command (``sphrelax COMMAND --method NAME``)
