@@ -68,6 +68,21 @@ def test_no_dates_or_load_averages(page):
     assert not hits, f"{page.relative_to(ROOT)} tells history (move it to CHANGELOG.md): {hits[:3]}"
 
 
+def test_cli_page_has_a_generated_table_per_command():
+    """docs/cli.md names every registered command in a ``{cli-options}`` directive (tables from the parsers)."""
+    sys.path.insert(0, str(DOCS / "_ext"))
+    try:
+        from cli_options import command_parsers, option_rows
+    finally:
+        sys.path.remove(str(DOCS / "_ext"))
+    text = (DOCS / "cli.md").read_text()
+    listed = set(re.findall(r"^```\{cli-options\} (\S+)\s*$", text, flags=re.M))
+    parsers = command_parsers()
+    assert listed == set(parsers), f"docs/cli.md lists {sorted(listed)}, the parser has {sorted(parsers)}"
+    flags = {row[0].split()[0] for row in option_rows(parsers["pack"][0])}
+    assert {"--walls", "--periodic", "--cell", "--wall-mode", "--momentum"} <= flags
+
+
 # -- the built site --------------------------------------------------------------------------------------------
 def _newest_source():
     files = [*DOCS.rglob("*.md"), *DOCS.rglob("*.rst"), DOCS / "conf.py", *(DOCS / "_ext").glob("*.py"),
