@@ -81,5 +81,6 @@ def setup(app):
 html_theme = "pydata_sphinx_theme"
 html_title = "ase_sphrelax"
 html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
-html_static_path: list = []
+html_static_path = ["_static"]
+html_css_files = ["guides.css"]
 suppress_warnings = ["config.cache"]
