@@ -5,6 +5,11 @@ ASE's defaults are set for atoms in eV and Angstrom (FIRE ``dt = 0.1``,
 ``dx^(2d) / h^(d+1)``, so those defaults are off by orders of magnitude for
 ``dx = 1/256``. :func:`make_optimizer` sets them from the initial forces so
 that the first step moves the fastest particle by ``c h``, the step of Eq. 2.4.
+
+``"fire"`` and ``"lbfgs"`` are by default :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`
+and :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS`: ASE's algorithms step for step
+(the same trajectories to round-off), with numba vector work on the coordinates that move and
+buffers reused between steps (issue 33, item 1); ``backend="ase"`` gives ASE's own classes.
 """
 from __future__ import annotations
 
@@ -16,8 +21,8 @@ from .keep_inside import attach_keep_inside
 # re-exported: NothingRelaxedWarning and check_c have been public names of this module
 from .step_scale import NothingRelaxedWarning, calculator_h, check_c, mark_scaled, warn_if_nothing_relaxed
 
-__all__ = ["OPTIMIZERS", "DEFAULT_C", "make_optimizer", "check_c", "NothingRelaxedWarning", "SPHScaleWarning",
-           "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
+__all__ = ["OPTIMIZERS", "BACKENDS", "DEFAULT_C", "DEFAULT_MEMORY", "make_optimizer", "check_c",
+           "NothingRelaxedWarning", "SPHScaleWarning", "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
 
 
 _CHECKED = {}
@@ -43,8 +48,16 @@ OPTIMIZERS = ("fan", "fire", "bfgs", "lbfgs")
 # 2000 Eq. 2.4 steps with 0.14-0.17 of its force evaluations, with c = 0.01 only 0.29-0.38
 DEFAULT_C = {"fan": 0.01, "fire": 0.01, "bfgs": 0.05, "lbfgs": 0.05}
 
+# who does the FIRE / LBFGS vector work: "sph" (numba, drivers/sph_optimizers.py) or "ase" (numpy)
+BACKENDS = ("sph", "ase")
 
-def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, blas_threads=None, **kwargs):
+# LBFGS history length per backend: ASE's history costs more than a force call at 20 pairs;
+# the SPH backend's pairs cost 2 * 8 * dim bytes per particle each (benchmarks/bench_optimizers.py)
+DEFAULT_MEMORY = {"sph": 5, "ase": 20}
+
+
+def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, blas_threads=None, backend="sph",
+                   **kwargs):
     """Return an optimiser for ``atoms`` whose first step moves at most ``c h``.
 
     ASE's own defaults (FIRE ``dt = 0.1``, ``maxstep = 0.2``; ``run(fmax=0.05)``) are set for
@@ -56,7 +69,8 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     Parameters
     ----------
     name : {"fan", "fire", "bfgs", "lbfgs"}
-        ``"fan"`` is :class:`FanRelaxation` (Eq. 2.4); the others are ASE's.
+        ``"fan"`` is :class:`FanRelaxation` (Eq. 2.4); ``"fire"`` and ``"lbfgs"`` ASE's
+        algorithms (see ``backend``), ``"bfgs"`` ASE's.
     atoms : Atoms or Filter
         With a calculator attached.
     c : float or None
@@ -74,15 +88,24 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         None limits them to 1 unless the user set ``OPENBLAS_NUM_THREADS`` (or another BLAS
         thread variable), False leaves BLAS alone, an integer sets that limit. Multi-threaded
         BLAS on these short vectors collapses under a competing load (12x slower LBFGS).
+    backend : {"sph", "ase"}
+        For ``"fire"`` and ``"lbfgs"``: ``"sph"`` (default) returns
+        :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE` /
+        :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS` (ASE's algorithms with numba
+        vector work, the same trajectories), ``"ase"`` ASE's own classes.
     **kwargs
         Override the optimiser's own parameters.
     """
     from ase.optimize import BFGS, FIRE, LBFGS
 
     from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
+    from .sph_optimizers import SPHFIRE, SPHLBFGS
 
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    sph = backend == "sph" and name in ("fire", "lbfgs")
     resolve_blas_threads(blas_threads)  # bad values fail before any work
     c = DEFAULT_C[name] if c is None else c
     h = calculator_h(atoms) if h is None else h
@@ -105,12 +128,15 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         dt = np.sqrt(step / f_max)
         params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step * np.sqrt(max(len(forces), 1)))
         params.update(kwargs)
-        return limit_blas_in_steps(_checked(FIRE)(atoms, logfile=logfile, **params), blas_threads)
+        cls = SPHFIRE if sph else _checked(FIRE)  # SPHFIRE's run warns itself
+        return limit_blas_in_steps(cls(atoms, logfile=logfile, **params), blas_threads)
     # quasi-Newton: the first step is F / alpha
     params = dict(alpha=f_max / step, maxstep=10 * step)
     if name == "lbfgs":
-        params["memory"] = 20  # the two-loop recursion over 100 vectors costs more than a force call
+        params["memory"] = DEFAULT_MEMORY[backend]  # ASE's 100 pairs cost more than a force call
     params.update(kwargs)
+    if sph:
+        return limit_blas_in_steps(SPHLBFGS(atoms, logfile=logfile, **params), blas_threads)
     maxstep = params.pop("maxstep")
     cls = _checked(BFGS if name == "bfgs" else LBFGS)
     # ASE's LBFGS refuses maxstep > 1 (a sanity check in Angstrom); SPH lengths have no such scale

@@ -1,0 +1,153 @@
+"""SPHFIRE and SPHLBFGS (issue 33, item 1) follow ASE's FIRE and LBFGS step for step."""
+import io
+
+import numpy as np
+import pytest
+from ase.constraints import FixAtoms
+from ase.io import read
+
+from ase_sphrelax import FanCalculator
+from ase_sphrelax.build import fill
+from ase_sphrelax.domains import Box, Circle, Difference, Sphere
+from ase_sphrelax.drivers import KeepInDomain, make_optimizer
+from ase_sphrelax.drivers.sph_optimizers import SPHFIRE, SPHLBFGS
+
+
+def fan_case(dim, domain=None, dx=None):
+    if domain is None:
+        domain = Circle((0.5, 0.5), 0.2) if dim == 2 else Sphere((0.5, 0.5, 0.5), 0.2)
+    dx = dx or (1 / 48 if dim == 2 else 1 / 16)
+    atoms = fill(domain, dx, jitter=0.1, seed=0)
+    atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain)
+    return atoms, domain
+
+
+def trajectory(name, backend, dim, steps=40, prepare=None, **kwargs):
+    """Positions and energies after every step of ``make_optimizer(name, ..., backend=backend)``."""
+    atoms, domain = fan_case(dim)
+    if prepare is not None:
+        prepare(atoms)
+    if name == "lbfgs":  # the backends' default histories differ (DEFAULT_MEMORY): compare like with like
+        kwargs.setdefault("memory", 5)
+    opt = make_optimizer(name, atoms, backend=backend, **kwargs)
+    frames = []
+    opt.attach(lambda: frames.append((atoms.positions.copy(), atoms.get_potential_energy())))
+    opt.run(fmax=0.0, steps=steps)
+    return opt, atoms, domain, frames
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("name,kwargs", [("fire", {}), ("lbfgs", {"memory": 20}), ("lbfgs", {"memory": 3})],
+                         ids=["fire", "lbfgs-memory20", "lbfgs-memory3"])
+def test_same_trajectory_as_ases_optimiser(dim, name, kwargs):
+    """Every step's positions to 1e-9 dx and energies to 1e-9 relative over 40 steps (memory 20 and 3:
+    the history wraps)."""
+    ours, _, _, frames = trajectory(name, "sph", dim, **kwargs)
+    ase_opt, _, _, reference = trajectory(name, "ase", dim, **kwargs)
+    assert type(ours) is (SPHFIRE if name == "fire" else SPHLBFGS)
+    assert type(ase_opt).__module__.startswith("ase.optimize")
+    assert len(frames) == len(reference) == 41
+    dx = 1 / 48 if dim == 2 else 1 / 16
+    moved = np.abs(reference[-1][0] - reference[0][0]).max()
+    assert moved > 0.05 * dx  # the run relaxes: the comparison is not between two resting systems
+    for (r, e), (r_ase, e_ase) in zip(frames, reference):
+        np.testing.assert_allclose(r, r_ase, rtol=0, atol=1e-9 * dx)
+        assert e == pytest.approx(e_ase, rel=1e-9)
+    assert reference[-1][1] < 0.99 * reference[0][1]
+
+
+@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+def test_2d_never_moves_z_and_keeps_dim_times_n_buffers(name):
+    opt, atoms, _, frames = trajectory(name, "sph", 2, steps=10)
+    assert opt.dim == 2
+    buffer = opt.vel if name == "fire" else opt._s
+    assert buffer.shape[-1] == 2 and buffer.shape[-2] == len(atoms)
+    assert all(np.all(r[:, 2] == 0.0) for r, _ in frames)
+    opt3, atoms3, _, _ = trajectory(name, "sph", 3, steps=2)
+    assert opt3.dim == 3 and (opt3.vel if name == "fire" else opt3._s).shape[-1] == 3
+
+
+@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+def test_fixed_particles_stay_and_the_rest_follows_ase(name):
+    def fix_first(atoms):
+        atoms.set_constraint(FixAtoms(indices=range(20)))
+
+    # without KeepInDomain, which would move a fixed particle that the jitter put outside back in
+    _, atoms, _, frames = trajectory(name, "sph", 2, steps=15, prepare=fix_first, keep_inside=False)
+    _, _, _, reference = trajectory(name, "ase", 2, steps=15, prepare=fix_first, keep_inside=False)
+    assert np.all(frames[-1][0][:20] == frames[0][0][:20])
+    assert np.abs(frames[-1][0][20:] - frames[0][0][20:]).max() > 0
+    np.testing.assert_allclose(frames[-1][0], reference[-1][0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+def test_keep_in_domain_holds_for_every_step_and_matches_ase(name):
+    """A domain with a thin part and sharp corners, long steps (c = 0.2): KeepInDomain cuts steps
+    in ours exactly as in ASE's optimiser, and no particle is outside after any step."""
+    domain = Difference(Box((0.2, 0.2), (0.8, 0.8)), Box((0.2, 0.26), (0.78, 0.74)))
+    runs = []
+    for backend in ("sph", "ase"):
+        atoms, _ = fan_case(2, domain=domain, dx=1 / 48)
+        opt = make_optimizer(name, atoms, c=0.2, backend=backend, **({"memory": 5} if name == "lbfgs" else {}))
+        outside = []
+        opt.attach(lambda: outside.append(int((domain.phi(atoms.positions[:, :2]) >= 0).sum())))
+        opt.run(fmax=0.0, steps=25)
+        keep = [c for c in atoms.constraints if isinstance(c, KeepInDomain)]
+        runs.append((atoms.positions.copy(), outside, keep[0].n_returned))
+    (r, outside, returned), (r_ase, outside_ase, returned_ase) = runs
+    assert max(outside[1:]) == 0 and returned == returned_ase
+    np.testing.assert_allclose(r, r_ase, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("cls", [SPHFIRE, SPHLBFGS])
+def test_attach_trajectory_log_and_irun(tmp_path, cls):
+    atoms, _ = fan_case(2)
+    atoms.calc.silence_scale_hint()
+    path = tmp_path / "relax.traj"
+    log = io.StringIO()
+    opt = cls(atoms, logfile=log, trajectory=str(path), **({"dt": 0.01} if cls is SPHFIRE else {"alpha": 1.0}))
+    calls = []
+    opt.attach(lambda: calls.append(opt.nsteps), interval=2)
+    for k, converged in enumerate(opt.irun(fmax=0.0, steps=6)):
+        assert converged is False
+    assert k == 6 and opt.nsteps == 6 and calls == [0, 2, 4, 6]
+    opt.close()
+    frames = read(str(path), index=":")
+    assert len(frames) == 7
+    np.testing.assert_array_equal(frames[-1].positions, atoms.positions)
+    assert len(log.getvalue().splitlines()) == 8  # header + steps 0..6
+    assert opt.run(fmax=1e3, steps=5) and opt.nsteps == 6  # converged: no step
+
+
+def test_a_step_can_be_called_by_hand_with_given_forces():
+    atoms, _ = fan_case(3)
+    opt = SPHFIRE(atoms, logfile=None, dt=0.1, maxstep=1e-3)
+    start = atoms.positions.copy()
+    forces = np.zeros((len(atoms), 3))
+    forces[0] = (1.0, 0.0, 0.0)
+    opt.step(forces)
+    moved = atoms.positions - start
+    assert moved[0, 0] == pytest.approx(1e-3) and np.all(moved[1:] == 0.0)
+
+
+@pytest.mark.parametrize("cls,kwargs,match", [
+    (SPHLBFGS, {"memory": 0}, "memory must be an integer >= 1"),
+    (SPHLBFGS, {"memory": 2.5}, "memory must be"),
+    (SPHLBFGS, {"alpha": -1.0}, "alpha must be a positive"),
+    (SPHLBFGS, {"maxstep": 0.0}, "maxstep must be positive"),
+    (SPHFIRE, {"dt": 0.0}, "dt must be a positive"),
+    (SPHFIRE, {"maxstep": -1.0}, "maxstep must be positive"),
+    (SPHFIRE, {"dim": 4}, "dim must be None, 2 or 3"),
+    (SPHLBFGS, {"restart": "state.json"}, "restart: SPHLBFGS keeps no restart file"),
+])
+def test_bad_input_is_a_one_line_error(cls, kwargs, match):
+    atoms, _ = fan_case(2)
+    with pytest.raises(ValueError, match=match) as info:
+        cls(atoms, logfile=None, **kwargs)
+    assert "\n" not in str(info.value)
+
+
+def test_make_optimizer_refuses_an_unknown_backend():
+    atoms, _ = fan_case(2)
+    with pytest.raises(ValueError, match="backend must be one of"):
+        make_optimizer("fire", atoms, backend="numpy")
