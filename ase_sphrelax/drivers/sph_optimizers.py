@@ -13,7 +13,8 @@ loop asks for the forces three times per step. At 1e6 particles that made an LBF
 * buffers allocated once and reused between steps (fresh pages cost about 6x reused memory
   on these VMs); one force request per step (the calculator's cache serves the others);
 * LBFGS: ``memory`` pairs ``(s, y)`` in float64, the pair of the next step kept in the slot of
-  the pair that leaves the history, so ``memory`` pairs plus one work vector are all it holds.
+  the pair that leaves the history, so ``memory`` pairs plus one work vector are all it holds;
+  three passes over them per step (the two-loop recursion on their dot products);
   ``s = x_{k+1} - x_k`` is taken from the positions the atoms have (constraints such as
   :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain` and observers included), as in ASE.
 
@@ -407,7 +408,12 @@ class SPHLBFGS(_SPHOptimizer):
     The two-loop recursion (Nocedal 1980) over the last ``memory`` pairs
     ``s_k = x_{k+1} - x_k``, ``y_k = g_{k+1} - g_k`` with ``H0 = 1 / alpha``; the step is
     scaled so that no particle moves more than ``maxstep`` (ASE's ``determine_step``), then
-    multiplied by ``damping``. Memory: ``2 memory + 1`` vectors of ``dim * N`` floats.
+    multiplied by ``damping``. The recursion runs on the coefficients of the step in the basis
+    ``(s_j, y_j, g)`` from the matrix of their dot products, as in the vector-free L-BFGS of
+    Chen et al. (NeurIPS 2014): one pass completes the newest pair and takes its dot products
+    (and g's) with every stored pair, one pass forms the step, one moves the particles, where
+    ASE's recursion makes ``2 memory + 1`` passes. The same arithmetic up to round-off.
+    Memory: ``2 memory + 1`` vectors of ``dim * N`` floats.
 
     Parameters
     ----------
