@@ -237,13 +237,7 @@ def main(argv=None):
     run = dict(version=git_version(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                command="python benchmarks/bench_optimizers.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                threads=args.threads, cpus=os.cpu_count(), load_average_start=os.getloadavg())
-    result = dict(timing=[], memory=[], convergence=[], runs={})
-    if args.merge and Path(args.out).exists():
-        old = json.loads(Path(args.out).read_text())
-        result.update({part: old[part] for part in ("timing", "memory", "convergence", "runs") if part in old})
-    for part in parts:
-        result[part] = []
-        result["runs"][part] = run
+    result = dict(timing=[], memory=[], convergence=[], runs={part: run for part in parts})
     sizes = [float(s) for s in args.sizes.split(",")]
     memory_sizes = [float(s) for s in args.memory_sizes.split(",")]
     dims = [int(d) for d in args.dims.split(",")]
@@ -280,6 +274,12 @@ def main(argv=None):
     if "convergence" in parts:
         result["convergence"] = convergence(args.conv_steps, [int(m) for m in args.conv_memories.split(",")])
     run["load_average_end"] = os.getloadavg()
+    if args.merge and Path(args.out).exists():  # read at the end: another run may have written meanwhile
+        old = json.loads(Path(args.out).read_text())
+        for part in ("timing", "memory", "convergence"):
+            if part not in parts and part in old:
+                result[part] = old[part]
+                result["runs"][part] = old.get("runs", {}).get(part)
     write_json(args.out, result)
     return result
 
