@@ -60,7 +60,7 @@ def run_case(case, atoms0, domain, dx, steps):
     atoms = atoms0.copy()
     atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain, dim=2)
     kwargs = dict(CASES[case])
-    opt = make_optimizer(kwargs.pop("name"), atoms, **kwargs)
+    opt = make_optimizer(kwargs.pop("name"), atoms, backend="ase", **kwargs)  # ASE's (numpy/BLAS) optimisers
     t0 = time.perf_counter()
     opt.run(fmax=1e-30, steps=steps)
     return time.perf_counter() - t0, atoms.get_potential_energy()
