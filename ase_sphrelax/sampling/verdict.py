@@ -293,9 +293,8 @@ def judge_run(sampler, result):
     laplace = modes.pop("laplace", None)
     verdict.update(checked=True, mala_check=mala, modes=modes)
     if modes["missed"] and sampler._may_restart and laplace is not None:
-        from .sampler import ParVISampler
-
-        again = ParVISampler(**dict(sampler._options, x0=laplace_draw(laplace, sampler.n, rng)))
+        # the sampler's own class (no import of sampler.py here: it imports this module)
+        again = type(sampler)(**dict(sampler._options, x0=laplace_draw(laplace, sampler.n, rng)))
         again._may_restart = False
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NotConvergedWarning)  # said once, by the caller
