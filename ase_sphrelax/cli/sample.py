@@ -110,7 +110,7 @@ def add_arguments(parser):
 
 
 def _variant_help():
-    from ..sampling.sampler import VARIANT_NUMBERS, VARIANT_TOKENS
+    from ..sampling.configurations import VARIANT_NUMBERS, VARIANT_TOKENS
 
     return (f"SPH-ParVI variant: tokens joined by '+', each one of {', '.join(VARIANT_TOKENS)} or name=number for "
             f"{', '.join(VARIANT_NUMBERS)} (e.g. whiten+mala; default: default, the API's default configuration; "
@@ -179,7 +179,6 @@ def _plot(path, x, log_density):
 
 def run(args):
     import json
-    from pathlib import Path
 
     import numpy as np
 

@@ -106,7 +106,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    sph = backend == "sph" and name in ("fire", "lbfgs")
+    sph = backend == "sph" and name != "bfgs"  # "fire", "lbfgs": ours (and "fan" returns before it is read)
     resolve_blas_threads(blas_threads)  # bad values fail before any work
     c = DEFAULT_C[name] if c is None else c
     h = calculator_h(atoms) if h is None else h

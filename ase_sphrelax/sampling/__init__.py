@@ -4,7 +4,8 @@
 * :mod:`.metrics` — energy distance, MMD, sliced Wasserstein, moment and mode errors;
 * :mod:`.baselines` — SVGD, ULA, MALA and emcee, run like the SPH sampler;
 * :mod:`.result` — :class:`SampleResult` and the evaluation-counting wrapper;
-* :mod:`.sampler` — :class:`ParVISampler` and :func:`sample` (the default configuration; :data:`CLASSIC` the old one);
+* :mod:`.sampler` — :class:`ParVISampler` and :func:`sample`;
+* :mod:`.configurations` — the default configuration, :data:`CLASSIC` (the old one) and the ``--variant`` tokens;
 * :mod:`.verdict` — is the sample right: an exact MALA check and a mode search behind ``converged``;
 * :mod:`.theory` — the predicted stationary densities;
 * :mod:`.convergence` — has a run come to rest (moment and kinetic-energy drift against Monte-Carlo errors);
@@ -12,9 +13,21 @@
 * :mod:`.whitening` — the affine map of the whitened variant (``sample(..., whiten="covariance")``);
 * :mod:`.tuning` — the one rule that sets the baselines' step sizes (pilot, kernel Stein discrepancy).
 """
-from .result import CountingTarget, SampleResult
-from .sampler import CLASSIC, ParVIDivergence, ParVISampler, sample
-from .targets import TARGET_NAMES, Target, get_target
+from ..lazy import lazy_exports
 
-__all__ = ["CLASSIC", "SampleResult", "CountingTarget", "ParVISampler", "ParVIDivergence", "sample", "Target", "get_target",
-           "TARGET_NAMES"]
+# names are imported on first use (the sampler loads numba; ``sphrelax sample --help`` reads only
+# :mod:`.configurations`): add one line here
+_WHERE = {
+    "CLASSIC": ".configurations",
+    "DEFAULTS": ".configurations",
+    "SampleResult": ".result",
+    "CountingTarget": ".result",
+    "ParVISampler": ".sampler",
+    "ParVIDivergence": ".sampler",
+    "sample": ".sampler",
+    "Target": ".targets",
+    "get_target": ".targets",
+    "TARGET_NAMES": ".targets",
+}
+__all__ = list(_WHERE)
+__getattr__, __dir__ = lazy_exports(globals(), _WHERE)
