@@ -128,35 +128,38 @@ def _momentum_pair(a, b, r2, d, inv_h, grad_scale, eta2, vol_s, p_s, v_sc):
 
 
 @numba.njit(cache=True, inline="always")
-def _momentum_diffusion_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, vol_s, p_s, rho_s, v_sc):
+def _momentum_diffusion_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, q_sc):
     """:func:`_momentum_pair` and the Molteni-Colagrossi sum of :func:`_continuity_pair` in one pass
-    (:meth:`BISPH.step`: both at ``x^n``, ``rho^n``; the same terms, one kernel evaluation)."""
+    (:meth:`BISPH.step`: both at ``x^n``, ``rho^n``; the same terms, one kernel evaluation). The
+    inputs packed per point, ``q_sc = [V, p, rho, v_x, v_y]`` (one cache line per partner), the
+    outputs ``[grad_p (2), lap (2), diff]``."""
     if r2 == 0.0:
         return (0.0, 0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 0.0), ()
     r = math.sqrt(r2)
     gw = grad_scale * kernel_profile(r * inv_h)[1] / r
     gax = -gw * d[0]
     gay = -gw * d[1]
-    pp = p_s[a] + p_s[b]
+    pp = q_sc[a, 1] + q_sc[b, 1]
     k = 2.0 * gw * r2 / (r2 + eta2)
-    kvx = k * (v_sc[b, 0] - v_sc[a, 0])
-    kvy = k * (v_sc[b, 1] - v_sc[a, 1])
-    kr = k * (rho_s[b] - rho_s[a] - (hx * d[0] + hy * d[1]))
-    va = vol_s[a]
-    vb = vol_s[b]
+    kvx = k * (q_sc[b, 3] - q_sc[a, 3])
+    kvy = k * (q_sc[b, 4] - q_sc[a, 4])
+    kr = k * (q_sc[b, 2] - q_sc[a, 2] - (hx * d[0] + hy * d[1]))
+    va = q_sc[a, 0]
+    vb = q_sc[b, 0]
     return ((pp * vb * gax, pp * vb * gay, -vb * kvx, -vb * kvy, -vb * kr),
             (-pp * va * gax, -pp * va * gay, va * kvx, va * kvy, va * kr), ())
 
 
 @numba.njit(cache=True, inline="always")
-def _divergence_pair(a, b, r2, d, inv_h, grad_scale, vol_s, v_sc):
-    """The velocity sum of Eq. 16 alone: ``sum_b V_b (v_b - v_a).grad_a W`` for both partners."""
+def _divergence_pair(a, b, r2, d, inv_h, grad_scale, q_sc):
+    """The velocity sum of Eq. 16 alone, ``sum_b V_b (v_b - v_a).grad_a W``, for both partners
+    (``q_sc = [V, v_x, v_y]``)."""
     if r2 == 0.0:
         return (0.0,), (0.0,), ()
     r = math.sqrt(r2)
     gw = grad_scale * kernel_profile(r * inv_h)[1] / r
-    dv_g = -gw * ((v_sc[b, 0] - v_sc[a, 0]) * d[0] + (v_sc[b, 1] - v_sc[a, 1]) * d[1])
-    return (vol_s[b] * dv_g,), (vol_s[a] * dv_g,), ()
+    dv_g = -gw * ((q_sc[b, 1] - q_sc[a, 1]) * d[0] + (q_sc[b, 2] - q_sc[a, 2]) * d[1])
+    return (q_sc[b, 0] * dv_g,), (q_sc[a, 0] * dv_g,), ()
 
 
 @numba.njit(cache=True, inline="always")
@@ -191,11 +194,10 @@ CONTINUITY = PairInteraction(_continuity_pair, dict(div=Output(()), diff=Output(
                              params=_KERNEL_PARAMS + ("hx", "hy"), inputs=("vol_s", "rho_s", "v_sc"))
 MOMENTUM = PairInteraction(_momentum_pair, dict(grad_p=Output((2,)), lap=Output((2,))),
                            params=_KERNEL_PARAMS, inputs=("vol_s", "p_s", "v_sc"))
-MOMENTUM_DIFFUSION = PairInteraction(_momentum_diffusion_pair,
-                                     dict(grad_p=Output((2,)), lap=Output((2,)), diff=Output(())),
-                                     params=_KERNEL_PARAMS + ("hx", "hy"), inputs=("vol_s", "p_s", "rho_s", "v_sc"))
+MOMENTUM_DIFFUSION = PairInteraction(_momentum_diffusion_pair, dict(terms=Output((5,))),
+                                     params=_KERNEL_PARAMS + ("hx", "hy"), inputs=("q_sc",))
 DIVERGENCE = PairInteraction(_divergence_pair, dict(div=Output(())), params=("inv_h", "grad_scale"),
-                             inputs=("vol_s", "v_sc"))
+                             inputs=("q_sc",))
 CONSISTENT = PairInteraction(_consistent_pair, dict(lmat=Output((4,)), nsum=Output((8,))),
                              params=("inv_h", "grad_scale"), inputs=("vol_s", "f_sc"))
 
@@ -566,7 +568,7 @@ class BISPH:
                              np.ascontiguousarray(f_kc[:, :ncol]), np.ascontiguousarray(f_pc), lmat, nsum)
         return _solve2(lmat, nsum, ncol, gamma), lmat_p
 
-    def laplacian(self, v_pc=None, bt=None, gamma=None):
+    def laplacian(self, v_pc=None, bt=None, gamma=None, wall_velocity=None):
         """``lap v`` in the particle-consistent-gradient (PCG) form of BIPI Fig. 14b, (N, 2).
 
         Nested first derivatives (the paper names the PCG formulation of its refs. [3-5], Liu & Liu
@@ -584,12 +586,14 @@ class BISPH:
         Exact (to rounding) for linear velocity fields everywhere and for quadratic ones in the
         interior of a lattice; next to a wall step 1 is exact only to first order for a quadratic
         field (the truncated kernel's first moment), so the Laplacian of a parabola is off there
-        (measured in ``tests/test_bisph.py``). Four pair passes instead of Morris' one.
+        (measured in ``tests/test_bisph.py``). Two pair passes more than Morris' form.
+        ``wall_velocity``: a function of the feet, (M, 2) -> (M, 2), for operator checks (default 0).
         """
         if bt is None:
             bt, gamma = self.walls()
         v_pc = self.v if v_pc is None else v_pc
-        grad_v, _ = self._consistent(bt, gamma, np.ascontiguousarray(v_pc[:, :2]))  # [a, c, i] = d_i v_c
+        wall = None if wall_velocity is None else wall_velocity(self._feet(bt))
+        grad_v, _ = self._consistent(bt, gamma, np.ascontiguousarray(v_pc[:, :2]), wall)  # [a, c, i] = d_i v_c
         grad_g, _ = self._consistent(bt, gamma, grad_v.reshape(-1, 4), walls=False)  # [a, 2c + i, k]
         lap = np.empty((len(v_pc), 2))
         lap[:, 0] = grad_g[:, 0, 0] + grad_g[:, 1, 1]
@@ -607,18 +611,23 @@ class BISPH:
         (one pair pass for both)."""
         hx, hy = (self.rho0 * self.force[:2] / self.c0**2) if self.hydrostatic else (0.0, 0.0)
         params = dict(self._kernel_params(), hx=float(hx), hy=float(hy))
-        out = MOMENTUM_DIFFUSION.compute(self.nlist, self.r, params, dict(vol_s=self.mass / self.rho, p_s=p,
-                                                                         rho_s=self.rho, v_sc=self.v),
-                                         reach=self.h, kernel=self.kernel)
+        q_pc = np.empty((len(self.r), 5))
+        q_pc[:, 0] = self.mass / self.rho
+        q_pc[:, 1] = p
+        q_pc[:, 2] = self.rho
+        q_pc[:, 3:] = self.v[:, :2]
+        terms = MOMENTUM_DIFFUSION.compute(self.nlist, self.r, params, dict(q_sc=q_pc), reach=self.h,
+                                           kernel=self.kernel).terms
         div_w, gp_w, lap_w = self._wall_sums(bt, self.v, self.rho, p)
         acc = np.zeros_like(self.v)
         if self.viscosity == "pcg":
             acc[:, :2] = (self.mu / self.rho)[:, None] * self.laplacian(self.v, bt, gamma) \
-                - (out.grad_p + gp_w) / (self.rho * gamma)[:, None]
+                - (terms[:, 0:2] + gp_w) / (self.rho * gamma)[:, None]
         else:
-            acc[:, :2] = (self.mu * (out.lap + lap_w) - (out.grad_p + gp_w)) * (1.0 / (self.rho * gamma))[:, None]
+            acc[:, :2] = (self.mu * (terms[:, 2:4] + lap_w) - (terms[:, 0:2] + gp_w)) * \
+                (1.0 / (self.rho * gamma))[:, None]
         acc += self.force
-        return acc, out.diff
+        return acc, terms[:, 4]
 
     def density_rate(self, bt=None, gamma=None, v_pc=None, wall_velocity=None, diffusion=True):
         """``D rho/Dt`` of Eq. 16 at the current positions and densities with velocities ``v_pc``
@@ -685,8 +694,11 @@ class BISPH:
         p = self.pressure()
         acc, diff = self._momentum(bt, gamma, p)
         self.v += dt * acc
+        q_pc = np.empty((len(self.r), 3))
+        q_pc[:, 0] = self.mass / self.rho
+        q_pc[:, 1:] = self.v[:, :2]
         out = DIVERGENCE.compute(self.nlist, self.r, dict(inv_h=1.0 / self.h, grad_scale=self.kernel.sigma / self.h**3),
-                                 dict(vol_s=self.mass / self.rho, v_sc=self.v), reach=self.h, kernel=self.kernel)
+                                 dict(q_sc=q_pc), reach=self.h, kernel=self.kernel)
         div_w, _, _ = self._wall_sums(bt, self.v, self.rho, p)
         rate = -self.rho / gamma * (out.div + div_w)
         if self.delta > 0:
