@@ -33,8 +33,14 @@ Choices the paper leaves open (stated, each a parameter where it matters):
   spurious Laplacian ``G |grad gamma|`` next to the wall (measured: the Poiseuille profile slipped
   by 15 % of u_max at 20 particles across; 0.85 % with the factor 2). ``eta^2 = 0.01 h_B^2``;
   ``delta_as`` is the particle's distance to segment ``s`` (the floor only guards a particle that
-  Eq. 21 failed to keep off the wall). The particle-consistent-gradient
-  form of the paper's Fig. 14b is **not** implemented.
+  Eq. 21 failed to keep off the wall).
+* **Viscosity, particle-consistent-gradient (PCG) form** (``viscosity="pcg"``, the paper's Fig. 14b and
+  its cylinder array): the paper cites its refs. [3-5] (Liu & Liu 2006; Boregowda & Liu 2023, two papers)
+  without writing the formula out, and those papers are not in our collection, so this is our reading,
+  stated in :meth:`BISPH.laplacian`: ``lap v`` as the divergence of the gradient, each by Eq. 2 in
+  difference form with Liu & Liu's first-order correction matrix (boundary integrals included in the
+  first, whose wall values sit at the kernel-weighted centre of each segment, :meth:`BISPH._feet`):
+  exact for linear velocity fields next to walls, for quadratic ones in the interior only.
 * **Density diffusion**: Molteni & Colagrossi (2009), ``D_a = (delta h_B c0 / gamma_a) sum_b V_b
   psi_ab . grad_a W``, ``psi_ab = 2 (rho_b - rho_a - rho_ba^H) (x_b - x_a)/(r^2 + eta^2)``,
   ``delta = 0.1``. With ``hydrostatic=True`` (tanks under gravity) the hydrostatic density difference
@@ -57,7 +63,8 @@ Choices the paper leaves open (stated, each a parameter where it matters):
   So each step makes two pair passes (Eq. 17, then Eq. 16 with the new velocities).
 
 Periodic axes come with the boundary (``BoundarySegments.with_cell``); positions are wrapped into
-the cell ``[0, L)`` each step. Cost per step is O(N): two pair passes (:class:`~ase_sphrelax.pairs.
+the cell ``[0, L)`` each step. Cost per step is O(N): two pair passes (two more with
+``viscosity="pcg"``) (:class:`~ase_sphrelax.pairs.
 PairInteraction` over a stored Verlet list), the boundary terms of the particles within ``h`` of a
 wall, and a per-(particle, segment) loop.
 """
