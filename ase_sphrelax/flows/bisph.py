@@ -667,7 +667,9 @@ class BISPH:
         next to a re-entrant vertex; the controlled experiment of ``tests/test_bisph.py`` replaces the
         particle sum by a finer quadrature and the error falls with it). ``consistent=True`` divides
         by that first moment instead of ``gamma_a`` (the particle-consistent gradient, :meth:`laplacian`
-        step 1, ``wall_value`` required near walls): exact to rounding for a linear field.
+        step 1): exact to rounding for a linear field, with the wall term (``wall_value``) or without it
+        (``wall_value=None``: the particle-only correction matrix, exact for linear fields too, one-sided;
+        the wall term brings the wall's values in, which matters for the other fields).
         """
         f_p = np.asarray(f_p, dtype=float)
         bt, gamma = self.walls()
