@@ -179,7 +179,8 @@ def test_gradient_of_linear_field_next_to_a_wall():
     exact = np.array([2.0, 3.0])
     dx = 0.05
     measured = {}
-    for name, vertices, bound, fine_bounds in (("box", BOX, 0.03, (0.007, 0.0018)), ("wedge", WEDGE, 0.09, (0.04, 0.016))):
+    cases = (("box", BOX, 0.03, (0.007, 0.0018)), ("wedge", WEDGE, 0.09, (0.04, 0.016)))
+    for name, vertices, bound, fine_bounds in cases:
         walls = BoundarySegments.from_vertices(vertices)
         sim = BISPH(walls, cartesian_fill(walls, dx), dx, c0=10.0, mu=0.0, body_force=(0.0, 0.0))
         _, gamma = sim.walls()

@@ -115,29 +115,10 @@ def _continuity_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, vol_s, rho_s,
 
 
 @numba.njit(cache=True, inline="always")
-def _momentum_pair(a, b, r2, d, inv_h, grad_scale, eta2, vol_s, p_s, v_sc):
-    """Pair sums of Eq. 17 for both partners: ``sum_b V_b (p_a + p_b) grad_a W`` and Morris'
-    ``sum_b 2 V_b v_ab (x_ab . grad_a W)/(r^2 + eta^2)``."""
-    if r2 == 0.0:
-        return (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), ()
-    r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r
-    gax = -gw * d[0]
-    gay = -gw * d[1]
-    dvx = v_sc[b, 0] - v_sc[a, 0]
-    dvy = v_sc[b, 1] - v_sc[a, 1]
-    pp = p_s[a] + p_s[b]
-    k = 2.0 * gw * r2 / (r2 + eta2)
-    va = vol_s[a]
-    vb = vol_s[b]
-    return ((pp * vb * gax, pp * vb * gay, -vb * k * dvx, -vb * k * dvy),
-            (-pp * va * gax, -pp * va * gay, va * k * dvx, va * k * dvy), ())
-
-
-@numba.njit(cache=True, inline="always")
 def _momentum_diffusion_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, q_sc):
-    """:func:`_momentum_pair` and the Molteni-Colagrossi sum of :func:`_continuity_pair` in one pass
-    (:meth:`BISPH.step`: both at ``x^n``, ``rho^n``; the same terms, one kernel evaluation). The
+    """Pair sums of Eq. 17 for both partners, ``sum_b V_b (p_a + p_b) grad_a W`` and Morris'
+    ``sum_b 2 V_b v_ab (x_ab . grad_a W)/(r^2 + eta^2)``, with the Molteni-Colagrossi sum of
+    :func:`_continuity_pair` in the same pass (both at ``x^n``, ``rho^n``: one kernel evaluation). The
     inputs packed per point, ``q_sc = [V, p, rho, v_x, v_y]`` (one cache line per partner), the
     outputs ``[grad_p (2), lap (2), diff]``."""
     if r2 == 0.0:
@@ -199,8 +180,6 @@ def _consistent_pair(a, b, r2, d, inv_h, grad_scale, vol_s, f_sc):
 _KERNEL_PARAMS = ("inv_h", "grad_scale", "eta2")
 CONTINUITY = PairInteraction(_continuity_pair, dict(div=Output(()), diff=Output(())),
                              params=_KERNEL_PARAMS + ("hx", "hy"), inputs=("vol_s", "rho_s", "v_sc"))
-MOMENTUM = PairInteraction(_momentum_pair, dict(grad_p=Output((2,)), lap=Output((2,))),
-                           params=_KERNEL_PARAMS, inputs=("vol_s", "p_s", "v_sc"))
 MOMENTUM_DIFFUSION = PairInteraction(_momentum_diffusion_pair, dict(terms=Output((5,))),
                                      params=_KERNEL_PARAMS + ("hx", "hy"), inputs=("q_sc",))
 DIVERGENCE = PairInteraction(_divergence_pair, dict(div=Output(())), params=("inv_h", "grad_scale"),
