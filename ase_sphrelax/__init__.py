@@ -72,6 +72,8 @@ _WHERE = {
     "ParVICalculator": ".calculators.parvi",
     "ParVISampler": ".sampling.sampler",
     "sample": ".sampling.sampler",
+    # downstream: a start run at rest (BISPH or LAMMPS)
+    "settle": ".flows.settle",
     # the core
     "SphrelaxWarning": ".checks",
     "Kernel": ".kernels",

@@ -41,6 +41,7 @@ COMMANDS = {
     "sample": "ase_sphrelax.cli.sample",
     "density": "ase_sphrelax.cli.density",
     "pack": "ase_sphrelax.cli.pack",
+    "settle": "ase_sphrelax.cli.settle",
     "reproduce": "ase_sphrelax.cli.reproduce",
     "data": "ase_sphrelax.cli.data",
 }
