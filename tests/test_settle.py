@@ -171,3 +171,38 @@ def test_tank_walls_lifts_the_lid_along_the_sides():
     assert np.allclose(lifted.loops[0], [[0.3, 0], [1.7, 0], [1.9, 0.5], [2.1, 1.0], [-0.1, 1.0], [0.1, 0.5]])
     assert lifted.area == pytest.approx(trapezoid.area + 0.5 * (1.8 + 2.2) / 2)
     assert tank_walls(trapezoid, surface=0.3, lift=0.5) is trapezoid  # a tank taller than the water: as given
+
+
+def test_periodic_runs_without_gravity_and_needs_c0(tmp_path):
+    """A channel periodic in x (atoms.pbc, the cell's length as the period): no gravity, P_B drives a jittered start."""
+    import ase_sphrelax
+    from ase_sphrelax.boundary import as_boundary
+    from ase_sphrelax.drivers.bipi_packer import initial_fill
+
+    edges = tmp_path / "channel.edges"
+    edges.write_text("0 0 0.8 0\n0.8 0 0.8 0.2\n0.8 0.2 0 0.2\n0 0.2 0 0\n")
+    atoms = initial_fill(as_boundary(edges), DX)
+    atoms.positions[:, :2] += np.random.default_rng(2).uniform(-0.05, 0.05, (len(atoms), 2)) * DX
+    atoms.set_cell([0.8, 0.2, 0.0])
+    atoms.pbc = [True, False, False]
+    with pytest.raises(ValueError, match="^c0: a periodic start without gravity has no velocity scale"):
+        ase_sphrelax.settle(atoms, edges, DX, t_end=0.05)
+    with pytest.raises(ValueError, match="^solver: periodic particles"):
+        ase_sphrelax.settle(atoms, edges, DX, solver="lammps", t_end=0.05, c0=1.0)
+    record = ase_sphrelax.settle(atoms, edges, DX, t_end=0.05, c0=1.0, progress=False)
+    assert record["periodic"] == [True, False] and record["g"] == 0.0 and record["p_background"] == pytest.approx(10.0)
+    assert record["ke_history"][0][1] == 0.0 and record["ke_final"] > 0 and record["stable"]
+    assert record["pressure_error"] > 0 and record["n_fluid"] == len(atoms)
+
+
+def test_a_start_that_blows_up_is_the_noisier(scene):
+    """A particle on the floor (Eq. 21 doubles its wall density): BISPH stops it in the first steps, and the
+    comparison calls the Cartesian start calmer whatever the KE ratio before the stop."""
+    import ase_sphrelax
+
+    atoms = read(scene / "jittered.extxyz")
+    atoms.positions[np.argmin(atoms.positions[:, 1]), 1] = 1e-9
+    record = ase_sphrelax.settle(atoms, scene / "tank.edges", DX, t_end=T_END, compare="cartesian", progress=False)
+    assert not record["stable"] and record["ke_history"][-1][0] < T_END
+    assert record["compare"]["stable"] and record["compare"]["calmer"] == "cartesian"
+    assert "was unstable" in record["compare"]["verdict"]

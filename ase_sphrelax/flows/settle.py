@@ -20,7 +20,9 @@ walls continued along their own direction (the walls above the water are never r
 ``min(top, y_max + dx/2)`` (``y_max`` the highest fluid particle).
 
 Periodic input (``atoms.pbc`` along x or y, the cell's lengths as periods, as ``sphrelax pack
---periodic`` writes): no gravity, BISPH only, ``c0`` must be given (there is no velocity scale).
+--periodic`` writes): no gravity, BISPH only, ``c0`` must be given (there is no velocity scale), and the
+background pressure ``P_B`` (Eq. 18) defaults to ``rho0 (c0/10)^2``: without gravity the uniform start
+density gives a uniform pressure, and only ``P_B`` makes the pair sums of a disordered start non-zero.
 
 The record (a dict; ``summary.json`` of ``sphrelax settle``):
 
@@ -34,8 +36,11 @@ The record (a dict; ``summary.json`` of ``sphrelax settle``):
 * with ``compare="cartesian"``, ``compare``: the same run from the Cartesian start of the same water
   region (BIPI's Step 1: :func:`~ase_sphrelax.drivers.bipi_packer.initial_fill` at the same dx, below the
   same surface; for LAMMPS with the input's wall particles), its ``ke_mean``, ``ke_final``,
-  ``ke_history``, ``pressure_error``, ``max_drop``, ``n_fluid``, and ``ke_ratio`` = ``ke_mean`` of the
-  input over the Cartesian start's, ``calmer`` and ``verdict`` (a sentence).
+  ``ke_history``, ``pressure_error``, ``max_drop``, ``n_fluid``, ``stable``, and ``ke_ratio`` = ``ke_mean`` of
+  the input over the Cartesian start's, ``calmer`` and ``verdict`` (a sentence; an unstable run is the noisier
+  whatever its ratio);
+* ``stable`` (False when a BISPH run diverged or passed Mach 1, when LAMMPS found it unstable, or when the
+  KE passed :data:`KE_LIMIT` ``M g H``) and ``stability_reason``.
 
 Bad input is refused before any run with a one-line ValueError naming the parameter: no fluid particle,
 no wall particles for ``lammps``, particles not in the boundary's plane or outside it, ``dx`` not the
@@ -210,14 +215,14 @@ def _displacements(start, end, dx, pbc, cell):
     return drop, moved
 
 
-def _run_bisph(x, boundary, dx, h, t_end, rho0, g, c0, mu, surface, depth, pbc, cell, samples, progress):
+def _run_bisph(x, boundary, dx, h, t_end, rho0, g, c0, mu, p_b, surface, depth, pbc, cell, samples, progress):
     from .bisph import BISPH
     from .scene import tank
 
     if pbc.any():
         walls = boundary.with_cell([bool(pbc[0]), bool(pbc[1])], [cell[0, 0], cell[1, 1]], quiet=True)
         sim = BISPH(walls, x, dx, rho0=rho0, c0=c0, mu=mu, body_force=(0.0, 0.0), h_over_dx=h / dx,
-                    hydrostatic=False)
+                    hydrostatic=False, p_background=p_b, density=np.full(len(x), rho0))
     else:
         walls = tank_walls(boundary, surface, lift=depth)
         sim = tank(walls, x, dx, surface, g=g, c0=c0, mu=mu, rho0=rho0, h_over_dx=h / dx)
@@ -225,7 +230,8 @@ def _run_bisph(x, boundary, dx, h, t_end, rho0, g, c0, mu, surface, depth, pbc, 
     ke_history, error, diverged = _integrate(sim, t_end, samples, progress)
     if pbc.any():
         p = sim.pressure()
-        error = float(np.sqrt(np.mean((p - p.mean()) ** 2)) / (rho0 * (sim.c0 / 10.0) ** 2))
+        error = float(np.sqrt(np.mean((p - p.mean()) ** 2)) / (rho0 * (sim.c0 / 10.0) ** 2)) if np.all(np.isfinite(p)) \
+            else float("nan")
     else:
         error = error / (rho0 * g * depth)
     drop, moved = _displacements(start, sim.r, dx, pbc, cell)
@@ -297,7 +303,7 @@ def _summarise(run, scale):
     return run
 
 
-def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples):
+def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples, p_background=None):
     """The checks of :func:`settle` and what its runs need (nothing is run)."""
     from ..boundary import as_boundary
     from ..checks import check_positive
@@ -309,6 +315,9 @@ def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples):
     if not (isinstance(samples, (int, np.integer)) and samples >= 1):
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
     kinds, x, pbc = _check(atoms, boundary, dx, h, solver, g, c0, compare)
+    if not pbc.any() and p_background not in (None, 0, 0.0):
+        raise ValueError(f"p_background = {p_background!r}: only for periodic input (the tank starts hydrostatic "
+                         "with P_B = 0, as reproductions/bipi-wedge-bisph)")
     cell = np.asarray(atoms.cell.array, dtype=float)
     top = float(boundary.bounds[1][1])
     surface = min(top, float(x[:, 1].max()) + 0.5 * dx)
@@ -324,13 +333,13 @@ def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples):
 
 
 def check_settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None, g=9.81, c0=None, samples=200,
-                 **_):
+                 p_background=None, **_):
     """Every check of :func:`settle` (same arguments), without running: raises what it would raise."""
-    _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples)
+    _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples, p_background)
 
 
 def settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None, rho0=1000.0, g=9.81, c0=None,
-           mu=10.0, alpha=0.5, samples=200, progress=True):
+           mu=10.0, alpha=0.5, p_background=None, samples=200, progress=True):
     """Run ``atoms`` at rest in the tank ``boundary`` and return the record (module docstring).
 
     Parameters
@@ -353,6 +362,9 @@ def settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None,
     rho0, g, c0, mu, alpha : float
         Density, gravity, sound speed (default per solver, module docstring), BISPH's viscosity (Pa s),
         LAMMPS' artificial viscosity.
+    p_background : float or None
+        BISPH's ``P_B`` (Eq. 18, Pa), periodic input only: default ``rho0 (c0/10)^2`` (without gravity a
+        uniform density has uniform pressure, so only ``P_B`` lets a disordered start move); a tank has 0.
     samples : int
         KE samples over the run.
     progress : bool
@@ -372,19 +384,21 @@ def settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None,
         ``solver="lammps"`` without a usable LAMMPS.
     """
     boundary, dx, h, t_end, kinds, x, pbc, cell, surface, depth = _setup(atoms, boundary, dx, solver, t_end, h,
-                                                                          compare, g, c0, samples)
+                                                                          compare, g, c0, samples, p_background)
     record = dict(solver=solver, dx=float(dx), h=float(h), h_over_dx=float(h / dx), t_end=float(t_end),
                   rho0=float(rho0), g=0.0 if pbc.any() else float(g), periodic=pbc.tolist(),
                   surface=None if pbc.any() else surface, depth=None if pbc.any() else depth)
 
     def run(positions, kinds_run, atoms_run):
         if solver == "bisph":
-            return _run_bisph(positions, boundary, dx, h, t_end, rho0, g, c0, mu, surface, depth, pbc, cell,
-                              samples, progress)
+            return _run_bisph(positions, boundary, dx, h, t_end, rho0, g, c0, mu, p_background, surface, depth, pbc,
+                              cell, samples, progress)
         return _run_lammps(atoms_run, kinds_run, dx, h, t_end, rho0, g, c0, alpha, surface, depth, samples, progress)
 
     if solver == "bisph":
-        record["mu"] = float(mu)
+        if pbc.any():
+            p_background = rho0 * (c0 / 10.0) ** 2 if p_background is None else float(p_background)
+        record.update(mu=float(mu), p_background=float(p_background or 0.0))
     def scale(n):  # M g H of n fluid particles (0: periodic, no limit)
         return 0.0 if pbc.any() else rho0 * dx * dx * n * g * depth
 
@@ -412,14 +426,25 @@ def _cartesian(atoms, kinds, boundary, dx, surface):
 def _compare(atoms, kinds, boundary, dx, surface, record, run, scale):
     cart = _cartesian(atoms, kinds, boundary, dx, surface)
     kinds_c = cart.arrays["type"]
-    other = _summarise(run(cart.positions[kinds_c == FLUID, :2], kinds_c, cart), scale(int((kinds_c == FLUID).sum())))
+    fluid = kinds_c == FLUID
+    other = _summarise(run(cart.positions[fluid, :2], kinds_c, cart), scale(int(fluid.sum())))
     ratio = record["ke_mean"] / other["ke_mean"] if other["ke_mean"] > 0 else float("inf")
-    if ratio < 1:
-        calmer, verdict = "input", f"the input is calmer: its run-averaged KE is {1 / ratio:.3g}x below the Cartesian start's"
+    mine, theirs = record["stable"], other["stable"]
+    if mine != theirs:  # a run that blew up is the noisier, whatever its KE before it stopped
+        calmer = "input" if mine else "cartesian"
+        verdict = (f"the {'input' if mine else 'Cartesian start'} is calmer: the "
+                   f"{'Cartesian start' if mine else 'input'} was unstable "
+                   f"({(other if mine else record)['stability_reason']})")
+    elif ratio < 1:
+        calmer = "input"
+        verdict = f"the input is calmer: its run-averaged KE is {1 / ratio:.3g}x below the Cartesian start's"
     elif ratio > 1:
-        calmer, verdict = "cartesian", f"the Cartesian start is calmer: its run-averaged KE is {ratio:.3g}x below the input's"
+        calmer = "cartesian"
+        verdict = f"the Cartesian start is calmer: its run-averaged KE is {ratio:.3g}x below the input's"
     else:
         calmer, verdict = "equal", "the two starts have the same run-averaged KE"
+    if not (mine or theirs):
+        verdict += " (both runs were unstable)"
     keep = ("ke_history", "ke_mean", "ke_final", "ke_max", "pressure_error", "max_drop", "max_displacement",
             "n_fluid", "steps", "stable", "stability_reason")
     return dict({k: other[k] for k in keep if k in other}, start="cartesian", ke_ratio=float(ratio), calmer=calmer,
