@@ -434,7 +434,7 @@ def _compare(atoms, kinds, boundary, dx, surface, record, run, scale):
         calmer = "input" if mine else "cartesian"
         verdict = (f"the {'input' if mine else 'Cartesian start'} is calmer: the "
                    f"{'Cartesian start' if mine else 'input'} was unstable "
-                   f"({(other if mine else record)['stability_reason']})")
+                   f"({(other if mine else record)['stability_reason']}; KE ratio {ratio:.3g})")
     elif ratio < 1:
         calmer = "input"
         verdict = f"the input is calmer: its run-averaged KE is {1 / ratio:.3g}x below the Cartesian start's"
