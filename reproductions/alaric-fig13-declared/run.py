@@ -60,16 +60,16 @@ class Recorder:
         for step, wall, cpu, x in self.rows:
             row = dict(step=step, wall_s=wall, cpu_s=cpu)
             for b in boundaries:
-                row["epsilon" if b == "mirror" else f"epsilon_{b}"] = declared_epsilon(x, uniform_density, DOMAIN, 2, b)[
-                    "epsilon"]
+                key = "epsilon" if b == "mirror" else f"epsilon_{b}"
+                row[key] = declared_epsilon(x, uniform_density, DOMAIN, 2, b)["epsilon"]
             out.append(row)
         return out
 
 
-def run_wvt(n, steps, seed, schedule, boundary, boundaries=("mirror",)):
+def run_wvt(n, steps, seed, schedule, boundary, boundaries=("mirror",), mu0=None):
     atoms = circle_start(n, seed)
     opt = WVTRelaxation(atoms, uniform_density, 2, steps=steps, weight="r2", domain=DOMAIN, schedule=schedule,
-                        boundary=boundary)
+                        boundary=boundary, mu0=mu0)
     rec = Recorder(opt, atoms, steps)
     opt.attach(rec, interval=1)
     load0 = os.getloadavg()
@@ -79,7 +79,8 @@ def run_wvt(n, steps, seed, schedule, boundary, boundaries=("mirror",)):
     wall, cpu = rec.rows[-1][1], rec.rows[-1][2]
     x = atoms.positions[:, :2]
     trace = rec.measured(boundaries)
-    return dict(method=f"WVT r^-2 ({schedule}, {boundary})", kind="wvt", schedule=schedule, boundary=boundary,
+    name = f"WVT r^-2 ({schedule}, {boundary}{'' if mu0 is None else f', mu0 {mu0:g}'})"
+    return dict(method=name, kind="wvt", schedule=schedule, boundary=boundary, mu0=float(opt.mu0),
                 steps=int(opt.nsteps), stopped_by_schedule=bool(opt.stopped), mu_end=float(opt.mu),
                 epsilon=trace[-1]["epsilon"], **{f"epsilon_{b}": trace[-1][f"epsilon_{b}"] for b in boundaries
                                                 if b != "mirror"},
