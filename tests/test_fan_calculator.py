@@ -6,15 +6,18 @@ from ase import Atoms
 from ase.calculators.fd import calculate_numerical_forces, calculate_numerical_stress
 
 from ase_sphrelax import FanCalculator
+from ase_sphrelax.boundary import gamma_and_gradient
 from ase_sphrelax.build import periodic_box
 from ase_sphrelax.domains import Box, Circle, Polygon, Sphere
 from ase_sphrelax.kernels import get_kernel
+from ase_sphrelax.models.fan import WALL_WEIGHT
 
 from conftest import random_periodic
 
 
-def brute_force_energy(atoms, h, v0, volume, dim, domain=None):
-    """Eq. 3.8 by an O(N^2) minimum-image double sum (cells larger than 2h)."""
+def brute_force_energy(atoms, h, v0, volume, dim, domain=None, boundary_term="level_set"):
+    """Eq. 3.8 by an O(N^2) minimum-image double sum (cells larger than 2h); ``"gamma"``: the boundary
+    part ``2 v0 kappa (1 - gamma + W1(0) max(phi, 0))`` with gamma from the unmerged segments/triangles."""
     kernel = get_kernel("wendland_c2", dim)
     r_pc = atoms.positions[:, :dim]
     d_ppc = r_pc[None] - r_pc[:, None]
@@ -23,7 +26,11 @@ def brute_force_energy(atoms, h, v0, volume, dim, domain=None):
         lengths = np.diag(atoms.cell.array)[:dim]
         d_ppc = d_ppc - np.where(pbc, lengths * np.round(d_ppc / np.where(pbc, lengths, 1.0)), 0.0)
     energy = v0 * v0 * kernel.w(np.linalg.norm(d_ppc, axis=2), h).sum() - volume
-    if domain is not None:
+    if domain is not None and boundary_term == "gamma":
+        gamma_p = gamma_and_gradient(atoms.positions, domain, h)[0]
+        outside_p = np.maximum(domain.phi(atoms.positions), 0.0) * kernel.w1(0.0, h)
+        energy += 2 * v0 * WALL_WEIGHT * (1.0 - gamma_p + outside_p).sum()
+    elif domain is not None:
         energy += 2 * v0 * kernel.w1_tail_integral(-domain.phi(atoms.positions), h).sum()
     return energy
 
@@ -85,12 +92,16 @@ def test_periodic_forces_and_stress_are_exact_derivatives(dim, dx):
     Sphere((0.0, 0.0, 0.0), 0.15),
     Box((0.0, 0.0, 0.0), (0.2, 0.2, 0.1)),
 ], ids=["circle", "box2d", "polygon", "sphere", "box3d"])
-def test_bounded_forces_are_exact_derivatives_inside_and_outside(domain):
-    """Eq. 4.4 is -grad of Eq. 3.8, also for particles outside the domain (phi > 0)."""
+@pytest.mark.parametrize("term", ["level_set", "auto"])
+def test_bounded_forces_are_exact_derivatives_inside_and_outside(domain, term):
+    """Eq. 4.4 is -grad of Eq. 3.8, also for particles outside the domain (phi > 0); the default
+    ("auto": exact gamma for the box and polygon, the level set for the circle and sphere) too."""
     rng = np.random.default_rng(11)
     dx = 0.03 if domain.dim == 2 else 0.04
     atoms = bounded_atoms(domain, 40, rng)
-    calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain, dim=domain.dim)
+    calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain, dim=domain.dim, boundary_term=term)
+    expected = "level_set" if term == "level_set" or isinstance(domain, (Circle, Sphere)) else "gamma"
+    assert calc.model.boundary_term == expected
     atoms.calc = calc
     phi_p = domain.phi(atoms.positions)
     assert (phi_p > 0).sum() >= 3 and (phi_p < 0).sum() >= 3
@@ -100,7 +111,7 @@ def test_bounded_forces_are_exact_derivatives_inside_and_outside(domain):
     np.testing.assert_allclose(forces[:, : domain.dim], numeric[:, : domain.dim], atol=1e-6 * scale)
     assert np.all(forces[:, domain.dim:] == 0.0)
     assert atoms.get_potential_energy() == pytest.approx(
-        brute_force_energy(atoms, 2.6 * dx, dx**domain.dim, domain.volume, domain.dim, domain), rel=1e-12)
+        brute_force_energy(atoms, 2.6 * dx, dx**domain.dim, domain.volume, domain.dim, domain, expected), rel=1e-12)
 
 
 def test_energy_matches_brute_force_double_sum():

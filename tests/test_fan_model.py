@@ -65,7 +65,7 @@ def test_boundary_force_is_minus_the_gradient_of_the_boundary_energy(domain):
     dim = domain.dim
     lo, hi = domain.bounds
     h, v0 = 0.15 * (hi - lo).min(), 0.1**dim
-    model = FanModel(h, 0.1, domain, dim)
+    model = FanModel(h, 0.1, domain, dim, boundary_term="level_set")
     rng = np.random.default_rng(3)
     r_pc = np.zeros((60, 3))
     r_pc[:, :dim] = rng.uniform(lo - 0.3, hi + 0.3, (60, dim))

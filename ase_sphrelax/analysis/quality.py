@@ -14,6 +14,14 @@ for bounded domains the distances of the boundary-layer particles
 expects at half a layer spacing (``dp/2`` for a square lattice, ``sqrt(3)/4``
 times the neighbour distance for a hexagonal one).
 
+Next to walls (the particles whose support the boundary cuts, ``phi_i > -h``) the kernel sums
+are judged with the continuum completed beyond the wall (issue 33 item 3): with ``gamma_i`` the
+exact kernel volume fraction of the boundary (BIPI Eq. 2-3, :mod:`ase_sphrelax.boundary`),
+``|sum_j V_j W_ij + (1 - gamma_i) - 1|`` and ``h |sum_j V_j grad_i W_ij - grad gamma_i|`` should
+vanish there as the plain sums do inside. ``gamma`` comes from the domain's boundary elements
+(Polygon, Box, polygonal CSG, Mesh), from an inscribed 1024-gon for a Circle; other domains
+(Sphere) get None for these metrics.
+
 The dimension follows the package's one rule (:func:`ase_sphrelax.checks.resolve_dim`):
 ``dim=None`` takes the domain's, else infers it from the atoms; a mismatch is an error.
 A metric over an empty set of particles (no interior particle, no boundary layer) is None,
@@ -68,6 +76,9 @@ class Quality:
         Level set at the particles.
     boundary_distance_b : ndarray
         ``-phi / dp`` of the boundary-layer particles (empty without a domain).
+    completed_sum_p, completed_error_p, completed_gradient_p : ndarray or None
+        ``sum_j V_j W_ij + 1 - gamma_i``, its distance to 1 and ``h |sum_j V_j grad W_ij - grad gamma_i|`` (None
+        without a domain or without boundary elements for it).
     """
 
     def __init__(self, h, dx=None, domain=None, dim=None, kernel="wendland_c2"):
@@ -97,16 +108,35 @@ class Quality:
         self.kernel_sum_p = v0 * sums.w_p
         self.kernel_sum_error_p = np.abs(self.kernel_sum_p - 1.0)
         self.gradient_error_p = self.h * v0 * np.linalg.norm(sums.grad_pc, axis=1)
+        self.completed_sum_p = self.completed_error_p = self.completed_gradient_p = None
         if self.domain is None:
             self.phi_p = None
             self.interior_p = np.ones(n, dtype=bool)
             self.boundary_distance_b = np.zeros(0)
         else:
+            integrals = self._integrals()
+            if integrals is not None:
+                terms = integrals.compute(nlist, r_pc)
+                self.completed_sum_p = self.kernel_sum_p + (1.0 - terms.gamma_p)
+                self.completed_error_p = np.abs(self.completed_sum_p - 1.0)
+                self.completed_gradient_p = self.h * np.linalg.norm(v0 * sums.grad_pc - terms.grad_gamma_pc, axis=1)
             self.phi_p = np.asarray(self.domain.phi(r_pc), dtype=float)
             self.interior_p = self.phi_p <= -self.h
             layer = -self.phi_p < BOUNDARY_LAYER * self.dp
             self.boundary_distance_b = -self.phi_p[layer] / self.dp
         return self
+
+    def _integrals(self):
+        """Exact gamma of the domain's boundary (the model's, or of a Circle's 1024-gon), or None."""
+        if getattr(self, "_gamma_integrals", False) is not False:
+            return self._gamma_integrals
+        integrals = getattr(self.model, "_integrals", None)
+        if integrals is None and self.dim == 2 and hasattr(self.domain, "to_polygon"):
+            from ..boundary import BoundaryIntegrals
+
+            integrals = BoundaryIntegrals(self.domain.to_polygon(1024), self.h, self.kernel.name)
+        self._gamma_integrals = integrals
+        return integrals
 
     def summary(self):
         """Dictionary of the headline numbers (means and maxima over interior particles).
@@ -126,6 +156,7 @@ class Quality:
             "kernel_sum_std": float(np.std(self.kernel_sum_p[inside])) if inside.any() else None,
             "gradient_error_mean": _mean(self.gradient_error_p[inside]),
             "gradient_error_max": _max(self.gradient_error_p[inside]),
+            "gradient_error_std": float(np.std(self.gradient_error_p[inside])) if inside.any() else None,
         }
         if self.phi_p is not None:
             out.update(
@@ -133,8 +164,20 @@ class Quality:
                 boundary_distance_mean=_mean(self.boundary_distance_b),
                 boundary_distance_min=_min(self.boundary_distance_b),
                 boundary_distance_max=_max(self.boundary_distance_b),
+                boundary_distance_std=float(np.std(self.boundary_distance_b)) if len(self.boundary_distance_b)
+                else None,
                 max_phi_over_dp=float(self.phi_p.max() / self.dp),
                 n_outside=int((self.phi_p > 0).sum()),
+                n_near_wall=int((~inside).sum()),
+            )
+            # next to walls, with the continuum completed beyond them (module docstring); None without gamma
+            near = ~inside
+            done = self.completed_error_p is not None
+            out.update(
+                near_wall_kernel_sum_error_max=_max(self.completed_error_p[near]) if done else None,
+                near_wall_kernel_sum_error_mean=_mean(self.completed_error_p[near]) if done else None,
+                near_wall_kernel_sum_std=float(np.std(self.completed_sum_p[near])) if done and near.any() else None,
+                near_wall_gradient_error_max=_max(self.completed_gradient_p[near]) if done else None,
             )
         return out
 

@@ -11,7 +11,11 @@ gradient is exactly Eq. 3.17 inside and Eq. 4.4 with the boundary term:
 
     F_i = 2 v0 vt sum_{j != i} W'(r_ij) e_ij  -  2 W1(max(-phi_i, 0), h) vt n_i,
 
-with ``e_ij = (x_j - x_i) / r_ij``. Stress (periodic cells, no domain) is the
+with ``e_ij = (x_j - x_i) / r_ij``. That is the ``boundary_term="level_set"`` form; the
+default for domains with boundary elements (Polygon, Box, polygonal CSG, Mesh) replaces
+``I(-phi_i)`` by the exact missing kernel mass ``1 - gamma_i`` of the boundary and the
+boundary force by ``2 vt grad gamma_i`` (:class:`~ase_sphrelax.models.fan.FanModel`), which
+stays exact at corners, tips, edges and vertices (issue 33 item 3). Stress (periodic cells, no domain) is the
 exact strain derivative of ``E`` divided by the cell volume, including the
 ``-V`` term and, when ``dx`` is None, the dependence of ``v0 = V / N`` on the cell.
 """
@@ -51,6 +55,11 @@ class FanCalculator(SPHCalculator):
         Kernel name (:data:`ase_sphrelax.kernels.KERNEL_NAMES`); Fan uses ``"wendland_c2"``.
     skin : float or None
         Verlet skin of the neighbour list (default ``0.1 * h``).
+    boundary_term : {"auto", "gamma", "level_set"}
+        The boundary part of Eq. 3.8 (:class:`~ase_sphrelax.models.fan.FanModel`): ``"gamma"``
+        the exact missing kernel mass ``2 vt (1 - gamma_i)`` of the boundary's segments or
+        triangles, ``"level_set"`` Fan's ``2 vt I(-phi_i)``; ``"auto"`` (default): ``"gamma"``
+        when the domain has boundary elements, else ``"level_set"``.
 
     Notes
     -----
@@ -60,10 +69,13 @@ class FanCalculator(SPHCalculator):
     """
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "stress"]
-    default_parameters = dict(h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None)
+    default_parameters = dict(h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None,
+                              boundary_term="auto")
 
-    def __init__(self, h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None, **kwargs):
-        super().__init__(h=h, dx=dx, domain=domain, dim=dim, kernel=kernel, skin=skin, **kwargs)
+    def __init__(self, h=None, dx=None, domain=None, dim=None, kernel="wendland_c2", skin=None, boundary_term="auto",
+                 **kwargs):
+        super().__init__(h=h, dx=dx, domain=domain, dim=dim, kernel=kernel, skin=skin, boundary_term=boundary_term,
+                         **kwargs)
 
     def _validate_parameters(self):
         super()._validate_parameters()
@@ -103,7 +115,9 @@ class FanCalculator(SPHCalculator):
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
         energies_p += model.self_energy(n, vols.v0, vols.volume) / n
         if model.domain is not None:
-            boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0)
+            # the boundary elements are found on the bins of the neighbour list (not periodic images)
+            nlist = None if any(state.atoms.pbc) else state.nlist
+            boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0, nlist=nlist)
             energies_p += boundary_e_p
             f_pc += boundary_f_pc
             if state.first:  # the first evaluation of these atoms: say so if some are far outside

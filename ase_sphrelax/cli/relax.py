@@ -385,6 +385,9 @@ def _print_quality(before, after):
             ("max  h|Σ V ∇W|  (interior)", "gradient_error_max"),
             ("boundary layer -φ/dp mean", "boundary_distance_mean"),
             ("boundary layer -φ/dp min", "boundary_distance_min"),
+            ("max  |Σ V W + 1 - γ - 1| (walls)", "near_wall_kernel_sum_error_max"),
+            ("std   Σ V W + 1 - γ     (walls)", "near_wall_kernel_sum_std"),
+            ("max  h|Σ V ∇W - ∇γ|    (walls)", "near_wall_gradient_error_max"),
             ("max φ/dp (escape if > 0)", "max_phi_over_dp"),
             ("particles outside (φ > 0)", "n_outside")]
     print(f"{'metric':32s} {'initial':>12s} {'relaxed':>12s}   (n/a: no particle in that set)")

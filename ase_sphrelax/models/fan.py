@@ -12,9 +12,29 @@ where the double sum includes ``i = j``. The model splits ``E`` into
   is Eq. 3.17;
 * the **self part** ``N v0 vt W(0, h) - V`` (:meth:`FanModel.self_energy`), a constant
   of the positions;
-* the **boundary part** ``2 vt I(-phi_i)`` per particle with force
-  ``-2 W1(max(-phi_i, 0), h) vt n_i``, ``n = grad phi`` (last term of Eq. 4.4;
-  :meth:`FanModel.boundary`).
+* the **boundary part** per particle (:meth:`FanModel.boundary`), one of two terms
+  (``boundary_term``):
+
+  - ``"level_set"``: Fan's ``2 vt I(-phi_i)`` with force ``-2 W1(max(-phi_i, 0), h) vt n_i``,
+    ``n = grad phi`` (last term of Eq. 4.4). ``I`` is the flat-wall missing kernel mass: at a
+    corner ``grad phi`` jumps and the force follows the nearer wall only (issue 33 item 3:
+    ``sphrelax relax --domain box`` drove corner particles to 0.04 dx from the walls).
+  - ``"gamma"``: the wall as a continuum of particles of volume ``vt`` beyond the boundary,
+    ``2 vt kappa (1 - gamma_i)``, with ``gamma_i = int_{Omega cap B(x_i, h)} W`` the exact kernel volume
+    fraction of the boundary's segments or triangles (BIPI Eq. 2-3, :mod:`ase_sphrelax.boundary`):
+    the pair energy of particle ``i`` with that continuum (both orders of the double sum). For a
+    flat wall ``1 - gamma`` is ``I`` with the exact projected profile; at corners, tips, 3D
+    edges and vertices it is the exact missing mass, and the force ``2 vt grad gamma_i`` is its
+    exact gradient. A particle outside (``phi > 0``) also gets ``2 vt kappa W1(0, h) phi``, the
+    outside slope of Fan's term, so that it comes back from beyond ``h``. The wall weight
+    ``kappa`` (:data:`WALL_WEIGHT`, 1.1) makes the continuum 10 % stiffer than the particles: with
+    ``kappa = 1`` a relaxed box (576 particles) keeps a few wall-layer particles 0.31 dx from a
+    flat wall (Eq. 2.4 and FIRE alike), with 1.1 none nearer than 0.42 dx; a stiffer wall
+    compresses the interior, which raises the kernel-sum error (``reproductions/fan-corners``).
+
+  ``"auto"`` (the default) takes ``"gamma"`` when the domain has boundary elements (Polygon, Box,
+  polygonal CSG, Mesh) and ``"level_set"`` for curved analytic domains (Circle, Sphere), whose
+  level set has no corner.
 
 Volumes (:meth:`FanModel.volumes`), one rule for every backend: ``V`` is the domain
 volume, else the periodic measure of the cell (length, area or volume spanned by the first
@@ -40,9 +60,11 @@ from ..checks import SphrelaxWarning, check_dim, check_positive, check_skin
 from ..domains.base import Domain
 from ..kernels import get_kernel
 
-__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning"]
+__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning", "BOUNDARY_TERMS", "WALL_WEIGHT"]
 
 SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
+BOUNDARY_TERMS = ("auto", "gamma", "level_set")  # FanModel(boundary_term=...)
+WALL_WEIGHT = 1.1  # kappa of the "gamma" boundary term (module docstring)
 
 
 class ParticlesOutsideWarning(SphrelaxWarning):
@@ -80,6 +102,10 @@ class FanModel:
     dim : {1, 2, 3}
     kernel : str or Kernel
         Kernel name (:data:`ase_sphrelax.kernels.KERNEL_NAMES`); Fan uses ``"wendland_c2"``.
+    boundary_term : {"auto", "gamma", "level_set"}
+        The boundary part of Eq. 3.8 (module docstring): ``"gamma"`` the exact missing kernel mass
+        ``2 vt (1 - gamma)`` of the boundary elements, ``"level_set"`` Fan's ``2 vt I(-phi)``;
+        ``"auto"``: ``"gamma"`` when the domain has boundary elements, else ``"level_set"``.
 
     Raises
     ------
@@ -91,9 +117,15 @@ class FanModel:
     h, dx, domain, dim
         The validated parameters (floats, int).
     kernel : Kernel
+    boundary_term : str or None
+        ``"gamma"`` or ``"level_set"`` as resolved (None without a domain).
+    wall_weight : float
+        ``kappa`` of the ``"gamma"`` term (class attribute, :data:`WALL_WEIGHT`).
     """
 
-    def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2"):
+    wall_weight = WALL_WEIGHT
+
+    def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2", boundary_term="auto"):
         self.dim = check_dim(dim)
         self.kernel = get_kernel(kernel, self.dim)
         self.h = check_positive("h", h)
@@ -104,6 +136,29 @@ class FanModel:
             if getattr(domain, "dim", self.dim) != self.dim:
                 raise ValueError(f"domain is {domain.dim}D but dim={self.dim}")
         self.domain = domain
+        if boundary_term not in BOUNDARY_TERMS:
+            raise ValueError(f"boundary_term must be one of {BOUNDARY_TERMS}, got {boundary_term!r}")
+        self._boundary_term = boundary_term
+        self._integrals = None
+        self.boundary_term = None if domain is None else self._resolve_boundary_term(boundary_term)
+
+    def _resolve_boundary_term(self, boundary_term):
+        """``"gamma"`` or ``"level_set"`` for this domain; builds :attr:`_integrals` for ``"gamma"``."""
+        if boundary_term == "level_set":
+            return "level_set"
+        from ..boundary import BoundaryIntegrals, as_boundary
+
+        try:
+            elements = as_boundary(self.domain)
+            if elements.dim == 2 and elements.periodic is None:
+                elements = elements.merged()  # collinear runs merged: the same integrals over fewer segments
+            self._integrals = BoundaryIntegrals(elements, self.h, self.kernel.name)
+        except (TypeError, ValueError, KeyError, AttributeError) as error:
+            if boundary_term == "gamma":
+                raise ValueError(f"boundary_term='gamma' needs a domain with boundary elements (Polygon, Box, "
+                                 f"polygonal CSG, Mesh): {error}") from None
+            return "level_set"
+        return "gamma"
 
     @classmethod
     def from_parameters(cls, parameters):
@@ -116,7 +171,7 @@ class FanModel:
         """
         p = parameters
         dim = p.dim if p.dim is not None else getattr(p.domain, "dim", 2)
-        model = cls(p.h, p.dx, p.domain, dim, p.kernel)
+        model = cls(p.h, p.dx, p.domain, dim, p.kernel, p.get("boundary_term", "auto"))
         p.h, p.dx = model.h, model.dx
         if p.dim is not None:
             p.dim = model.dim
@@ -126,11 +181,11 @@ class FanModel:
         """The same model in ``dim`` dimensions (self if it already is)."""
         if dim == self.dim:
             return self
-        return type(self)(self.h, self.dx, self.domain, dim, self.kernel.name)
+        return type(self)(self.h, self.dx, self.domain, dim, self.kernel.name, self._boundary_term)
 
     def __repr__(self):
         return (f"FanModel(h={self.h!r}, dx={self.dx!r}, domain={self.domain!r}, dim={self.dim}, "
-                f"kernel={self.kernel.name!r})")
+                f"kernel={self.kernel.name!r}, boundary_term={self._boundary_term!r})")
 
     # -- volumes ---------------------------------------------------------------
     def volumes(self, n, measure=None):
@@ -180,8 +235,8 @@ class FanModel:
         """``N v0 vt W(0, h) - V``: the ``i = j`` terms of Eq. 3.8 and its ``-V``."""
         return float(n * v0 * v0 * self.kernel.w0(self.h) - volume)
 
-    def boundary(self, r_pc, v0, want_forces=True):
-        """Boundary term of Eq. 3.8 per particle and its force (last term of Eq. 4.4).
+    def boundary(self, r_pc, v0, want_forces=True, nlist=None):
+        """Boundary term of Eq. 3.8 per particle and its force (:attr:`boundary_term`).
 
         Parameters
         ----------
@@ -189,18 +244,25 @@ class FanModel:
             Positions in the domain's frame.
         v0 : float
             ``vt = v0``.
+        nlist : NeighborList or None
+            ``"gamma"``: the neighbour list of ``r_pc`` (N, 3), whose bins find the boundary
+            elements within ``h``; None bins the particles once.
 
         Returns
         -------
         e_p : ndarray (N,)
-            ``2 vt I(-phi_i)`` (zeros without a domain).
+            ``"level_set"``: ``2 vt I(-phi_i)``; ``"gamma"``: ``2 vt kappa (1 - gamma_i + W1(0, h) max(phi_i, 0))``
+            (zeros without a domain).
         f_pc : ndarray (N, 3) or None
-            ``-2 W1(max(-phi_i, 0), h) vt n_i`` (None unless ``want_forces``).
+            Its negative gradient: ``-2 W1(max(-phi_i, 0), h) vt n_i`` (Eq. 4.4), or
+            ``2 vt kappa (grad gamma_i - W1(0, h) n_i [phi_i > 0])`` (None unless ``want_forces``).
         """
         r_pc = np.asarray(r_pc, dtype=float)
         n = len(r_pc)
         if self.domain is None:
             return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
+        if self.boundary_term == "gamma":
+            return self._gamma_boundary(r_pc, v0, want_forces, nlist)
         if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
             phi_p, n_pc = self.domain.phi_and_normal(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
         else:
@@ -217,6 +279,34 @@ class FanModel:
         g_p = self.kernel.w1(np.maximum(s_p, 0.0), self.h)
         g_p *= -2.0 * v0
         return e_p, g_p[:, None] * n_pc
+
+    def _gamma_boundary(self, r_pc, v0, want_forces, nlist):
+        """``2 vt (1 - gamma)`` (+ the outside slope) and its negative gradient (:meth:`boundary`)."""
+        from ..neighbors import NeighborList
+
+        n = len(r_pc)
+        r3_pc = np.zeros((n, 3))
+        r3_pc[:, : min(3, r_pc.shape[1])] = r_pc[:, :3]
+        if nlist is None:
+            nlist = NeighborList(self.h)
+            nlist.update(r3_pc, np.zeros((3, 3)), np.zeros(3, dtype=bool), store=False)
+        terms = self._integrals.compute(nlist, r3_pc)
+        weight = 2.0 * v0 * self.wall_weight
+        e_p = weight * (1.0 - terms.gamma_p)
+        f_pc = weight * terms.grad_gamma_pc if want_forces else None
+        out = np.nonzero(terms.chi_p < 1.0)[0]  # outside or on the boundary: the outside slope where phi > 0
+        if len(out):
+            if isinstance(self.domain, Domain):
+                phi_o, n_oc = self.domain.phi_and_normal(r3_pc[out])
+            else:
+                phi_o, n_oc = self.domain.phi_and_normal(np.ascontiguousarray(r3_pc[out, : self.dim]))
+            phi_o = np.asarray(phi_o, dtype=float).reshape(len(out))
+            slope = weight * float(self.kernel.w1(0.0, self.h))
+            e_p[out] += slope * np.maximum(phi_o, 0.0)
+            if want_forces:
+                n_oc = np.asarray(n_oc, dtype=float)
+                f_pc[out, : n_oc.shape[1]] -= (slope * (phi_o > 0.0))[:, None] * n_oc[:, : min(3, n_oc.shape[1])]
+        return e_p, f_pc
 
     def warn_far_outside(self, r_pc, who="FanModel"):
         """Warn (:class:`ParticlesOutsideWarning`) when particles lie more than ``h`` outside the domain.

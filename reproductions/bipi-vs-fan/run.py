@@ -76,7 +76,8 @@ def run(method, boundary, dx, start):
         iterations = len(packer.history)
     else:
         if method.startswith("fan"):
-            atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain)
+            atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain,
+                                       boundary_term="level_set")  # as stored (issue 33: the default is now "gamma")
         else:
             atoms.calc = BIPICalculator(h=h, dx=dx, boundary=boundary)
         name = {"fan-eq2.4": "fan", "fan-lbfgs": "lbfgs", "ebi-fire": "fire", "ebi-lbfgs": "lbfgs"}[method]

@@ -132,7 +132,8 @@ def make_start(name, boundary, dx, h, fill):
         info = dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"], converged=converged,
                     reason=reason, gradc_avg_final=float(packer.final_gradc_avg()))
     elif name == "fan":
-        atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain)
+        atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain,
+                                   boundary_term="level_set")  # as stored (issue 33: the default is now "gamma")
         opt = make_optimizer("fan", atoms)
         opt.run(fmax=0.0, steps=2000)
         info = dict(iterations=opt.nsteps)
