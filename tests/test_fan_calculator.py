@@ -10,14 +10,14 @@ from ase_sphrelax.boundary import gamma_and_gradient
 from ase_sphrelax.build import periodic_box
 from ase_sphrelax.domains import Box, Circle, Polygon, Sphere
 from ase_sphrelax.kernels import get_kernel
-from ase_sphrelax.models.fan import WALL_WEIGHT
+from ase_sphrelax.models.fan import CORE_DISTANCE, CORE_STIFFNESS, WALL_WEIGHT
 
 from conftest import random_periodic
 
 
 def brute_force_energy(atoms, h, v0, volume, dim, domain=None, boundary_term="level_set"):
     """Eq. 3.8 by an O(N^2) minimum-image double sum (cells larger than 2h); ``"gamma"``: the boundary
-    part ``2 v0 kappa (1 - gamma + W1(0) max(phi, 0))`` with gamma from the unmerged segments/triangles."""
+    part ``2 v0 kappa (1 - gamma + W1(0) max(phi, 0) + core)`` with gamma from the unmerged segments/triangles."""
     kernel = get_kernel("wendland_c2", dim)
     r_pc = atoms.positions[:, :dim]
     d_ppc = r_pc[None] - r_pc[:, None]
@@ -28,8 +28,10 @@ def brute_force_energy(atoms, h, v0, volume, dim, domain=None, boundary_term="le
     energy = v0 * v0 * kernel.w(np.linalg.norm(d_ppc, axis=2), h).sum() - volume
     if domain is not None and boundary_term == "gamma":
         gamma_p = gamma_and_gradient(atoms.positions, domain, h)[0]
-        outside_p = np.maximum(domain.phi(atoms.positions), 0.0) * kernel.w1(0.0, h)
-        energy += 2 * v0 * WALL_WEIGHT * (1.0 - gamma_p + outside_p).sum()
+        phi_p = domain.phi(atoms.positions)
+        d0 = CORE_DISTANCE * v0 ** (1 / dim)
+        core_p = CORE_STIFFNESS / (2 * d0 * h) * np.maximum(d0 + phi_p, 0.0) ** 2
+        energy += 2 * v0 * WALL_WEIGHT * (1.0 - gamma_p + np.maximum(phi_p, 0.0) * kernel.w1(0.0, h) + core_p).sum()
     elif domain is not None:
         energy += 2 * v0 * kernel.w1_tail_integral(-domain.phi(atoms.positions), h).sum()
     return energy

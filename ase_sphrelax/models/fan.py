@@ -20,17 +20,26 @@ where the double sum includes ``i = j``. The model splits ``E`` into
     corner ``grad phi`` jumps and the force follows the nearer wall only (issue 33 item 3:
     ``sphrelax relax --domain box`` drove corner particles to 0.04 dx from the walls).
   - ``"gamma"``: the wall as a continuum of particles of volume ``vt`` beyond the boundary,
-    ``2 vt kappa (1 - gamma_i)``, with ``gamma_i = int_{Omega cap B(x_i, h)} W`` the exact kernel volume
+    ``2 vt (1 - gamma_i)``, with ``gamma_i = int_{Omega cap B(x_i, h)} W`` the exact kernel volume
     fraction of the boundary's segments or triangles (BIPI Eq. 2-3, :mod:`ase_sphrelax.boundary`):
     the pair energy of particle ``i`` with that continuum (both orders of the double sum). For a
     flat wall ``1 - gamma`` is ``I`` with the exact projected profile; at corners, tips, 3D
     edges and vertices it is the exact missing mass, and the force ``2 vt grad gamma_i`` is its
-    exact gradient. A particle outside (``phi > 0``) also gets ``2 vt kappa W1(0, h) phi``, the
-    outside slope of Fan's term, so that it comes back from beyond ``h``. The wall weight
-    ``kappa`` (:data:`WALL_WEIGHT`, 1.1) makes the continuum 10 % stiffer than the particles: with
-    ``kappa = 1`` a relaxed box (576 particles) keeps a few wall-layer particles 0.31 dx from a
-    flat wall (Eq. 2.4 and FIRE alike), with 1.1 none nearer than 0.42 dx; a stiffer wall
-    compresses the interior, which raises the kernel-sum error (``reproductions/fan-corners``).
+    exact gradient. Two short terms complete it:
+
+    * a particle outside (``phi > 0``) gets ``2 vt W1(0, h) phi``, the outside slope of Fan's
+      term, so that it comes back from beyond ``h``;
+    * a contact core ``2 vt (B / (2 d0 h)) max(d0 + phi_i, 0)^2`` with ``d0 = CORE_DISTANCE dp``
+      (0.4, ``dp = vt^(1/d)``) and ``B = CORE_STIFFNESS`` (2): zero for particles at least ``d0`` from
+      the boundary, at the wall a force ``B`` times the scale ``2 vt / h`` of the continuum's. The
+      continuum alone is soft: a relaxed box (576 particles) kept wall-layer particles 0.31 dx from
+      a flat wall (Eq. 2.4 and FIRE alike), a cube 0.22 dx; with the core none is nearer than
+      0.35 dx (``reproductions/fan-corners``). Its gradient is ``-grad phi`` times a factor that
+      vanishes beyond ``d0``, so it jumps only where ``grad phi`` does within ``d0`` of the wall:
+      on the bisector of a convex corner, within ``d0 / sin(alpha / 2)`` of its vertex (a set of
+      measure zero; there E is continuous and its one-sided gradients are the two walls').
+
+    :attr:`FanModel.wall_weight` (``kappa``, 1) scales the whole ``"gamma"`` term.
 
   ``"auto"`` (the default) takes ``"gamma"`` when the domain has boundary elements (Polygon, Box,
   polygonal CSG, Mesh) and ``"level_set"`` for curved analytic domains (Circle, Sphere), whose
@@ -60,11 +69,14 @@ from ..checks import SphrelaxWarning, check_dim, check_positive, check_skin
 from ..domains.base import Domain
 from ..kernels import get_kernel
 
-__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning", "BOUNDARY_TERMS", "WALL_WEIGHT"]
+__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning", "BOUNDARY_TERMS", "WALL_WEIGHT", "CORE_DISTANCE",
+           "CORE_STIFFNESS"]
 
 SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
 BOUNDARY_TERMS = ("auto", "gamma", "level_set")  # FanModel(boundary_term=...)
-WALL_WEIGHT = 1.1  # kappa of the "gamma" boundary term (module docstring)
+WALL_WEIGHT = 1.0  # kappa of the "gamma" boundary term (module docstring)
+CORE_DISTANCE = 0.4  # d0 / dp of the "gamma" term's contact core
+CORE_STIFFNESS = 2.0  # B of the contact core (at the wall: B times the scale 2 vt / h of the continuum's force)
 
 
 class ParticlesOutsideWarning(SphrelaxWarning):
@@ -119,11 +131,13 @@ class FanModel:
     kernel : Kernel
     boundary_term : str or None
         ``"gamma"`` or ``"level_set"`` as resolved (None without a domain).
-    wall_weight : float
-        ``kappa`` of the ``"gamma"`` term (class attribute, :data:`WALL_WEIGHT`).
+    wall_weight, core_stiffness : float
+        ``kappa`` and ``B`` of the ``"gamma"`` term (class attributes, :data:`WALL_WEIGHT`,
+        :data:`CORE_STIFFNESS`; ``reproductions/fan-corners`` sets them per instance to compare).
     """
 
     wall_weight = WALL_WEIGHT
+    core_stiffness = CORE_STIFFNESS
 
     def __init__(self, h, dx=None, domain=None, dim=2, kernel="wendland_c2", boundary_term="auto"):
         self.dim = check_dim(dim)
@@ -251,11 +265,13 @@ class FanModel:
         Returns
         -------
         e_p : ndarray (N,)
-            ``"level_set"``: ``2 vt I(-phi_i)``; ``"gamma"``: ``2 vt kappa (1 - gamma_i + W1(0, h) max(phi_i, 0))``
+            ``"level_set"``: ``2 vt I(-phi_i)``; ``"gamma"``: ``2 vt kappa (1 - gamma_i + W1(0, h) max(phi_i, 0)
+            + B max(d0 + phi_i, 0)^2 / (2 d0 h))`` (module docstring)
             (zeros without a domain).
         f_pc : ndarray (N, 3) or None
             Its negative gradient: ``-2 W1(max(-phi_i, 0), h) vt n_i`` (Eq. 4.4), or
-            ``2 vt kappa (grad gamma_i - W1(0, h) n_i [phi_i > 0])`` (None unless ``want_forces``).
+            ``2 vt kappa (grad gamma_i - (W1(0, h) [phi_i > 0] + B max(d0 + phi_i, 0) / (d0 h)) n_i)``
+            (None unless ``want_forces``).
         """
         r_pc = np.asarray(r_pc, dtype=float)
         n = len(r_pc)
@@ -294,18 +310,23 @@ class FanModel:
         weight = 2.0 * v0 * self.wall_weight
         e_p = weight * (1.0 - terms.gamma_p)
         f_pc = weight * terms.grad_gamma_pc if want_forces else None
-        out = np.nonzero(terms.chi_p < 1.0)[0]  # outside or on the boundary: the outside slope where phi > 0
-        if len(out):
+        # the contact core (within d0 of the wall, outside included) and the outside slope (phi > 0)
+        d0 = CORE_DISTANCE * v0 ** (1.0 / self.dim)
+        near = np.nonzero(terms.gamma_p < 1.0)[0]  # within h of the boundary or outside: phi > -d0 only here
+        if len(near):
             if isinstance(self.domain, Domain):
-                phi_o, n_oc = self.domain.phi_and_normal(r3_pc[out])
+                phi_o, n_oc = self.domain.phi_and_normal(r3_pc[near])
             else:
-                phi_o, n_oc = self.domain.phi_and_normal(np.ascontiguousarray(r3_pc[out, : self.dim]))
-            phi_o = np.asarray(phi_o, dtype=float).reshape(len(out))
+                phi_o, n_oc = self.domain.phi_and_normal(np.ascontiguousarray(r3_pc[near, : self.dim]))
+            phi_o = np.asarray(phi_o, dtype=float).reshape(len(near))
             slope = weight * float(self.kernel.w1(0.0, self.h))
-            e_p[out] += slope * np.maximum(phi_o, 0.0)
+            core = weight * self.core_stiffness / (2.0 * d0 * self.h)
+            x_o = np.maximum(d0 + phi_o, 0.0)
+            e_p[near] += slope * np.maximum(phi_o, 0.0) + core * x_o * x_o
             if want_forces:
                 n_oc = np.asarray(n_oc, dtype=float)
-                f_pc[out, : n_oc.shape[1]] -= (slope * (phi_o > 0.0))[:, None] * n_oc[:, : min(3, n_oc.shape[1])]
+                g_o = slope * (phi_o > 0.0) + 2.0 * core * x_o
+                f_pc[near, : n_oc.shape[1]] -= g_o[:, None] * n_oc[:, : min(3, n_oc.shape[1])]
         return e_p, f_pc
 
     def warn_far_outside(self, r_pc, who="FanModel"):
