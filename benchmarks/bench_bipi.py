@@ -79,7 +79,7 @@ def stage_times(atoms, calc, stages, warm, iterations):
 
 def fan_warm(atoms, h, dx, domain, repeats, dim=2):
     """Best wall and CPU time of a FanCalculator evaluation with its Verlet list reused."""
-    calc = FanCalculator(h=h, dx=dx, domain=domain, boundary_term="level_set")  # as measured (issue 33: default now "gamma")
+    calc = FanCalculator(h=h, dx=dx, domain=domain, boundary_term="level_set")  # as measured (issue 33)
     calc.calculate(atoms, ["energy", "forces"], all_changes)
     calc.calculate(atoms, ["energy", "forces"], all_changes)  # builds the Verlet list
     wall = cpu = np.inf
