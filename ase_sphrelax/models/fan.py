@@ -69,8 +69,8 @@ from ..checks import SphrelaxWarning, check_dim, check_positive, check_skin
 from ..domains.base import Domain
 from ..kernels import get_kernel
 
-__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning", "BOUNDARY_TERMS", "WALL_WEIGHT", "CORE_DISTANCE",
-           "CORE_STIFFNESS"]
+__all__ = ["FanModel", "FanVolumes", "verlet_skin", "ParticlesOutsideWarning", "BOUNDARY_TERMS", "WALL_WEIGHT",
+           "CORE_DISTANCE", "CORE_STIFFNESS"]
 
 SKIN_FRACTION = 0.1  # default Verlet skin: 0.1 h
 BOUNDARY_TERMS = ("auto", "gamma", "level_set")  # FanModel(boundary_term=...)
