@@ -57,6 +57,8 @@ import numpy as np
 __all__ = ["settle", "check_settle", "tank_walls", "SOLVERS", "COMPARE"]
 
 SOLVERS = ("bisph", "lammps")
+#: entry-point group of the solvers other packages plug in (lammps_io's ``lammps``)
+SOLVER_GROUP = "ase_sphrelax.settle_solvers"
 COMPARE = (None, "cartesian")
 #: ``h / dx`` (support) accepted, and the default (the paper's ``h_B = 2 dx``)
 H_OVER_DX_RANGE, H_OVER_DX = (1.5, 6.0), 4.0
@@ -205,7 +207,7 @@ def _mean(ke_history):
     return float(np.trapezoid(ke, t) / (t[-1] - t[0])) if len(t) > 1 and t[-1] > t[0] else float(ke.mean())
 
 
-def _displacements(start, end, dx, pbc, cell):
+def displacements(start, end, dx, pbc, cell):
     d = end[:, :2] - start[:, :2]
     for i in np.nonzero(pbc)[0]:
         length = cell[i, i]
@@ -234,7 +236,7 @@ def _run_bisph(x, boundary, dx, h, t_end, rho0, g, c0, mu, p_b, surface, depth, 
             else float("nan")
     else:
         error = error / (rho0 * g * depth)
-    drop, moved = _displacements(start, sim.r, dx, pbc, cell)
+    drop, moved = displacements(start, sim.r, dx, pbc, cell)
     error = float(error) if np.isfinite(error) else None  # None: the run ended early (JSON has no NaN)
     return dict(ke_history=ke_history, pressure_error=error, max_drop=drop, max_displacement=moved,
                 n_fluid=len(x), steps=int(sim.steps), c0=float(sim.c0), wall_model="boundary integrals (BISPH)",
@@ -273,25 +275,19 @@ def _integrate(sim, t_end, samples, progress):
     return history, error, reason
 
 
-def _run_lammps(atoms, kinds, dx, h, t_end, rho0, g, c0, alpha, surface, depth, samples, progress):
-    import warnings
+def _lammps_solver():
+    """The ``lammps`` solver: the module of the ``ase_sphrelax.settle_solvers`` entry point ``lammps``.
 
-    from lammps_io.sph_flows import hydrostatic_tank, tait_pressure
+    lammps_io depends on ase_sphrelax, never the reverse: it plugs its solver in (``run_tank``, ``check``),
+    as it plugs in its commands and engine.
+    """
+    from importlib.metadata import entry_points
 
-    fluid = kinds == FLUID
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # its instability verdict is recorded in 'stable'
-        out = hydrostatic_tank(atoms, h, dx, rho0=rho0, g=g, c0=c0, alpha=alpha, t_end=t_end, samples=samples,
-                               progress=progress, check_units=False)
-    x_end = out["positions"][fluid]
-    p = tait_pressure(out["density_p"][fluid], rho0, out["c0"])
-    error = float(np.sqrt(np.mean((p - rho0 * g * (surface - x_end[:, 1])) ** 2)) / (rho0 * g * depth))
-    drop, moved = _displacements(atoms.positions[fluid], x_end, dx, np.zeros(2, bool), None)
-    n_wall = int((kinds == WALL).sum())
-    return dict(ke_history=[[float(t), float(k)] for t, k in out["ke_history"]], pressure_error=error,
-                max_drop=drop, max_displacement=moved, n_fluid=int(fluid.sum()), n_wall=n_wall,
-                steps=int(out["steps"]), c0=float(out["c0"]), alpha=float(alpha), stable=bool(out["stable"]),
-                stability_reason=out["stability_reason"], wall_model=f"wall particles ({n_wall}, LAMMPS)")
+    found = [ep for ep in entry_points().select(group=SOLVER_GROUP) if ep.name == "lammps"]
+    if not found:
+        raise ImportError("solver='lammps' needs the lammps_io plug-in (installed with ase_sphrelax: pip install "
+                          "-e .); no 'lammps' entry point in the group " + SOLVER_GROUP)
+    return found[0].load()
 
 
 def _summarise(run, scale):
@@ -326,9 +322,7 @@ def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples, p_bac
         check_positive("depth of the water (surface above the tank's floor)", depth)
         _check_units(depth, g, c0)
     if solver == "lammps":
-        from lammps_io._library import import_lammps
-
-        import_lammps()  # an ImportError (one line) before any work
+        _lammps_solver().check()  # an ImportError (one line) before any work
     return boundary, dx, h, t_end, kinds, x, pbc, cell, surface, depth
 
 
@@ -393,7 +387,7 @@ def settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None,
         if solver == "bisph":
             return _run_bisph(positions, boundary, dx, h, t_end, rho0, g, c0, mu, p_background, surface, depth, pbc,
                               cell, samples, progress)
-        return _run_lammps(atoms_run, kinds_run, dx, h, t_end, rho0, g, c0, alpha, surface, depth, samples, progress)
+        return _lammps_solver().run_tank(atoms_run, kinds_run, dx, h, t_end, rho0, g, c0, alpha, surface, depth, samples, progress)
 
     if solver == "bisph":
         if pbc.any():
