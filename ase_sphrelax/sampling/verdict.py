@@ -12,7 +12,7 @@ evaluation counter (``info["n_check_density"]``, ``info["n_check_score"]``; not 
    the paired differences ``D_a = mean_t f(z_a,t) - f(z_a,0)`` (f averaged along particle a's chain over the second
    half of its steps) have mean zero, so ``t = mean(D) / (sd(D) / sqrt(M))`` is close to N(0, 1). The statistics are the d means and the d (d + 1) / 2 second moments ``z_i z_j`` of the whitened
    particles: K of them. The check fails when one ``|t|`` exceeds the Bonferroni bound ``z_(1 - alpha / (2 K))``
-   with ``alpha =`` :data:`VERDICT_ALPHA` (a false-alarm rate of at most about alpha on exact samples; measured on
+   with ``alpha =`` :data:`VERDICT_ALPHA` / 2 (a false-alarm rate of at most about alpha on exact samples; measured on
    i.i.d. samples of the built-in targets in ``reproductions/parvi-verdict/``). A sample whose mean or covariance
    is off is moved towards p by the chain: its t statistics grow like ``sqrt(M)`` times the share of the bias the
    chain removes in ``steps`` steps (slow directions, e.g. along the banana's arms, are removed slowly).
@@ -24,7 +24,24 @@ evaluation counter (``info["n_check_density"]``, ``info["n_check_score"]``; not 
    assigned to the mode of largest Laplace responsibility, and a mode is **missed** when ``w_k >=``
    :data:`MIN_SHARE` and the particles' share is below :data:`MISSED_FRACTION` of ``w_k``.
 
-:func:`judge_run`: ``converged = at rest and MALA check passed and no mode missed``. A missed mode restarts the
+3. **An importance-sampling comparison** (:func:`importance_check`), for what the chain cannot move: particles
+   stranded far out along a curved arm, where the chain's step (set by the arm's width in the frame of the whole
+   ensemble) is rejected, and which inflate the second moments (the banana of other curvature at rest with
+   var(y) 4.3 against 2.25). ``draws`` points from a proposal q built from the particles (:data:`IS_PROPOSAL`:
+   Gaussian kernel density estimates of them in their whitened frame, at Scott's bandwidth and three times it,
+   and a Gaussian twice as wide as them: q covers p's tails, along curved arms too) give self-normalised
+   importance estimates of
+   ``E_p f`` and ``Var_p f`` for the statistics f: the whitened means, second moments ``z_i z_j`` and tail
+   indicators ``1{|z_i| > 2}``. Each ``t = (mean_a f(z_a) - E_p f) / sqrt(Var_p f / M + var_IS)`` is close to
+   N(0, 1) when the particles follow p; its null variance is p's (not the particles' own heavy tails). The check
+   fails when one ``|t|`` exceeds the Bonferroni bound over its statistics. With an effective sample size below
+   :data:`IS_MIN_ESS` (p far from the particles' cloud, high dimension) it is **inconclusive** and does not fail
+   (``conclusive`` False, the reason says so). Cost: ``draws`` log-density evaluations, no score.
+
+The nominal false-alarm rate :data:`VERDICT_ALPHA` is split in half between checks 1 and 3.
+
+:func:`judge_run`: ``converged = at rest and MALA check passed and importance check passed and no mode
+missed``. A missed mode restarts the
 run once from ``x0`` drawn from the Laplace mixture of the isolated modes found; missed again (or the MALA check
 failing): ``converged`` False, the reason naming the evidence. Without a log-density (or with ``check=False``)
 nothing can be checked and ``converged`` is the fluid at rest, which ``info["verdict"]["checked"]`` says.
@@ -32,17 +49,29 @@ nothing can be checked and ``converged`` is the fluid at rest, which ``info["ver
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import norm
+from scipy.stats import binom, norm
 
 from .finish import ellipsoid_frame, mala_finish
 from .result import CountingTarget
 from .target_checks import _score_or_nan
 
-__all__ = ["mala_check", "mode_search", "judge_run", "VERDICT_ALPHA", "MALA_CHECK_STEPS", "MODE_STARTS", "WIDEN",
-           "MIN_SHARE", "MISSED_FRACTION"]
+__all__ = ["mala_check", "importance_check", "mode_search", "judge_run", "VERDICT_ALPHA", "MALA_CHECK_STEPS",
+           "IS_DRAWS", "IS_PROPOSAL", "IS_MIN_ESS", "MODE_STARTS", "WIDEN", "MIN_SHARE", "MISSED_FRACTION"]
 
-#: The nominal false-alarm rate of the MALA check on exact samples (Bonferroni over its K statistics).
+#: The nominal false-alarm rate of the checks on exact samples: half for the MALA check, half for the importance
+#: check (each Bonferroni over its statistics).
 VERDICT_ALPHA = 0.01
+#: The importance check's draws per particle (at least 4000 in all), its defensive component's widening, and the
+#: effective sample size below which it is inconclusive.
+IS_DRAWS, IS_MIN_ESS = 20, 500
+#: The importance check's tail levels (in p's whitened frame).
+IS_LEVELS = (2.0, 3.0, 4.0, 5.0)
+#: The importance check's proposal: (weight, width) parts; width > 0: a Gaussian kernel density estimate of the
+#: particles with ``width`` times Scott's bandwidth, width < 0: a Gaussian of sd ``-width`` around their mean
+#: (all in their whitened frame; the wider parts cover p's tails, along curved arms too).
+IS_PROPOSAL = ((0.7, 1.0), (0.2, 3.0), (0.1, -2.0))
+#: Particles used as the kernel density's centres (a random subset beyond it: the cost stays O(draws x 1000)).
+IS_CENTRES = 1000
 #: MALA steps per particle of the check.
 MALA_CHECK_STEPS = 100
 #: Starts of the mode search drawn from N(c, WIDEN^2 Sigma) (c, Sigma: the particles' mean and covariance).
@@ -59,7 +88,7 @@ def _statistics(z_pc):
     return np.hstack([z_pc, z_pc[:, iu] * z_pc[:, ju]]), names
 
 
-def mala_check(x_pc, log_density, score, rng, steps=MALA_CHECK_STEPS, alpha=VERDICT_ALPHA):
+def mala_check(x_pc, log_density, score, rng, steps=MALA_CHECK_STEPS, alpha=VERDICT_ALPHA / 2):
     """Do ``steps`` exact MALA steps move the particles' moments beyond their Monte-Carlo error? (module docstring)
 
     Parameters
@@ -113,6 +142,113 @@ def mala_check(x_pc, log_density, score, rng, steps=MALA_CHECK_STEPS, alpha=VERD
                 steps=int(steps), alpha=float(alpha), acceptance=chain["acceptance"], eps=chain["eps_max"],
                 mean_before=x_pc.mean(axis=0).tolist(), mean_after=moved_pc.mean(axis=0).tolist(),
                 var_before=x_pc.var(axis=0, ddof=1).tolist(), var_after=moved_pc.var(axis=0, ddof=1).tolist(),
+                reason=reason)
+
+
+def _is_statistics(z_pc):
+    """The importance check's statistics per point (M, len(IS_LEVELS)): the tail indicators ``1{|z| > a}`` of the
+    whitened radius for a in :data:`IS_LEVELS`, with names (bounded: a heavy-tailed p, e.g. the funnel, has no
+    usable second moments)."""
+    r_p = np.sqrt(np.sum(z_pc * z_pc, axis=1))
+    return np.stack([r_p > a for a in IS_LEVELS], axis=1).astype(float), [f"share of |z| > {a:g}" for a in IS_LEVELS]
+
+
+def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2):
+    """Are the particles' whitened moments and tail shares p's, by importance sampling? (module docstring, check 3)
+
+    Parameters
+    ----------
+    x_pc : ndarray (M, d)
+    log_density : callable
+        Vectorised, in x (counted by the caller's wrapper); the normalising constant is not needed.
+    rng : numpy.random.Generator
+    draws : int or None
+        Proposal draws (log-density evaluations); None: ``max(4000, IS_DRAWS * M)``.
+    alpha : float
+        Nominal false-alarm rate of the whole check (Bonferroni over its statistics).
+
+    Returns
+    -------
+    dict
+        ``passed``, ``conclusive`` (effective sample size >= :data:`IS_MIN_ESS`), ``max_t``, ``bound``, ``worst``,
+        ``statistics``, ``draws``, ``ess``, ``alpha``, ``particle_value`` and ``target_value`` of the worst
+        statistic, ``reason``.
+    """
+    x_pc = np.asarray(x_pc, dtype=float)
+    m, d = x_pc.shape
+    draws = int(max(4000, IS_DRAWS * m) if draws is None else draws)
+    if draws < 1:
+        raise ValueError(f"draws must be >= 1, got {draws}")
+    centre_c, l_cc = ellipsoid_frame(x_pc)
+    z_pc = np.linalg.solve(l_cc, (x_pc - centre_c).T).T
+    kc = z_pc if m <= IS_CENTRES else z_pc[rng.choice(m, size=IS_CENTRES, replace=False)]
+    h = len(kc) ** (-1.0 / (d + 4))  # Scott's rule in the whitened frame
+    weights = np.array([w for w, _ in IS_PROPOSAL])
+    part_n = rng.choice(len(IS_PROPOSAL), size=draws, p=weights / weights.sum())
+    u_nc = np.empty((draws, d))
+    for j, (_, width) in enumerate(IS_PROPOSAL):
+        rows = part_n == j
+        n_j = int(rows.sum())
+        around = np.zeros((n_j, d)) if width < 0 else kc[rng.integers(len(kc), size=n_j)]
+        u_nc[rows] = around + (-width if width < 0 else width * h) * rng.standard_normal((n_j, d))
+    log_q = np.full(draws, -np.inf)
+    for (weight, width) in IS_PROPOSAL:
+        if width < 0:  # the Gaussian around the particles' mean
+            log_c = -0.5 * np.sum(u_nc**2, axis=1) / width**2 - d * np.log(-width)
+        else:
+            s2 = (width * h) ** 2
+            log_c = np.empty(draws)
+            for start in range(0, draws, 2000):  # in blocks: (2000, len(kc)) at a time
+                u = u_nc[start:start + 2000]
+                a = (u @ kc.T - 0.5 * np.sum(kc * kc, axis=1)[None]) / s2  # -|u - k|^2 / (2 s2) + |u|^2 / (2 s2)
+                top = a.max(axis=1)
+                log_c[start:start + 2000] = (np.log(np.exp(a - top[:, None]).sum(axis=1)) + top
+                                             - 0.5 * np.sum(u * u, axis=1) / s2)
+            log_c -= np.log(len(kc)) + 0.5 * d * np.log(s2)
+        log_q = np.logaddexp(log_q, np.log(weight / weights.sum()) + log_c - 0.5 * d * np.log(2.0 * np.pi))
+    with np.errstate(all="ignore"):
+        log_p = np.asarray(log_density(centre_c + u_nc @ l_cc.T), dtype=float).reshape(-1)
+    log_w = np.where(np.isfinite(log_p), log_p - log_q, -np.inf)
+    out = dict(statistics=int(_is_statistics(z_pc[:1])[0].shape[1]), draws=draws, alpha=float(alpha))
+    if not np.any(np.isfinite(log_w)):
+        return dict(out, passed=True, conclusive=False, ess=0.0, max_t=None, worst=None, p_value=None,
+                    reason=f"the importance check is inconclusive: log p is not finite at any of its {draws} draws")
+    w_n = np.exp(log_w - log_w.max())
+    w_n /= w_n.sum()
+    ess = float(1.0 / np.sum(w_n**2))
+    # p's frame (importance estimates of its mean and covariance): the particles and p's draws compared in it
+    mu_c = w_n @ u_nc
+    cov_cc = (u_nc - mu_c).T @ ((u_nc - mu_c) * w_n[:, None]) + 1e-12 * np.eye(d)
+    try:
+        lp_cc = np.linalg.cholesky(cov_cc)
+    except np.linalg.LinAlgError:
+        lp_cc = np.eye(d)
+    f_pk, names = _is_statistics(np.linalg.solve(lp_cc, (z_pc - mu_c).T).T)
+    f_nk = _is_statistics(np.linalg.solve(lp_cc, (u_nc - mu_c).T).T)[0]
+    mean_k = w_n @ f_nk  # p's share beyond each level
+    se_is_k = np.sqrt(np.sum(w_n[:, None] ** 2 * (f_nk - mean_k) ** 2, axis=0))  # the estimate's standard error
+    # p's share, uncertain: N(mean, se^2) at 21 quantiles, floored at 1 / ESS (a region no weighted draw reached)
+    share_jk = np.clip(mean_k + se_is_k * norm.ppf((np.arange(21) + 0.5) / 21.0)[:, None], 1.0 / ess, 1.0)
+    count_k = f_pk.sum(axis=0)
+    p_k = binom.sf(count_k - 1, m, share_jk).mean(axis=0)  # P(at least count_k of M beyond the level)
+    upper_k = share_jk[-1]
+    worst = int(np.argmin(p_k))
+    p_value = float(min(1.0, p_k[worst] * len(p_k)))  # Bonferroni over the statistics
+    max_t = float((count_k[worst] / m - mean_k[worst])
+                  / np.sqrt(max(upper_k[worst] * (1.0 - upper_k[worst]), 1e-300) / m + se_is_k[worst] ** 2))
+    conclusive = ess >= IS_MIN_ESS
+    passed = (p_value > alpha) or not conclusive
+    where = (f"the particles' {names[worst]} (in p's frame) is {f_pk[:, worst].mean():.3g}, p's by importance "
+             f"sampling {mean_k[worst]:.3g} ({draws} draws, effective size {ess:.0f}; to {upper_k[worst]:.3g} at +2 standard errors):"
+             f" {int(count_k[worst])} of {m} particles where {m * mean_k[worst]:.3g} are expected, "
+             f"p-value {p_value:.3g} (binomial, Bonferroni over {len(p_k)} statistics)")
+    if not conclusive:
+        reason = (f"the importance check is inconclusive: its effective sample size {ess:.0f} is below {IS_MIN_ESS} "
+                  f"(p is far from the particles' cloud); {where}")
+    else:
+        reason = f"{where} ({'above' if passed else 'below'} {alpha:g})"
+    return dict(out, passed=bool(passed), conclusive=bool(conclusive), ess=ess, max_t=max_t, worst=names[worst],
+                p_value=p_value, particle_value=float(f_pk[:, worst].mean()), target_value=float(mean_k[worst]),
                 reason=reason)
 
 
@@ -252,23 +388,28 @@ def laplace_draw(laplace, n, rng):
 
 
 def _evidence(x_pc, probe, rng, extra):
-    """The MALA check and the mode search on the particles: ``(mala, modes)``; a failure to run either is a
-    failed check with its reason."""
+    """The MALA check, the importance check and the mode search on the particles: ``(mala, importance, modes)``; a
+    failure to run a check is a failed check with its reason."""
     try:
         mala = mala_check(x_pc, probe.log_density, probe.score, rng)
     except ValueError as error:
         mala = dict(passed=False, reason=f"the MALA check could not run: {error}")
     try:
+        importance = importance_check(x_pc, probe.log_density, rng)
+    except ValueError as error:
+        importance = dict(passed=False, conclusive=False, reason=f"the importance check could not run: {error}")
+    try:
         modes = mode_search(x_pc, probe, rng, extra=extra)
     except (ValueError, np.linalg.LinAlgError) as error:
         modes = dict(missed=[], modes=[], ridges=[], reason=f"the mode search could not run: {error}")
-    return mala, modes
+    return mala, importance, modes
 
 
 def judge_run(sampler, result):
     """``converged`` of a finished run (:class:`~.sampler.ParVISampler`'s ``run``) from the fluid's rest and the
     evidence (module docstring); a missed mode restarts the run once. Returns the (possibly new) result, with
-    ``info["verdict"] = {at_rest, at_rest_reason, checked, mala_check, modes, restarted}``."""
+    ``info["verdict"] = {at_rest, at_rest_reason, checked, check_passed, mala_check, importance_check, modes,
+    restarted}`` (``check_passed``: every check against the target passed, whatever the fluid's rest)."""
     import warnings
 
     from ..checks import NotConvergedWarning
@@ -276,8 +417,8 @@ def judge_run(sampler, result):
     info = result.info
     at_rest, rest_reason = bool(info["converged"]), info["convergence_reason"]
     log_density, score = sampler._callables_x
-    verdict = dict(at_rest=at_rest, at_rest_reason=rest_reason, checked=False, mala_check=None, modes=None,
-                   restarted=None)
+    verdict = dict(at_rest=at_rest, at_rest_reason=rest_reason, checked=False, check_passed=None, mala_check=None,
+                   importance_check=None, modes=None, restarted=None)
     if not sampler.check or log_density is None:
         verdict["note"] = ("check=False" if not sampler.check else "no log_density (the MALA check needs it)") + \
             ": converged means the fluid at rest only"
@@ -287,11 +428,12 @@ def judge_run(sampler, result):
     seed = int(sampler.seed) if isinstance(sampler.seed, (int, np.integer)) else 0
     rng = np.random.default_rng([seed, 31])
     extra = [np.zeros(sampler.dim)] + ([np.asarray(info["start_centre"])] if info.get("start_centre") else [])
-    mala, modes = _evidence(result.samples, probe, rng, extra)
+    mala, importance, modes = _evidence(result.samples, probe, rng, extra)
     info["n_check_density"] = info.get("n_check_density", 0) + probe.n_density
     info["n_check_score"] = info.get("n_check_score", 0) + probe.n_score
     laplace = modes.pop("laplace", None)
-    verdict.update(checked=True, mala_check=mala, modes=modes)
+    verdict.update(checked=True, mala_check=mala, importance_check=importance, modes=modes,
+                   check_passed=bool(mala["passed"] and importance["passed"] and not modes["missed"]))
     if modes["missed"] and sampler._may_restart and laplace is not None:
         # the sampler's own class (no import of sampler.py here: it imports this module)
         again = type(sampler)(**dict(sampler._options, x0=laplace_draw(laplace, sampler.n, rng)))
@@ -310,13 +452,15 @@ def judge_run(sampler, result):
     problems = []
     if not mala["passed"]:
         problems.append(mala["reason"])
+    if not importance["passed"]:
+        problems.append(importance["reason"])
     if modes["missed"]:
         problems.append("missed mode(s): " + modes["reason"]
                         + ("" if sampler._may_restart else " (after a restart from the modes found)"))
     converged = at_rest and not problems
     if converged:
         reason = (f"{rest_reason}; and the samples pass the check against the target: {mala['reason']}; "
-                  f"{modes['reason']}")
+                  f"{importance['reason']}; {modes['reason']}")
     elif at_rest:
         reason = "the fluid is at rest, but the samples fail the check against the target: " + "; ".join(problems)
     else:
