@@ -140,7 +140,9 @@ class AseEngine:
             converged = opt.run(fmax=fmax, steps=args.steps)
         finally:
             bar.close()
-        stop_reason = f"converged: {_fmax_text(args)}" if converged and fmax > 0 else f"reached --steps {args.steps}"
+        cap = (f"reached --steps {args.steps}" if getattr(args, "steps_given", True)
+               else f"reached the default step cap {args.steps} (no --steps given)")
+        stop_reason = f"converged: {_fmax_text(args)}" if converged and fmax > 0 else cap
         return atoms, opt.nsteps, stop_reason
 
 
@@ -249,7 +251,7 @@ def run(args):
         if args.optimizer is None:
             args.optimizer = getattr(engine, "default_optimizer", "fan")
         out = output_folder(args)
-        steps_given = args.steps is not None
+        steps_given = args.steps_given = args.steps is not None
         if not steps_given:
             args.steps = DEFAULT_STEPS
         scene = make_scene(args.domain, args.dim, args.dx, args.jitter, args.seed, max_particles=args.max_particles)
