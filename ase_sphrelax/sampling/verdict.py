@@ -2,7 +2,7 @@
 
 "At rest" (:mod:`.convergence`) is a property of the fluid, not evidence that the particles follow p: a fluid
 trapped in one mode of a mixture, or resting at a biased state, is at rest too. The log-density and the score
-the user gives make two checks possible; :func:`judge_run` runs them on the final particles, with their own
+the user gives make three checks possible; :func:`judge_run` runs them on the final particles, with their own
 evaluation counter (``info["n_check_density"]``, ``info["n_check_score"]``; not the run's cost):
 
 1. **An exact short MALA chain** (:func:`mala_check`). Every particle is moved by ``steps`` Metropolis-adjusted
@@ -10,9 +10,10 @@ evaluation counter (``info["n_check_density"]``, ``info["n_check_score"]``; not 
    covariance factor, its step adapted over the first quarter to an acceptance of 0.574, then fixed: a p-invariant
    kernel, theory.py G3). If the particles follow p, so do the moved ones at every step, and for any statistic f
    the paired differences ``D_a = mean_t f(z_a,t) - f(z_a,0)`` (f averaged along particle a's chain over the second
-   half of its steps) have mean zero, so ``t = mean(D) / (sd(D) / sqrt(M))`` is close to N(0, 1). The statistics are the d means and the d (d + 1) / 2 second moments ``z_i z_j`` of the whitened
-   particles: K of them. The check fails when one ``|t|`` exceeds the Bonferroni bound ``z_(1 - alpha / (2 K))``
-   with ``alpha =`` :data:`VERDICT_ALPHA` / 2 (a false-alarm rate of at most about alpha on exact samples; measured on
+   half of its steps) have mean zero, so ``t = mean(D) / (sd(D) / sqrt(M))`` is close to N(0, 1). The statistics
+   are the d means and the d (d + 1) / 2 second moments ``z_i z_j`` of the whitened particles: K of them. The
+   check fails when one ``|t|`` exceeds the Bonferroni bound ``z_(1 - alpha / (2 K))`` with ``alpha =``
+   :data:`VERDICT_ALPHA` / 2 (a false-alarm rate of at most about alpha on exact samples; measured on
    i.i.d. samples of the built-in targets in ``reproductions/parvi-verdict/``). A sample whose mean or covariance
    is off is moved towards p by the chain: its t statistics grow like ``sqrt(M)`` times the share of the bias the
    chain removes in ``steps`` steps (slow directions, e.g. along the banana's arms, are removed slowly).
@@ -24,27 +25,29 @@ evaluation counter (``info["n_check_density"]``, ``info["n_check_score"]``; not 
    assigned to the mode of largest Laplace responsibility, and a mode is **missed** when ``w_k >=``
    :data:`MIN_SHARE` and the particles' share is below :data:`MISSED_FRACTION` of ``w_k``.
 
-3. **An importance-sampling comparison** (:func:`importance_check`), for what the chain cannot move: particles
-   stranded far out along a curved arm, where the chain's step (set by the arm's width in the frame of the whole
-   ensemble) is rejected, and which inflate the second moments (the banana of other curvature at rest with
-   var(y) 4.3 against 2.25). ``draws`` points from a proposal q built from the particles (:data:`IS_PROPOSAL`:
-   Gaussian kernel density estimates of them in their whitened frame, at Scott's bandwidth and three times it,
-   and a Gaussian twice as wide as them: q covers p's tails, along curved arms too) give self-normalised
-   importance estimates of
-   ``E_p f`` and ``Var_p f`` for the statistics f: the whitened means, second moments ``z_i z_j`` and tail
-   indicators ``1{|z_i| > 2}``. Each ``t = (mean_a f(z_a) - E_p f) / sqrt(Var_p f / M + var_IS)`` is close to
-   N(0, 1) when the particles follow p; its null variance is p's (not the particles' own heavy tails). The check
-   fails when one ``|t|`` exceeds the Bonferroni bound over its statistics. With an effective sample size below
-   :data:`IS_MIN_ESS` (p far from the particles' cloud, high dimension) it is **inconclusive** and does not fail
-   (``conclusive`` False, the reason says so). Cost: ``draws`` log-density evaluations, no score.
+3. **An importance-sampling comparison of the tails** (:func:`importance_check`), for what the chain cannot move:
+   particles stranded far out along a curved arm, where the chain's step (set by the arm's width in the frame of
+   the whole ensemble) is rejected, and which inflate the second moments (the banana of other curvature at rest
+   with var(y) 4.3 against 2.25). ``draws`` points from a proposal q built from the particles (:data:`IS_PROPOSAL`:
+   Gaussian kernel density estimates of them in their whitened frame at Scott's bandwidth and three times it, and
+   a Gaussian twice as wide as them: q covers p's tails, along curved arms too) give self-normalised importance
+   estimates of p's mean and covariance (p's frame, z') and of p's share ``s_a`` beyond each whitened radius
+   ``|z'| > a``, a in :data:`IS_LEVELS`, with its standard error ``se_a``. The statistics are bounded (a
+   heavy-tailed p, e.g. the funnel, has no usable second moments). With ``n_a`` of the M particles beyond a, the
+   one-sided p-value is ``P(Binomial(M, s) >= n_a)`` averaged over ``s ~ N(s_a, se_a^2)`` (21 quantiles, floored at
+   1 / ESS: a region no weighted draw reached); the check fails when the smallest, times the number of levels
+   (Bonferroni), is below ``alpha =`` :data:`VERDICT_ALPHA` / 2. Too few particles in the tails (a collapsed sample)
+   is the MALA check's case: the chain spreads them quickly. With an effective sample size below
+   :data:`IS_MIN_ESS` (p far from the particles' cloud, high dimension) the check is **inconclusive** and does not
+   fail (``conclusive`` False, the reason says so). Cost: ``draws`` log-density evaluations, no score.
 
 The nominal false-alarm rate :data:`VERDICT_ALPHA` is split in half between checks 1 and 3.
 
 :func:`judge_run`: ``converged = at rest and MALA check passed and importance check passed and no mode
-missed``. A missed mode restarts the
-run once from ``x0`` drawn from the Laplace mixture of the isolated modes found; missed again (or the MALA check
-failing): ``converged`` False, the reason naming the evidence. Without a log-density (or with ``check=False``)
-nothing can be checked and ``converged`` is the fluid at rest, which ``info["verdict"]["checked"]`` says.
+missed``. A missed mode restarts the run once from ``x0`` drawn from the Laplace mixture of the isolated modes
+found; missed again (or the MALA or importance check failing): ``converged`` False, the reason naming the
+evidence. Without a log-density (or with ``check=False``) nothing can be checked and ``converged`` is the fluid
+at rest, which ``info["verdict"]["checked"]`` says.
 """
 from __future__ import annotations
 
@@ -56,13 +59,13 @@ from .result import CountingTarget
 from .target_checks import _score_or_nan
 
 __all__ = ["mala_check", "importance_check", "mode_search", "judge_run", "VERDICT_ALPHA", "MALA_CHECK_STEPS",
-           "IS_DRAWS", "IS_PROPOSAL", "IS_MIN_ESS", "MODE_STARTS", "WIDEN", "MIN_SHARE", "MISSED_FRACTION"]
+           "IS_DRAWS", "IS_PROPOSAL", "IS_LEVELS", "IS_MIN_ESS", "MODE_STARTS", "WIDEN", "MIN_SHARE", "MISSED_FRACTION"]
 
 #: The nominal false-alarm rate of the checks on exact samples: half for the MALA check, half for the importance
 #: check (each Bonferroni over its statistics).
 VERDICT_ALPHA = 0.01
-#: The importance check's draws per particle (at least 4000 in all), its defensive component's widening, and the
-#: effective sample size below which it is inconclusive.
+#: The importance check's draws per particle (at least 4000 in all) and the effective sample size below which it is
+#: inconclusive.
 IS_DRAWS, IS_MIN_ESS = 20, 500
 #: The importance check's tail levels (in p's whitened frame).
 IS_LEVELS = (2.0, 3.0, 4.0, 5.0)
@@ -146,15 +149,14 @@ def mala_check(x_pc, log_density, score, rng, steps=MALA_CHECK_STEPS, alpha=VERD
 
 
 def _is_statistics(z_pc):
-    """The importance check's statistics per point (M, len(IS_LEVELS)): the tail indicators ``1{|z| > a}`` of the
-    whitened radius for a in :data:`IS_LEVELS`, with names (bounded: a heavy-tailed p, e.g. the funnel, has no
-    usable second moments)."""
+    """The importance check's statistics per point (M, len(IS_LEVELS)): ``1{|z| > a}`` for a in :data:`IS_LEVELS`,
+    with names."""
     r_p = np.sqrt(np.sum(z_pc * z_pc, axis=1))
     return np.stack([r_p > a for a in IS_LEVELS], axis=1).astype(float), [f"share of |z| > {a:g}" for a in IS_LEVELS]
 
 
 def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2):
-    """Are the particles' whitened moments and tail shares p's, by importance sampling? (module docstring, check 3)
+    """Do the particles hold more of p's tails than p does, by importance sampling? (module docstring, check 3)
 
     Parameters
     ----------
@@ -165,14 +167,15 @@ def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2
     draws : int or None
         Proposal draws (log-density evaluations); None: ``max(4000, IS_DRAWS * M)``.
     alpha : float
-        Nominal false-alarm rate of the whole check (Bonferroni over its statistics).
+        Nominal false-alarm rate of the whole check (Bonferroni over its levels).
 
     Returns
     -------
     dict
-        ``passed``, ``conclusive`` (effective sample size >= :data:`IS_MIN_ESS`), ``max_t``, ``bound``, ``worst``,
-        ``statistics``, ``draws``, ``ess``, ``alpha``, ``particle_value`` and ``target_value`` of the worst
-        statistic, ``reason``.
+        ``passed``, ``conclusive`` (effective sample size >= :data:`IS_MIN_ESS`), ``p_value`` (Bonferroni-adjusted),
+        ``worst`` (its level), ``max_t`` (its excess share in standard errors, for display), ``statistics``,
+        ``draws``, ``ess``, ``alpha``, ``particle_value`` and ``target_value`` (the particles' and p's share beyond
+        the worst level), ``reason``.
     """
     x_pc = np.asarray(x_pc, dtype=float)
     m, d = x_pc.shape
@@ -239,8 +242,8 @@ def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2
     conclusive = ess >= IS_MIN_ESS
     passed = (p_value > alpha) or not conclusive
     where = (f"the particles' {names[worst]} (in p's frame) is {f_pk[:, worst].mean():.3g}, p's by importance "
-             f"sampling {mean_k[worst]:.3g} ({draws} draws, effective size {ess:.0f}; to {upper_k[worst]:.3g} at +2 standard errors):"
-             f" {int(count_k[worst])} of {m} particles where {m * mean_k[worst]:.3g} are expected, "
+             f"sampling {mean_k[worst]:.3g} ({draws} draws, effective size {ess:.0f}; {upper_k[worst]:.3g} at +2 "
+             f"standard errors): {int(count_k[worst])} of {m} particles where {m * mean_k[worst]:.3g} are expected, "
              f"p-value {p_value:.3g} (binomial, Bonferroni over {len(p_k)} statistics)")
     if not conclusive:
         reason = (f"the importance check is inconclusive: its effective sample size {ess:.0f} is below {IS_MIN_ESS} "
