@@ -242,7 +242,7 @@ def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2
     conclusive = ess >= IS_MIN_ESS
     passed = (p_value > alpha) or not conclusive
     where = (f"the particles' {names[worst]} (in p's frame) is {f_pk[:, worst].mean():.3g}, p's by importance "
-             f"sampling {mean_k[worst]:.3g} ({draws} draws, effective size {ess:.0f}; {upper_k[worst]:.3g} at +2 "
+             f"sampling {mean_k[worst]:.3g} ({draws} draws, effective size {ess:.0f}; to {upper_k[worst]:.3g} at +2 "
              f"standard errors): {int(count_k[worst])} of {m} particles where {m * mean_k[worst]:.3g} are expected, "
              f"p-value {p_value:.3g} (binomial, Bonferroni over {len(p_k)} statistics)")
     if not conclusive:
