@@ -322,8 +322,9 @@ class ParVISampler:
         Steps (``"mala"``) or slice updates (``"radial"``) per particle of the finish (default 200).
     check : bool
         True (default): ``converged`` also needs the samples to pass the check against the target
-        (:mod:`.verdict`: an exact MALA chain and a mode search, their evaluations in ``n_check_density`` /
-        ``n_check_score``; a missed mode restarts the run once). False: ``converged`` is the fluid at rest only.
+        (:mod:`.verdict`: an exact MALA chain, an importance-sampling comparison of the tails and a mode search,
+        their evaluations in ``n_check_density`` / ``n_check_score``; a missed mode restarts the run once).
+        False: ``converged`` is the fluid at rest only.
     """
 
     def __init__(self, log_density=None, score=None, dim=2, n=500, formulation=DEFAULTS["formulation"],
