@@ -110,6 +110,7 @@ def test_cli_summary_has_the_evidence_and_exit_3_when_not_converged(tmp_path, is
     summary = json.loads((out / "summary.json").read_text())
     assert code == (0 if summary["converged"] else sample_cli.EXIT_NOT_CONVERGED)
     assert summary["at_rest"] == summary["verdict"]["at_rest"]
+    assert summary["check_passed"] == summary["verdict"]["check_passed"]
     assert set(summary["verdict"]["mala_check"]) >= {"passed", "max_t", "bound", "statistics"}
     assert summary["parameters"]["time_step"] == "local" and summary["parameters"]["score_every"] == "adaptive"
     if not summary["converged"]:

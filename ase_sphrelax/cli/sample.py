@@ -22,9 +22,10 @@ Convergence: ``converged`` needs the fluid at rest (the drift of the ensemble's 
 its kinetic energy over the last half of the run, against their Monte-Carlo standard errors,
 ``ase_sphrelax.sampling.convergence``) and the samples passing a check against the target
 (``ase_sphrelax.sampling.verdict``: a short exact MALA chain from the particles that must not move their means
-and second moments beyond a calibrated bound, and a mode search whose modes the particles must not miss; a
-missed mode restarts the run once from the modes found). summary.json has ``at_rest`` and the check's figures
-under ``verdict``. Before any work the target is checked: a score that points
+and second moments beyond a calibrated bound, an importance-sampling check that the particles' shares beyond
+whitened radii 2-5 match the target's, and a mode search whose modes the particles must not miss; a missed mode
+restarts the run once from the modes found). summary.json has ``at_rest``, ``check_passed`` and the checks'
+figures under ``verdict``. Before any work the target is checked: a score that points
 away from the mass everywhere, or that does not match the central differences of ``--target``'s
 log-density, is a usage error; the initial particles are placed at the scale (and mode) found from
 the score unless ``--init-scale`` is given.
@@ -263,7 +264,8 @@ def run(args):
     (out / "trace.json").write_text(json.dumps(dict(info=info, trace=trace, **costs), indent=1))
     converged = bool(result.info["converged"])
     verdict = info.get("verdict", {})
-    summary.update(converged=converged, at_rest=verdict.get("at_rest"), verdict=verdict,
+    summary.update(converged=converged, at_rest=verdict.get("at_rest"), check_passed=verdict.get("check_passed"),
+                   verdict=verdict,
                    convergence_reason=result.info["convergence_reason"],
                    chosen_step=result.info["chosen_step"], parameters=info, **costs)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
