@@ -25,11 +25,11 @@ from alaric_reproduce import circle_start, uniform_density  # noqa: E402 (the Fi
 
 def run(n, steps, seed, factor):
     atoms = circle_start(n, seed)
-    probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=Circle((0.0, 0.0), 1.0))
+    probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=Circle((0.0, 0.0), 1.0), form="log")
     probe.calculate(atoms.copy(), ["energy"])
     skin = factor * float(np.mean(probe.h_p))
     calc = ALARICCalculator(target_density=uniform_density, target_gradient=lambda x: np.zeros_like(x), dim=2,
-                            domain=Circle((0.0, 0.0), 1.0), skin=skin)
+                            domain=Circle((0.0, 0.0), 1.0), skin=skin, form="log")
     atoms.calc = calc
     dyn = ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0)
     builds_s = []

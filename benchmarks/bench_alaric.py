@@ -121,7 +121,7 @@ def alaric_case(n, dim):
     """(mover, calculator) of a warm ALARIC evaluation: three evaluations done (the second stores the list, the
     third walks it: every loop compiled or loaded from numba's cache)."""
     atoms = system(n, dim)
-    calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=dim, mass=1.0)
+    calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=dim, mass=1.0, form="log")
     atoms.calc = calc
     atoms.get_forces()
     move = Mover(atoms, dim, seed=1)
@@ -275,7 +275,7 @@ sys.path.insert(0, {str(Path(__file__).parent)!r})
 from bench_alaric import system, uniform, no_gradient
 from ase_sphrelax import ALARICCalculator
 atoms = system({n}, 2)
-atoms.calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=2, mass=1.0)
+atoms.calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=2, mass=1.0, form="log")
 atoms.get_forces(); atoms.positions[:, :2] += 1e-3; atoms.get_forces()
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0)
 """
@@ -353,7 +353,7 @@ def dynamics_child(n, steps, factor, boundary, seed):
         atoms = Atoms(numbers=np.zeros(count, int), pbc=False,
                       positions=np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.zeros(count)]))
         calc = ALARICCalculator(target_density=uniform, target_gradient=no_gradient, dim=2,
-                                domain=Circle((0.0, 0.0), 1.0), boundary=boundary)
+                                domain=Circle((0.0, 0.0), 1.0), boundary=boundary, form="log")
         atoms.calc = calc
         return atoms, calc, ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0)
 

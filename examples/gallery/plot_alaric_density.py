@@ -16,7 +16,8 @@ from ase_sphrelax.models.alaric import eq46
 
 atoms, origin, _ = start_atoms(101, dim=1)                  # 1D: atoms.info["dim"] = 1
 density, gradient = eq46(delta=0.1)                          # Eq. 46
-out = sr.relax_density(atoms, density, 1, target_gradient=gradient, origin=origin, max_steps=2000, polish=False)
+out = sr.relax_density(atoms, density, 1, target_gradient=gradient, origin=origin, max_steps=2000, polish=False,
+                       form="log")
 relaxed = out["atoms"]
 print(f"{len(relaxed)} particles, epsilon (Eq. 45) {out['epsilon']:.2e}, stopped: {out['stop_reason']}")
 

@@ -59,7 +59,8 @@ def nn_ratio(x_pd):
 def probe(x_pd, boundary):
     """A fresh calculator on the set: (density, number density, target, H), H solved from scratch."""
     atoms = Atoms(numbers=np.zeros(len(x_pd), int), positions=np.c_[x_pd, np.zeros(len(x_pd))], pbc=False)
-    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=Circle((0.0, 0.0), 1.0), boundary=boundary)
+    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=Circle((0.0, 0.0), 1.0), boundary=boundary,
+                            form="log")
     atoms.calc = calc
     atoms.get_forces()
     r = calc.results

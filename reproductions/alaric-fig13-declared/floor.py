@@ -45,7 +45,7 @@ def split_epsilon(x):
     pos = np.zeros((len(x), 3))
     pos[:, :2] = x[:, :2]
     atoms = Atoms(numbers=np.zeros(len(x), int), positions=pos, pbc=False)
-    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=DOMAIN, boundary="mirror")
+    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=DOMAIN, boundary="mirror", form="log")
     atoms.calc = calc
     atoms.get_forces()
     r = calc.results

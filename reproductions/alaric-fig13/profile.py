@@ -47,12 +47,12 @@ def make(case, n):
 
         atoms = circle_start(n, 0)
         calc = ALARICCalculator(target_density=uniform_density, target_gradient=lambda x: np.zeros_like(x), dim=2,
-                                domain=Circle((0.0, 0.0), 1.0), boundary="mirror")
+                                domain=Circle((0.0, 0.0), 1.0), boundary="mirror", form="log")
     else:
         atoms, _, domain = start_atoms(n, 3, seed=0)
         density, gradient = eq46(0.01)
         calc = ALARICCalculator(target_density=density, target_gradient=gradient, dim=3, domain=domain,
-                                boundary="mirror")
+                                boundary="mirror", form="log")
     atoms.calc = calc
     return atoms, calc
 

@@ -75,7 +75,7 @@ def clean(atoms):
 def start_quality(atoms):
     """ALARIC's epsilon (Eq. 45) of a uniform target and the nearest-neighbour statistics (periodic)."""
     probe = clean(atoms)
-    probe.calc = ALARICCalculator(target_density=uniform_density, dim=2)
+    probe.calc = ALARICCalculator(target_density=uniform_density, dim=2, form="log")
     probe.calc.silence_scale_hint()
     probe.get_forces()
     eps = float(probe.calc.results["epsilon"])
@@ -102,7 +102,7 @@ def build_starts(n_side, seed, alaric_steps, wvt_steps, cache):
         t0 = time.perf_counter()
         if name == "ALARIC":
             res = relax_density(atoms, uniform_density, 2, splits=0, max_steps=alaric_steps, eps_min=0.0,
-                                eps_dot_min=0.0, progress=True)
+                                eps_dot_min=0.0, progress=True, form="log")
             atoms = res["atoms"]
             info = dict(steps=int(res["steps"]), wall_s=time.perf_counter() - t0, stop_reason=res["stop_reason"])
         else:

@@ -8,9 +8,9 @@ PY="env OMP_NUM_THREADS=1 NUMBA_NUM_THREADS=1 nice -n 10 python"
 run() { name=$1; shift; uptime > $D/$name.uptime; $PY "$@" > $D/$name.log 2>&1; uptime >> $D/$name.uptime; }
 
 # (a) the confounder split 0 / split 1 at N = 2075 (CLI, the recipe of fig8_mirror/3d_n2075_after, same caps)
-run a_n2075_split0 -m ase_sphrelax.cli density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 0 \
+run a_n2075_split0 -m ase_sphrelax.cli density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 0 --form log \
   --max-steps 6000 --max-wall 600 --out $D/a_n2075_split0 --overwrite
-run a_n2075_split1 -m ase_sphrelax.cli density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 1 \
+run a_n2075_split1 -m ase_sphrelax.cli density --profile eq46 --delta 0.01 --dim 3 --n 2075 --split 1 --form log \
   --max-steps 6000 --max-wall 600 --out $D/a_n2075_split1 --overwrite
 # (e) split 1 at the paper's size: N = 26 415 = 5283 x 5 (26 411 is not a multiple of 5), tracked every 200 steps;
 # started beside the queue at 09:22 and stopped by hand at its split (step 4000, 09:52) once its stage 0 (N = 5283,

@@ -32,7 +32,7 @@ def run(n, max_steps, centred, finish, delta=0.01):
     density, gradient = model.eq46(delta)
     t0 = time.perf_counter()
     res = relax_density(atoms, density, 2, target_gradient=gradient, splits=1, domain=domain, origin=origin,
-                        polish=False, max_steps=max_steps, finish=finish)
+                        polish=False, max_steps=max_steps, finish=finish, form="log")
     x = res["atoms"].positions[:, :2]
     gap = cKDTree(x).query(x, k=2)[0][:, 1]
     return dict(centred_start=centred, finish=finish, n=len(x), steps=res["steps"], stop=res["stop_reason"],

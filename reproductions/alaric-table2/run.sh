@@ -2,7 +2,7 @@
 # Table 2, ALARIC's dynamics alone (the command): eps_stag per Delta, 101 particles split once to 303.
 # Run from the repository root: sh reproductions/alaric-table2/run.sh
 for d in 0 0.01 0.05 0.1 0.5 1; do
-  sphrelax density --profile eq46 --delta $d --dim 1 --n 303 --split 1 --no-polish \
+  sphrelax density --profile eq46 --delta $d --dim 1 --n 303 --split 1 --no-polish --form log \
     --out reproductions/alaric-table2/results/delta_$d > reproductions/alaric-table2/results/delta_$d.log 2>&1
 done
 # the integral error and the bottom of the well per run (integral.md, integral.json)

@@ -56,7 +56,7 @@ def alaric(n, steps, form, seed, boundary="wall"):
     reached = {f"{thr:g}": _first_below(trace, walls, thr) for thr in (1e-3, 1e-4, 1e-5)}
     eps = eps_of(atoms, calc)
     other = "wall" if boundary == "mirror" else "mirror"  # the same end state seen with the other edge treatment
-    probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=other)
+    probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=other, form="log")
     final = atoms.copy()
     final.calc = probe
     eps_other = eps_of(final, probe)
@@ -87,7 +87,8 @@ def wvt(n, steps, seed):
     loads = dict(load_average_start=load0, load_average_end=os.getloadavg())
     eps = {}
     for boundary in ("wall", "mirror"):  # Eq. 45 with truncated kernels, and with the mirror ghosts
-        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=boundary)
+        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=boundary,
+                                 form="log")
         atoms.calc = probe
         eps[boundary] = eps_of(atoms, probe)
     return dict(method="WVT r^-2", steps=opt.nsteps, epsilon=eps["wall"], epsilon_mirror=eps["mirror"],

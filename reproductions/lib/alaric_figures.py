@@ -116,7 +116,7 @@ def stretch_epsilon(x_p, mirror):
         atoms = Atoms(numbers=np.zeros(n, int), positions=pos, pbc=False)
         origin = None
     atoms.calc = ALARICCalculator(target_density=_stretch_density, target_gradient=_stretch_gradient, dim=1,
-                                  origin=origin, mass=mass)
+                                  origin=origin, mass=mass, form="log")
     atoms.get_potential_energy()
     r = atoms.calc.results
     m44 = model.reset_mass(r["target"], r["number_density"])
@@ -130,7 +130,7 @@ def lattice_bias(n=200):
     pos[:, 0] = (np.arange(n) + 0.5) / n
     atoms = Atoms(numbers=np.zeros(n, int), positions=pos, cell=[1.0, 0.0, 0.0], pbc=[True, False, False])
     atoms.calc = ALARICCalculator(target_density=lambda x: np.ones(len(x)), target_gradient=np.zeros_like, dim=1,
-                                  mass=1.0 / n)
+                                  mass=1.0 / n, form="log")
     atoms.get_potential_energy()
     return float(np.mean(atoms.calc.results["number_density"]) / n - 1.0)
 
@@ -277,7 +277,7 @@ def nn_min_over_mean(x_pd):
 def _probe_epsilon(positions, domain, boundary="wall"):
     """Eq. 45 of a snapshot, the SPH density cut at the circle (``"wall"``) or completed by mirror ghosts."""
     atoms = Atoms(numbers=np.zeros(len(positions), int), positions=positions, pbc=False)
-    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=boundary)
+    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, boundary=boundary, form="log")
     atoms.calc = calc
     return eps_of(atoms, calc)
 
@@ -315,7 +315,7 @@ def figure12(out, quick, command):
     atoms = start.copy()
     # the edge treatment relax_density / sphrelax density pick for a circle (boundary="auto" -> "mirror")
     atoms.calc = ALARICCalculator(target_density=uniform_density, target_gradient=lambda x: np.zeros_like(x), dim=2,
-                                  domain=domain, boundary="mirror")
+                                  domain=domain, boundary="mirror", form="log")
     runs["ALARIC"] = _snapshots(ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0), marks, domain)
     print("Fig. 12 ALARIC: " + ", ".join(f"{k}: {v['epsilon']:.2e}" for k, v in runs["ALARIC"].items()), flush=True)
     fig, axes = plt.subplots(len(runs), len(marks), figsize=(2.6 * len(marks), 2.75 * len(runs)))

@@ -190,7 +190,7 @@ def table2(quick):
         atoms, origin, _ = start_atoms(101, 1)
         density, gradient = model.eq46(delta)
         out = relax_density(atoms, density, 1, target_gradient=gradient, splits=1, origin=origin,
-                            max_steps=6000 if quick else 30000, polish_steps=1000 if quick else 4000)
+                            max_steps=6000 if quick else 30000, polish_steps=1000 if quick else 4000, form="log")
         teo = alaric_min_error(303, delta, 1)
         rows[str(delta)] = dict(delta=delta, teo=teo, eps_dynamics=out["epsilon_dynamics"], eps=out["epsilon"],
                                 steps=out["steps"], stop=out["stop_reason"], wall_s=out["wall_time"],
@@ -273,7 +273,8 @@ def table2_isolate(quick, out, deltas=(0.1,)):
     for delta in deltas:
         start_dir = folder / f"delta_{delta:g}"
         command = [sys.executable, "-m", "ase_sphrelax.cli", "density", "--profile", "eq46", "--delta", f"{delta:g}",
-                   "--dim", "1", "--n", "303", "--split", "1", "--no-polish", "--overwrite", "--out", str(start_dir)]
+                   "--dim", "1", "--n", "303", "--split", "1", "--no-polish", "--form", "log", "--overwrite", "--out",
+                   str(start_dir)]
         subprocess.run(command, check=True, capture_output=True, text=True)
         summary = json.loads((start_dir / "summary.json").read_text())
         relaxed = read(start_dir / "relaxed.extxyz")
@@ -384,7 +385,7 @@ def fig8(quick, out):
         density, gradient = model.eq46(delta)
         cap = {1: 20000, 2: 10000, 3: 1500}[dim] if not quick else 300
         res = relax_density(atoms, density, dim, target_gradient=gradient, splits=1, domain=domain, origin=origin,
-                            polish=dim == 1, max_steps=cap)
+                            polish=dim == 1, max_steps=cap, form="log")
         calc = res["calculator"]
         r = calc.results
         x = calc.points(res["atoms"].positions, res["atoms"])
@@ -418,7 +419,7 @@ def fig10_11(quick, out):
         atoms, origin, domain = start_atoms(n // 4, 2)
         density, gradient = model.eq49(p)
         res = relax_density(atoms, density, 2, target_gradient=gradient, splits=1, domain=domain,
-                            max_steps=600 if quick else 4000)
+                            max_steps=600 if quick else 4000, form="log")
         r = res["calculator"].results
         x = res["atoms"].positions
         axes[0, k].scatter(x[:, 0], x[:, 1], s=0.3, c="k")
@@ -462,7 +463,7 @@ def fig13(quick, out):
     rows = {}
     # ALARIC
     atoms = circle_start(n)
-    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain)
+    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, form="log")
     atoms.calc = calc
     eps0 = eps_of(atoms, calc)
     dyn = ALARICDynamics(atoms, eps_dot_min=0.0, eps_min=0.0)
@@ -491,7 +492,7 @@ def fig13(quick, out):
     # WVT
     for weight in ("r2", "kernel"):
         atoms = circle_start(n)
-        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain)
+        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, form="log")
         atoms.calc = probe
         opt = WVTRelaxation(atoms, uniform_density, 2, steps=steps, weight=weight, domain=domain)
         t0 = time.perf_counter()
@@ -592,7 +593,7 @@ def pairing(quick):
     def stats(name, atoms):
         x = atoms.positions[:, :2]
         nn = cKDTree(x).query(x, k=2)[0][:, 1]
-        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain)
+        probe = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, form="log")
         copy = atoms.copy()
         copy.calc = probe
         interior = np.linalg.norm(x, axis=1) < 0.8
@@ -602,7 +603,7 @@ def pairing(quick):
         print(f"(h) {name}: {rows[name]}", flush=True)
 
     atoms = circle_start(2000)
-    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain)
+    calc = ALARICCalculator(target_density=uniform_density, dim=2, domain=domain, form="log")
     atoms.calc = calc
     ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0).run(steps)
     stats(f"ALARIC, {steps} steps", atoms)
