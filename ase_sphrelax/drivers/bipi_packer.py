@@ -47,12 +47,27 @@ from ase.optimize.optimize import Optimizer
 from ..checks import NotConvergedWarning, SpacingWarning, check_positive
 
 __all__ = ["BIPIPacker", "initial_fill", "wall_layers", "wall_particles", "add_walls", "pack", "STAGES", "FLUID", "WALL",
-           "MIN_GAP", "JUST_OUTSIDE"]
+           "particle_kinds", "MIN_GAP", "JUST_OUTSIDE"]
 
 STAGES = ("2a", "2b", "2c")
 CAP_2A, CAP_2C = 5000, 1000  # BIPI2D's pack_step2a, pack_step2c
 DROP_FRACTION = 1.0 / 8.0  # BIPI2D's generator drops cell centres within dx/8 of the boundary
-FLUID, WALL = 1, 2  # atoms.arrays["type"] (as lammps_io.sph_flows)
+FLUID, WALL = 1, 2  # atoms.arrays["type"] (read by particle_kinds; lammps_io.sph_flows and flows.settle use it)
+
+
+def particle_kinds(atoms):
+    """``atoms.arrays["type"]`` per particle: :data:`FLUID` (1) or :data:`WALL` (2); all fluid without it.
+
+    Raises a one-line ValueError naming the particles of any other type.
+    """
+    if "type" not in atoms.arrays:
+        return np.full(len(atoms), FLUID, dtype=int)
+    t_p = np.asarray(atoms.arrays["type"], dtype=int)
+    bad = ~np.isin(t_p, (FLUID, WALL))
+    if bad.any():
+        raise ValueError(f"atoms.arrays['type'] must hold {FLUID} (fluid) or {WALL} (wall); particles "
+                         f"{np.where(bad)[0][:10].tolist()} have {sorted(set(t_p[bad].tolist()))[:5]}")
+    return t_p
 
 
 def initial_fill(boundary, dx, origin=None, drop=DROP_FRACTION, max_particles=None):

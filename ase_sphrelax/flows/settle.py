@@ -54,6 +54,8 @@ import math
 
 import numpy as np
 
+from ..drivers.bipi_packer import FLUID, WALL, particle_kinds
+
 __all__ = ["settle", "check_settle", "tank_walls", "SOLVERS", "COMPARE"]
 
 SOLVERS = ("bisph", "lammps")
@@ -70,20 +72,6 @@ DEPTH_RANGE_M, C0_RANGE = (1e-3, 20.0), (3.0, 1000.0)
 KE_LIMIT = 1e-2
 #: a fraction of fluid particles outside the boundary above this is refused (another unit or file)
 OUTSIDE_LIMIT = 0.01
-FLUID, WALL = 1, 2
-
-
-def _kinds(atoms):
-    if "type" not in atoms.arrays:
-        return np.full(len(atoms), FLUID, dtype=int)
-    kinds = np.asarray(atoms.arrays["type"], dtype=int)
-    bad = ~np.isin(kinds, (FLUID, WALL))
-    if bad.any():
-        raise ValueError(f"atoms: the 'type' column must hold {FLUID} (fluid) or {WALL} (wall), found "
-                         f"{sorted(set(kinds[bad].tolist()))[:5]}")
-    return kinds
-
-
 def tank_walls(boundary, surface, lift, tol=1e-9):
     """The tank's walls for BISPH: ``boundary`` with its top edges (at its highest ``y``) lifted by ``lift``.
 
@@ -145,7 +133,7 @@ def _check(atoms, boundary, dx, h, solver, g, c0, compare):
         raise ValueError(f"boundary: settle runs 2D tanks (an edge file), got a {boundary.dim}D boundary")
     if len(atoms) == 0:
         raise ValueError("atoms: no fluid particles (the file is empty)")
-    kinds = _kinds(atoms)
+    kinds = particle_kinds(atoms)
     fluid = kinds == FLUID
     if not fluid.any():
         raise ValueError("atoms: no fluid particles (every 'type' is 2, wall); settle needs type 1 (fluid)")
