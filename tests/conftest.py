@@ -1,4 +1,5 @@
-"""Shared fixtures: random periodic systems and the shared geometry folder."""
+"""Shared fixtures: random periodic systems, the shared geometry folder, the issue's sampler targets."""
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -6,6 +7,8 @@ import pytest
 from ase import Atoms
 
 GEOMETRIES = Path(__file__).resolve().parents[2] / "shared" / "geometries"
+#: the sampler targets of issue 31 (reproductions/parvi-verdict/issue_targets.py)
+VERDICT_CASES = Path(__file__).resolve().parents[1] / "reproductions" / "parvi-verdict"
 
 
 @pytest.fixture
@@ -13,6 +16,16 @@ def geometries():
     if not GEOMETRIES.is_dir():
         pytest.skip("../shared/geometries is not beside the checkout")
     return GEOMETRIES
+
+
+@pytest.fixture
+def issue_targets(monkeypatch):
+    """The module ``issue_targets`` of reproductions/parvi-verdict (mixture, other-curvature banana)."""
+    monkeypatch.syspath_prepend(str(VERDICT_CASES))
+    import issue_targets
+
+    yield issue_targets
+    sys.modules.pop("issue_targets", None)
 
 
 def random_periodic(n, dim, rng, density=1.0, skew=0.0):

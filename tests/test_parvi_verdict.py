@@ -1,9 +1,7 @@
 """SPH-ParVI's ``converged`` means the samples are right, not only the fluid at rest (issue 31, item 1), and the
 configuration that met the 2D goals is the default of the API and the CLI (item 2)."""
 import json
-import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,16 +13,6 @@ from ase_sphrelax.sampling.sampler import DEFAULTS, VARIANT_TOKENS, variant_opti
 from ase_sphrelax.sampling.targets import gaussian_target
 from ase_sphrelax.sampling.verdict import CountingTarget, mala_check, mode_search
 
-CASES = Path(__file__).resolve().parents[1] / "reproductions" / "parvi-verdict"
-
-
-@pytest.fixture
-def issue_targets(monkeypatch):
-    monkeypatch.syspath_prepend(str(CASES))
-    import issue_targets
-
-    yield issue_targets
-    sys.modules.pop("issue_targets", None)
 
 
 def _run(log_density, score, **kwargs):

@@ -1,7 +1,5 @@
 """The importance check behind SPH-ParVI's ``converged`` (issue 31, item 1): particles stranded far out along a
 curved arm, which the short MALA chain cannot move, fail it; i.i.d. samples of heavy-tailed targets pass it."""
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,16 +7,6 @@ import pytest
 from ase_sphrelax.sampling import ParVISampler, get_target
 from ase_sphrelax.sampling.verdict import importance_check, judge_run, mala_check
 
-CASES = Path(__file__).resolve().parents[1] / "reproductions" / "parvi-verdict"
-
-
-@pytest.fixture
-def issue_targets(monkeypatch):
-    monkeypatch.syspath_prepend(str(CASES))
-    import issue_targets
-
-    yield issue_targets
-    sys.modules.pop("issue_targets", None)
 
 
 def _stranded(t, seed=5):
