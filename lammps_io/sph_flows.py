@@ -14,8 +14,8 @@ Particle kinds: ``atoms.arrays["type"]`` holds :data:`FLUID` (1) or :data:`WALL`
 every particle is fluid. Masses are ``rho0 dx^dim`` per particle (one mass per LAMMPS type).
 
 Checks before LAMMPS starts (a one-line ValueError naming the parameter, issue 31): ``dx`` must be
-the fluid's spacing (the median nearest-neighbour distance, within a factor :data:`SPACING_FACTOR`)
-and ``h`` between :data:`H_OVER_DX` times it (so swapping h and dx is caught); the tank needs wall
+the fluid's spacing (the median nearest-neighbour distance, within a factor :data:`~ase_sphrelax.flows.scales.SPACING_FACTOR`)
+and ``h`` between :data:`~ase_sphrelax.flows.scales.H_OVER_DX_RANGE` times it (so swapping h and dx is caught); the tank needs wall
 particles and lengths, ``g`` and ``c0`` in one unit system (:func:`hydrostatic_tank`); the drop must
 start as a disc (:func:`elliptic_drop`).
 
@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 from ase_sphrelax.checks import SphrelaxWarning, check_positive
 from ase_sphrelax.drivers.bipi_packer import FLUID, WALL, particle_kinds
+from ase_sphrelax.flows.scales import check_spacing, check_unit_scale
 
 from ._library import import_lammps, new_lammps
 from .box import infer_dim
@@ -46,20 +47,11 @@ __all__ = ["FLUID", "WALL", "hydrostatic_tank", "elliptic_drop", "elliptic_drop_
            "FlowUnstableWarning", "TANK_KE_LIMIT", "DROP_KE_GROWTH"]
 
 DENSITY_MODES = ("summation", "continuity")
-#: ``h / dx`` outside this range is refused (LAMMPS' Lucy kernel support; 2-4 dx is usual)
-H_OVER_DX = (1.5, 6.0)
-#: ``dx`` must be within this factor of the fluid's median nearest-neighbour distance
-SPACING_FACTOR = 1.5
 #: the tank is unstable when its kinetic energy exceeds this fraction of ``M g H`` (settled tanks: below 1e-4;
 #: alpha = 0.1 runs of reproductions/bipi-fig13-14 that went unstable: above 0.1)
 TANK_KE_LIMIT = 1e-2
 #: the drop is unstable when its kinetic energy exceeds this multiple of its initial one (it only loses energy)
 DROP_KE_GROWTH = 1.5
-#: ``G_SI`` (m/s^2) over ``g`` converts the tank's lengths to metres; a depth outside this range (m) is refused
-#: (``hydrostatic_tank(check_units=False)`` for a deeper tank: a 20 mm tank given in mm is "20 m" deep in SI)
-G_SI, DEPTH_RANGE_M = 9.81, (1e-3, 20.0)
-#: ``c0 / sqrt(g H)`` outside this range is refused (Mach 0.1 is c0 = 10 sqrt(g H))
-C0_RANGE = (3.0, 1000.0)
 
 
 class FlowUnstableWarning(SphrelaxWarning):
@@ -68,24 +60,9 @@ class FlowUnstableWarning(SphrelaxWarning):
 
 def _check_spacing(atoms, kinds, h, dx, who):
     """dx against the fluid's spacing and h against dx, before LAMMPS starts (one-line ValueErrors)."""
-    from scipy.spatial import cKDTree
-
     check_positive("h", h)
     check_positive("dx", dx)
-    dim = infer_dim(atoms)
-    fluid = atoms.positions[kinds == FLUID, :dim]
-    if len(fluid) >= 2:
-        d, _ = cKDTree(fluid).query(fluid, k=2)
-        spacing = float(np.median(d[:, 1]))
-        if not (spacing / SPACING_FACTOR <= dx <= spacing * SPACING_FACTOR):
-            hint = " (h and dx swapped?)" if abs(h / spacing - 1.0) < 0.5 else ""
-            raise ValueError(f"{who}: dx = {dx:g} but the fluid particles are spaced about {spacing:.4g} (median "
-                             f"nearest-neighbour distance): dx must be the particle spacing{hint}")
-    lo, hi = H_OVER_DX
-    if not lo <= h / dx <= hi:
-        hint = " (h and dx swapped?)" if h < dx else ""
-        raise ValueError(f"{who}: h = {h:g} is {h / dx:.3g} dx; h is the kernel support radius and must be "
-                         f"{lo:g}-{hi:g} dx{hint}")
+    check_spacing(atoms.positions[kinds == FLUID, :infer_dim(atoms)], h, dx, who)
 
 
 def _verdict(result, ke_over, limit_text, n_out, where, who, failure=None):
@@ -277,14 +254,14 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     progress : bool
         A tqdm bar over the time steps.
     check_units : bool
-        Refuse a depth outside :data:`DEPTH_RANGE_M` metres (the lengths converted with ``g``: a tank in mm
-        with g in m/s^2 is 1000 times too deep) and a ``c0`` outside :data:`C0_RANGE` times ``sqrt(g H)``.
+        Refuse a depth outside :data:`~ase_sphrelax.flows.scales.DEPTH_RANGE_M` metres (the lengths converted with ``g``: a tank in mm
+        with g in m/s^2 is 1000 times too deep) and a ``c0`` outside :data:`~ase_sphrelax.flows.scales.C0_RANGE` times ``sqrt(g H)``.
 
     Raises
     ------
     ValueError
         Before LAMMPS starts: no wall particles, lengths/g/c0 of different unit systems (``check_units``),
-        ``dx`` not the fluid's spacing or ``h`` outside :data:`H_OVER_DX` dx (module docstring).
+        ``dx`` not the fluid's spacing or ``h`` outside :data:`~ase_sphrelax.flows.scales.H_OVER_DX_RANGE` dx (module docstring).
 
     Returns
     -------
@@ -313,18 +290,10 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     surface = float(atoms.positions[fluid, up].max()) + 0.5 * dx
     bottom = float(atoms.positions[fluid, up].min()) - 0.5 * dx
     depth = surface - bottom
-    metres = depth * G_SI / g
-    if check_units and not DEPTH_RANGE_M[0] <= metres <= DEPTH_RANGE_M[1]:
-        raise ValueError(f"hydrostatic_tank: the water is {depth:.4g} deep, {metres:.4g} m with g = {g:g} taken as "
-                         f"m/s^2 (allowed {DEPTH_RANGE_M[0]:g}-{DEPTH_RANGE_M[1]:g} m): c0, g, depth and dx must be "
-                         "in one unit system (positions in mm? give metres, or g in mm/s^2; check_units=False "
-                         "for a tank this deep)")
     c0 = 10.0 * math.sqrt(g * depth) if c0 is None else check_positive("c0", c0)
-    mach = c0 / math.sqrt(g * depth)
-    if check_units and not C0_RANGE[0] <= mach <= C0_RANGE[1]:
-        raise ValueError(f"c0 = {c0:g} is {mach:.3g} sqrt(g H) (g = {g:g}, depth H = {depth:.4g}); it must be "
-                         f"{C0_RANGE[0]:g}-{C0_RANGE[1]:g} sqrt(g H) (10 is Mach 0.1): c0, g, depth and dx must be in "
-                         "one unit system")
+    if check_units:
+        check_unit_scale(depth, g, c0, "hydrostatic_tank", escape=", or g in mm/s^2; check_units=False for a tank "
+                         "this deep")
     start_up = atoms.positions[:, up].copy()
     rho_start = None
     if hydrostatic_start:
@@ -412,7 +381,7 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
     ValueError
         Before LAMMPS starts: wall particles, a start that is not a disc (second moments in a ratio
         above 1.05, or an extent other than ``R``), ``dx`` not the spacing or ``h`` outside
-        :data:`H_OVER_DX` dx.
+        :data:`~ase_sphrelax.flows.scales.H_OVER_DX_RANGE` dx.
 
     Returns
     -------

@@ -50,11 +50,11 @@ absurd ``c0``); an ImportError (one line) when LAMMPS is missing.
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
 from ..drivers.bipi_packer import FLUID, WALL, particle_kinds
+from .scales import check_spacing, check_unit_scale
 
 __all__ = ["settle", "check_settle", "tank_walls", "SOLVERS", "COMPARE"]
 
@@ -63,11 +63,7 @@ SOLVERS = ("bisph", "lammps")
 SOLVER_GROUP = "ase_sphrelax.settle_solvers"
 COMPARE = (None, "cartesian")
 #: ``h / dx`` (support) accepted, and the default (the paper's ``h_B = 2 dx``)
-H_OVER_DX_RANGE, H_OVER_DX = (1.5, 6.0), 4.0
-#: ``dx`` must be within this factor of the fluid's median nearest-neighbour distance
-SPACING_FACTOR = 1.5
-#: the water depth in metres (lengths converted with ``9.81 / g``) must lie here; ``c0 / sqrt(g H)`` here
-DEPTH_RANGE_M, C0_RANGE = (1e-3, 20.0), (3.0, 1000.0)
+H_OVER_DX = 4.0
 #: a tank run is unstable when its KE exceeds this fraction of ``M g H`` (lammps_io's TANK_KE_LIMIT)
 KE_LIMIT = 1e-2
 #: a fraction of fluid particles outside the boundary above this is refused (another unit or file)
@@ -110,13 +106,6 @@ def tank_walls(boundary, surface, lift, tol=1e-9):
     return BoundarySegments(loops, name=f"{boundary.name or 'boundary'} (lid lifted by {lift:g})")
 
 
-def _spacing(points):
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(points).query(points, k=2)
-    return float(np.median(d[:, 1]))
-
-
 def _check(atoms, boundary, dx, h, solver, g, c0, compare):
     """Every check before a run; returns ``(kinds, fluid positions (N, 2), pbc (2,))``."""
     from ..checks import check_positive
@@ -146,17 +135,10 @@ def _check(atoms, boundary, dx, h, solver, g, c0, compare):
                          "the 2D boundary: dimension mismatch (settle runs 2D tanks; give particles with z = 0)")
     x = r[fluid, :2]
     pbc = np.asarray(atoms.pbc[:2], dtype=bool)
-    if len(x) >= 2:
-        spacing = _spacing(x) if not pbc.any() else None
-        if spacing is not None and not spacing / SPACING_FACTOR <= dx <= spacing * SPACING_FACTOR:
-            hint = " (h and dx swapped?)" if abs(h / spacing - 1.0) < 0.5 or dx > 2.5 * spacing else ""
-            raise ValueError(f"dx = {dx:g} but the fluid particles are spaced about {spacing:.4g} (median nearest-"
-                             f"neighbour distance): dx must be the particle spacing{hint}")
-    lo, hi = H_OVER_DX_RANGE
-    if not lo <= h / dx <= hi:
-        hint = " (h and dx swapped?)" if h < dx else ""
-        raise ValueError(f"h = {h:g} is {h / dx:.3g} dx; h is the kernel support radius and must be "
-                         f"{lo:g}-{hi:g} dx{hint}")
+    if pbc.any():  # no spacing check across periodic images: h against dx only
+        check_spacing(x[:0], h, dx)
+    else:
+        check_spacing(x, h, dx)
     if pbc.any():
         if solver != "bisph":
             raise ValueError("solver: periodic particles (atoms.pbc) run without gravity in 'bisph' only "
@@ -175,19 +157,6 @@ def _check(atoms, boundary, dx, h, solver, g, c0, compare):
         raise ValueError("atoms: no wall particles ('type' 2) for solver 'lammps' (its walls are particles): "
                          "pack with `sphrelax pack --walls` (grid) or `--walls --wall-mode packed`")
     return kinds, x, pbc
-
-
-def _check_units(depth, g, c0):
-    metres = depth * 9.81 / g
-    if not DEPTH_RANGE_M[0] <= metres <= DEPTH_RANGE_M[1]:
-        raise ValueError(f"g = {g:g}: the water is {depth:.4g} deep, {metres:.4g} m with g in m/s^2 (allowed "
-                         f"{DEPTH_RANGE_M[0]:g}-{DEPTH_RANGE_M[1]:g} m), so c0 ~ 10 sqrt(g H) would be absurd: "
-                         "lengths, g and c0 must be in one unit system (a tank in mm? give metres)")
-    if c0 is not None:
-        mach = c0 / math.sqrt(g * depth)
-        if not C0_RANGE[0] <= mach <= C0_RANGE[1]:
-            raise ValueError(f"c0 = {c0:g} is {mach:.3g} sqrt(g H) (g = {g:g}, H = {depth:.4g}); it must be "
-                             f"{C0_RANGE[0]:g}-{C0_RANGE[1]:g} sqrt(g H) (10 is Mach 0.1): one unit system")
 
 
 def _mean(ke_history):
@@ -308,7 +277,7 @@ def _setup(atoms, boundary, dx, solver, t_end, h, compare, g, c0, samples, p_bac
     depth = surface - float(boundary.bounds[0][1])
     if not pbc.any():
         check_positive("depth of the water (surface above the tank's floor)", depth)
-        _check_units(depth, g, c0)
+        check_unit_scale(depth, g, c0)
     if solver == "lammps":
         _lammps_solver().check()  # an ImportError (one line) before any work
     return boundary, dx, h, t_end, kinds, x, pbc, cell, surface, depth
