@@ -4,7 +4,7 @@
 
 The wedge tank of ``reproductions/lib/bipi_sph.py`` (2.05 m wide, a symmetric 90-degree wedge sqrt(2)/8 m
 high, 0.5 m of water) at dx = 0.02 m (``--dx``). Three starts of the same Step-1 fill (``lib.bipi_sph.make_start``):
-``cartesian`` (Step 1), ``bipi`` (BIPIPacker, 1 % rules), ``fan`` (2000 steps of Fan's Eq. 2.4). Each is run
+``cartesian`` (Step 1), ``bipi`` (BIPIPacker, 1 % rules), ``fan`` (2000 steps of Fan's Eq. 2.4 with the default boundary term). Each is run
 at rest by :func:`ase_sphrelax.settle` (support h = 4 dx) under three wall models:
 
 * ``boundary integrals``: ``solver="bisph"`` (BIPI Eqs. 16-21, mu = 10 Pa s; what ``sphrelax settle
@@ -37,6 +37,8 @@ import numpy as np  # noqa: E402
 from lib.bipi_sph import DEPTH, G, H_OVER_DX, RHO0, make_start, packed_walls, wedge_tank, with_walls  # noqa: E402
 
 STARTS = ("cartesian", "bipi", "fan")
+#: the recipe of each start in lib.bipi_sph.make_start: Fan with the package's default wall term, what a user gets
+START_RECIPES = {"cartesian": "cartesian", "bipi": "bipi", "fan": "fan_default"}
 MODELS = {  # name: (solver, walls)
     "boundary integrals": ("bisph", None),
     "grid wall particles": ("lammps", "grid"),
@@ -91,7 +93,7 @@ def main(argv=None):
     fill = initial_fill(water, dx)
     starts = {}
     for name in STARTS:
-        atoms, info = make_start(name, water, dx, h, fill)
+        atoms, info = make_start(START_RECIPES[name], water, dx, h, fill)
         starts[name] = (atoms, {k: v for k, v in info.items() if k != "reason"})
         print(f"start {name}: {len(atoms)} particles {starts[name][1]}", flush=True)
     packed, packed_info = packed_walls(water, dx, h, DEPTH)

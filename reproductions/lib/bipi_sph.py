@@ -109,7 +109,8 @@ def coral_tank(dx=0.02):
 def make_start(name, boundary, dx, h, fill):
     """The fluid particles of one start and what it cost.
 
-    ``name``: ``cartesian``, ``bipi``, ``fan`` or ``bipi_fixed_N2A_N2C`` (BIPI with exactly N2A
+    ``name``: ``cartesian``, ``bipi``, ``fan`` (Fan's level-set wall term), ``fan_default`` (the default term)
+    or ``bipi_fixed_N2A_N2C`` (BIPI with exactly N2A
     Step-2a and N2C Step-2c iterations: the 1 % rules switched off by ``tol = 1e-12``; Fig. 18)."""
     from ase_sphrelax import BIPICalculator, FanCalculator
     from ase_sphrelax.drivers import make_optimizer
@@ -131,9 +132,11 @@ def make_start(name, boundary, dx, h, fill):
         s = packer.summary()
         info = dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"], converged=converged,
                     reason=reason, gradc_avg_final=float(packer.final_gradc_avg()))
-    elif name == "fan":
-        atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain,
-                                   boundary_term="level_set")  # as stored (issue 33: the default is now "gamma")
+    elif name in ("fan", "fan_default"):
+        # "fan": Fan's level-set term, as the stored results used; "fan_default": the package's default boundary
+        # term (issue 33: the exact-integral continuum with its contact core for a polygon)
+        term = "level_set" if name == "fan" else "auto"
+        atoms.calc = FanCalculator(h=h, dx=dx, domain=boundary.domain, boundary_term=term)
         opt = make_optimizer("fan", atoms)
         opt.run(fmax=0.0, steps=2000)
         info = dict(iterations=opt.nsteps)
