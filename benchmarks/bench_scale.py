@@ -251,7 +251,6 @@ def child_quality(method, n, cap):
                     reached=bool(err <= QUALITY_FAN), value=float(err), steps=steps, wall=timed,
                     wall_with_checks=time.perf_counter() - t0)
     if method.startswith("bipi"):
-        start, _ = setup(method, n)
         from ase_sphrelax import BIPICalculator, BIPIPacker
         from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
         from ase_sphrelax.drivers.bipi_packer import initial_fill
