@@ -1,9 +1,9 @@
-"""benchmarks/bench_scale.py --quick --methods fan2d runs (under 30 s) and writes the JSON the docs read."""
+"""benchmarks/bench_scale.py --quick --methods fan2d runs and writes the JSON the docs read (no timing asserted:
+speed goals live in benchmarks/, a timeout only stops a hung run)."""
 import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -14,11 +14,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_quick_fan2d_writes_the_json(tmp_path):
     out = tmp_path / "scale.json"
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    start = time.perf_counter()
-    # timeout=30: the check is kept under 30 s (a slower run fails with TimeoutExpired)
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_scale.py"), "--quick", "--methods", "fan2d",
-                    "--out", str(out)], env=env, check=True, capture_output=True, text=True, timeout=30)
-    assert time.perf_counter() - start < 30
+                    "--out", str(out)], env=env, check=True, capture_output=True, text=True, timeout=600)
     result = json.loads(out.read_text())
     for key in ("load_average_start", "load_average_end", "goals", "sizes", "methods", "version"):
         assert key in result, key
@@ -31,7 +28,7 @@ def test_quick_fan2d_writes_the_json(tmp_path):
     for row in rows:
         assert "error" not in row, row
         assert abs(row["n"] - row["n_target"]) < 0.05 * row["n_target"]  # the fill holds about N particles
-        assert row["steps"] >= 3 and 0 < row["wall_per_step"] < 1 and 0 < row["cpu_per_step"] < 1
+        assert row["steps"] >= 3 and row["wall_per_step"] > 0 and row["cpu_per_step"] > 0
         assert row["peak_rss"] >= row["base_rss"] and row["bytes_per_particle"] >= 0
     # the stored exponent is the log-log slope of the rows
     n = np.array([r["n"] for r in rows], float)
