@@ -2,9 +2,10 @@
 
 Interior (periodic) relaxation is plain energy minimisation of the pair
 potential phi(r) = 2 v0 vt W(r, h) (``min_style fire``).  Bounded domains add
-the level-set boundary force of Eq. 4.3/4.4, ``-2 W1(max(-phi_i, 0), h) vt n_i``,
-with energy ``2 vt I(-phi_i)`` (Eq. 3.8), through ``fix external pf/callback``
-whose Python callback calls ``domain.phi_and_normal``; such decks need the
+the boundary term of :meth:`ase_sphrelax.models.fan.FanModel.boundary` with the model's default
+``boundary_term`` (``"auto"``: the exact-integral wall with its contact core for polygon and mesh
+domains, Fan's level-set force of Eq. 4.3/4.4 with energy ``2 vt I(-phi_i)`` for a circle or sphere),
+through ``fix external pf/callback`` whose Python callback calls it; such decks need the
 Python driver (:func:`run`), periodic decks also run with a plain ``lmp -in``.
 
 The self term ``N v0 vt W(0) - V`` of Eq. 3.8 is not in LAMMPS' energy;
