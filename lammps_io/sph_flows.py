@@ -13,14 +13,15 @@ paper's cases: m, kg, s).
 Particle kinds: ``atoms.arrays["type"]`` holds :data:`FLUID` (1) or :data:`WALL` (2); without it
 every particle is fluid. Masses are ``rho0 dx^dim`` per particle (one mass per LAMMPS type).
 
-Checks before LAMMPS starts (a one-line ValueError naming the parameter, issue 31): ``dx`` must be
-the fluid's spacing (the median nearest-neighbour distance, within a factor :data:`~ase_sphrelax.flows.scales.SPACING_FACTOR`)
-and ``h`` between :data:`~ase_sphrelax.flows.scales.H_OVER_DX_RANGE` times it (so swapping h and dx is caught); the tank needs wall
-particles and lengths, ``g`` and ``c0`` in one unit system (:func:`hydrostatic_tank`); the drop must
-start as a disc (:func:`elliptic_drop`).
+Checks before LAMMPS starts (a one-line ValueError naming the parameter, issue 31; the bounds are those
+of :mod:`ase_sphrelax.flows.scales`): ``dx`` must be the fluid's spacing (the median nearest-neighbour
+distance, within a factor ``SPACING_FACTOR``) and ``h`` between ``H_OVER_DX_RANGE`` times it (so swapping
+h and dx is caught); the tank needs wall particles and lengths, ``g`` and ``c0`` in one unit system
+(:func:`hydrostatic_tank`); the drop must start as a disc (:func:`elliptic_drop`).
 
 Verdict after the run: ``stable`` is False, with a :class:`FlowUnstableWarning`, when the kinetic
-energy grew past the stated limit (the tank: :data:`TANK_KE_LIMIT` times ``M g H``, its potential
+energy grew past the stated limit (the tank: ``TANK_KE_LIMIT`` of :mod:`ase_sphrelax.flows.scales` times
+``M g H``, its potential
 energy scale; the drop: :data:`DROP_KE_GROWTH` times its initial kinetic energy, which the drop
 only loses) or when fluid particles were thrown out (the tank: beyond the start's bounding box
 grown by ``h``; the drop: outside the analytic ellipse grown by ``2 h``) or became NaN.
@@ -37,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from ase_sphrelax.checks import SphrelaxWarning, check_positive
 from ase_sphrelax.drivers.bipi_packer import FLUID, WALL, particle_kinds
-from ase_sphrelax.flows.scales import check_spacing, check_unit_scale
+from ase_sphrelax.flows.scales import TANK_KE_LIMIT, check_spacing, check_unit_scale
 
 from ._library import import_lammps, new_lammps
 from .box import infer_dim
@@ -47,9 +48,6 @@ __all__ = ["FLUID", "WALL", "hydrostatic_tank", "elliptic_drop", "elliptic_drop_
            "FlowUnstableWarning", "TANK_KE_LIMIT", "DROP_KE_GROWTH"]
 
 DENSITY_MODES = ("summation", "continuity")
-#: the tank is unstable when its kinetic energy exceeds this fraction of ``M g H`` (settled tanks: below 1e-4;
-#: alpha = 0.1 runs of reproductions/bipi-fig13-14 that went unstable: above 0.1)
-TANK_KE_LIMIT = 1e-2
 #: the drop is unstable when its kinetic energy exceeds this multiple of its initial one (it only loses energy)
 DROP_KE_GROWTH = 1.5
 
@@ -254,14 +252,15 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     progress : bool
         A tqdm bar over the time steps.
     check_units : bool
-        Refuse a depth outside :data:`~ase_sphrelax.flows.scales.DEPTH_RANGE_M` metres (the lengths converted with ``g``: a tank in mm
-        with g in m/s^2 is 1000 times too deep) and a ``c0`` outside :data:`~ase_sphrelax.flows.scales.C0_RANGE` times ``sqrt(g H)``.
+        Refuse a depth outside ``DEPTH_RANGE_M`` metres (:mod:`ase_sphrelax.flows.scales`; the lengths
+        converted with ``g``: a tank in mm with g in m/s^2 is 1000 times too deep) and a ``c0`` outside
+        ``C0_RANGE`` times ``sqrt(g H)``.
 
     Raises
     ------
     ValueError
         Before LAMMPS starts: no wall particles, lengths/g/c0 of different unit systems (``check_units``),
-        ``dx`` not the fluid's spacing or ``h`` outside :data:`~ase_sphrelax.flows.scales.H_OVER_DX_RANGE` dx (module docstring).
+        ``dx`` not the fluid's spacing or ``h`` outside ``H_OVER_DX_RANGE`` dx (module docstring).
 
     Returns
     -------
@@ -271,7 +270,7 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
         rho0 g depth)), ``pressure_error`` (mean ``|p - rho0 g depth| / (rho0 g H)`` over the bins),
         ``max_drop`` (largest downward displacement of a fluid particle / dx), ``n_fluid``, ``n_wall``,
         ``steps``, ``dt``, ``c0``, ``depth``, ``h``, ``dx``; ``stable`` (False, with a
-        :class:`FlowUnstableWarning`, when ``ke_max`` exceeded :data:`TANK_KE_LIMIT` ``M g H`` or fluid
+        :class:`FlowUnstableWarning`, when ``ke_max`` exceeded ``TANK_KE_LIMIT`` ``M g H`` or fluid
         particles left the start's bounding box grown by ``h``, or LAMMPS stopped), ``stability_reason``,
         ``ke_over_mgh``, ``n_thrown``, ``t_reached``, ``lammps_error``.
     """
@@ -303,10 +302,10 @@ def hydrostatic_tank(atoms, h, dx, rho0=1000.0, g=9.81, c0=None, alpha=0.5, t_en
     def observe(lmp, n, time):
         return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]))
 
-    history, (x_pc, rho_p), n_fluid, n_wall, steps, dt, failure = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end,
-                                               dt=dt, samples=samples, density=density, nthreads=nthreads,
-                                               workdir=workdir, progress=progress, desc="hydrostatic tank",
-                                               observe=observe, rho_p=rho_start)
+    history, (x_pc, rho_p), n_fluid, n_wall, steps, dt, failure = _run(
+        atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=g, t_end=t_end, dt=dt, samples=samples, density=density,
+        nthreads=nthreads, workdir=workdir, progress=progress, desc="hydrostatic tank", observe=observe,
+        rho_p=rho_start)
     d_p = surface - x_pc[fluid, up]
     p_p = tait_pressure(rho_p[fluid], rho0, c0)
     edges = np.linspace(0.0, depth, int(depth_bins) + 1)
@@ -417,11 +416,12 @@ def elliptic_drop(atoms, h, dx, a0=100.0, rho0=1000.0, c0=None, alpha=0.02, t_en
         final["x"] = x
         r = x - x.mean(axis=0)
         return dict(time=time, ke=float(lmp.last_thermo()["c_flowke"]),
-                    a_moment=float(2.0 * np.sqrt(np.mean(r[:, 0] ** 2))), b_moment=float(2.0 * np.sqrt(np.mean(r[:, 1] ** 2))),
+                    a_moment=float(2.0 * np.sqrt(np.mean(r[:, 0] ** 2))),
+                    b_moment=float(2.0 * np.sqrt(np.mean(r[:, 1] ** 2))),
                     a_extent=float(np.abs(r[:, 0]).max() + 0.5 * dx), b_extent=float(np.abs(r[:, 1]).max() + 0.5 * dx))
 
-    history, _, n_fluid, _, steps, dt, failure = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0, t_end=t_end,
-                                          dt=dt, samples=samples, density=density, nthreads=nthreads,
+    history, _, n_fluid, _, steps, dt, failure = _run(atoms, h, dx, rho0=rho0, c0=c0, alpha=alpha, gravity=0.0,
+                                          t_end=t_end, dt=dt, samples=samples, density=density, nthreads=nthreads,
                                           workdir=workdir, progress=progress, desc="elliptic drop", observe=observe,
                                           velocities=v_pc)
     times = np.array([r["time"] for r in history])

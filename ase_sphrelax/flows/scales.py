@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-__all__ = ["SPACING_FACTOR", "H_OVER_DX_RANGE", "G_SI", "DEPTH_RANGE_M", "C0_RANGE", "median_spacing",
-           "check_spacing", "check_unit_scale"]
+__all__ = ["SPACING_FACTOR", "H_OVER_DX_RANGE", "G_SI", "DEPTH_RANGE_M", "C0_RANGE", "TANK_KE_LIMIT",
+           "median_spacing", "check_spacing", "check_unit_scale"]
 
 #: ``dx`` must lie within this factor of the fluid's median nearest-neighbour distance
 SPACING_FACTOR = 1.5
@@ -21,6 +21,9 @@ H_OVER_DX_RANGE = (1.5, 6.0)
 G_SI, DEPTH_RANGE_M = 9.81, (1e-3, 20.0)
 #: ``c0 / sqrt(g H)`` accepted (10 is Mach 0.1)
 C0_RANGE = (3.0, 1000.0)
+#: a tank at rest is unstable when its kinetic energy exceeds this fraction of ``M g H`` (settled tanks: below
+#: 1e-4; alpha = 0.1 runs of reproductions/bipi-fig13-14 that went unstable: above 0.1)
+TANK_KE_LIMIT = 1e-2
 
 
 def _prefix(who):

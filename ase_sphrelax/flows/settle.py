@@ -54,7 +54,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..drivers.bipi_packer import FLUID, WALL, particle_kinds
-from .scales import check_spacing, check_unit_scale
+from .scales import TANK_KE_LIMIT, check_spacing, check_unit_scale
 
 __all__ = ["settle", "check_settle", "tank_walls", "SOLVERS", "COMPARE"]
 
@@ -62,12 +62,14 @@ SOLVERS = ("bisph", "lammps")
 #: entry-point group of the solvers other packages plug in (lammps_io's ``lammps``)
 SOLVER_GROUP = "ase_sphrelax.settle_solvers"
 COMPARE = (None, "cartesian")
-#: ``h / dx`` (support) accepted, and the default (the paper's ``h_B = 2 dx``)
+#: the default ``h / dx`` (support; the paper's ``h_B = 2 dx``); the accepted range is ``scales.H_OVER_DX_RANGE``
 H_OVER_DX = 4.0
-#: a tank run is unstable when its KE exceeds this fraction of ``M g H`` (lammps_io's TANK_KE_LIMIT)
-KE_LIMIT = 1e-2
+#: a tank run is unstable when its KE exceeds this fraction of ``M g H`` (the same limit as lammps_io's tanks)
+KE_LIMIT = TANK_KE_LIMIT
 #: a fraction of fluid particles outside the boundary above this is refused (another unit or file)
 OUTSIDE_LIMIT = 0.01
+
+
 def tank_walls(boundary, surface, lift, tol=1e-9):
     """The tank's walls for BISPH: ``boundary`` with its top edges (at its highest ``y``) lifted by ``lift``.
 
@@ -135,10 +137,7 @@ def _check(atoms, boundary, dx, h, solver, g, c0, compare):
                          "the 2D boundary: dimension mismatch (settle runs 2D tanks; give particles with z = 0)")
     x = r[fluid, :2]
     pbc = np.asarray(atoms.pbc[:2], dtype=bool)
-    if pbc.any():  # no spacing check across periodic images: h against dx only
-        check_spacing(x[:0], h, dx)
-    else:
-        check_spacing(x, h, dx)
+    check_spacing(x[:0] if pbc.any() else x, h, dx)  # periodic: h against dx only (no images in the spacing)
     if pbc.any():
         if solver != "bisph":
             raise ValueError("solver: periodic particles (atoms.pbc) run without gravity in 'bisph' only "
@@ -344,7 +343,8 @@ def settle(atoms, boundary, dx, solver="bisph", t_end=1.0, h=None, compare=None,
         if solver == "bisph":
             return _run_bisph(positions, boundary, dx, h, t_end, rho0, g, c0, mu, p_background, surface, depth, pbc,
                               cell, samples, progress)
-        return _lammps_solver().run_tank(atoms_run, kinds_run, dx, h, t_end, rho0, g, c0, alpha, surface, depth, samples, progress)
+        return _lammps_solver().run_tank(atoms_run, kinds_run, dx, h, t_end, rho0, g, c0, alpha, surface, depth,
+                                         samples, progress)
 
     if solver == "bisph":
         if pbc.any():
