@@ -113,6 +113,40 @@ def _no_gradient(x):
     return np.zeros_like(x)
 
 
+def _fan_scene(dim, n):
+    """Fan's circle / sphere (radius 0.2) filled at the spacing that holds about ``n``: (domain, dx, atoms)."""
+    from ase_sphrelax.build import fill
+    from ase_sphrelax.domains import Circle, Sphere
+
+    r = 0.2
+    domain = Circle((0.5, 0.5), r) if dim == 2 else Sphere((0.5, 0.5, 0.5), r)
+    size = np.pi * r * r if dim == 2 else 4.0 / 3.0 * np.pi * r**3
+    dx = (size / n) ** (1.0 / dim)
+    return domain, dx, fill(domain, dx, jitter=0.1, seed=0)
+
+
+def _bipi_scene(dim, n):
+    """BIPI's bunny (2D) / torus mesh (3D) with its Step-1 fill of about ``n``: (boundary, dx, atoms)."""
+    from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
+    from ase_sphrelax.drivers.bipi_packer import initial_fill
+
+    if dim == 2:
+        seg, size = BoundarySegments.from_edges(BUNNY), _bunny_area()
+    else:
+        mesh = _torus()
+        seg, size = BoundaryTriangles.from_trimesh(mesh), float(mesh.volume)
+    dx = float((size / n) ** (1.0 / dim))
+    return seg, dx, initial_fill(seg, dx)
+
+
+def _alaric_domain(dim, n):
+    """The disc / ball centred at 0 that holds ``n`` particles at unit spacing."""
+    from ase_sphrelax.domains import Circle, Sphere
+
+    radius = (n / np.pi) ** 0.5 if dim == 2 else (3 * n / (4 * np.pi)) ** (1 / 3)
+    return Circle((0.0, 0.0), radius) if dim == 2 else Sphere((0.0, 0.0, 0.0), radius)
+
+
 def setup(method, n):
     """(start, run(steps) -> (wall, cpu, steps)) for ``method`` at about ``n`` particles. ``start`` is the system
     that counts in the baseline (Atoms, or positions for ParVI)."""
@@ -122,14 +156,8 @@ def setup(method, n):
     dim = DIM[method]
     if method.startswith("fan"):
         from ase_sphrelax import FanCalculator, make_optimizer
-        from ase_sphrelax.build import fill
-        from ase_sphrelax.domains import Circle, Sphere
 
-        r = 0.2
-        domain = Circle((0.5, 0.5), r) if dim == 2 else Sphere((0.5, 0.5, 0.5), r)
-        size = np.pi * r * r if dim == 2 else 4.0 / 3.0 * np.pi * r**3
-        dx = (size / n) ** (1.0 / dim)
-        atoms = fill(domain, dx, jitter=0.1, seed=0)
+        domain, dx, atoms = _fan_scene(dim, n)
 
         def run(steps):
             atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain)
@@ -141,16 +169,8 @@ def setup(method, n):
         return atoms, run
     if method.startswith("bipi"):
         from ase_sphrelax import BIPICalculator, BIPIPacker
-        from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
-        from ase_sphrelax.drivers.bipi_packer import initial_fill
 
-        if dim == 2:
-            seg, size = BoundarySegments.from_edges(BUNNY), _bunny_area()
-        else:
-            mesh = _torus()
-            seg, size = BoundaryTriangles.from_trimesh(mesh), float(mesh.volume)
-        dx = float((size / n) ** (1.0 / dim))
-        atoms = initial_fill(seg, dx)
+        seg, dx, atoms = _bipi_scene(dim, n)
 
         def run(steps):
             calc = BIPICalculator.from_paper(2.0, dx, seg)
@@ -163,12 +183,10 @@ def setup(method, n):
     if method.startswith("alaric"):
         from ase_sphrelax import ALARICCalculator
         from ase_sphrelax.build import fill
-        from ase_sphrelax.domains import Circle, Sphere
         from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
         from ase_sphrelax.models.alaric import resolve_boundary
 
-        radius = (n / np.pi) ** 0.5 if dim == 2 else (3 * n / (4 * np.pi)) ** (1 / 3)
-        domain = Circle((0.0, 0.0), radius) if dim == 2 else Sphere((0.0, 0.0, 0.0), radius)
+        domain = _alaric_domain(dim, n)
         atoms = fill(domain, 1.0, jitter=0.1, seed=0)
 
         def run(steps):
@@ -231,13 +249,8 @@ def child_quality(method, n, cap):
     if method.startswith("fan"):
         from ase_sphrelax import FanCalculator, make_optimizer
         from ase_sphrelax.analysis.quality import quality_summary
-        from ase_sphrelax.build import fill
-        from ase_sphrelax.domains import Circle, Sphere
 
-        r = 0.2
-        domain = Circle((0.5, 0.5), r) if dim == 2 else Sphere((0.5, 0.5, 0.5), r)
-        dx = ((np.pi * r * r if dim == 2 else 4 / 3 * np.pi * r**3) / n) ** (1.0 / dim)
-        atoms = fill(domain, dx, jitter=0.1, seed=0)
+        domain, dx, atoms = _fan_scene(dim, n)
         atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain)
         opt = make_optimizer("fan", atoms)
         t0, steps, err, timed = time.perf_counter(), 0, np.inf, 0.0
@@ -252,16 +265,8 @@ def child_quality(method, n, cap):
                     wall_with_checks=time.perf_counter() - t0)
     if method.startswith("bipi"):
         from ase_sphrelax import BIPICalculator, BIPIPacker
-        from ase_sphrelax.boundary import BoundarySegments, BoundaryTriangles
-        from ase_sphrelax.drivers.bipi_packer import initial_fill
 
-        if dim == 2:
-            seg, size = BoundarySegments.from_edges(BUNNY), _bunny_area()
-        else:
-            mesh = _torus()
-            seg, size = BoundaryTriangles.from_trimesh(mesh), float(mesh.volume)
-        dx = float((size / n) ** (1.0 / dim))
-        atoms = initial_fill(seg, dx)
+        seg, dx, atoms = _bipi_scene(dim, n)
         packer = BIPIPacker(atoms, BIPICalculator.from_paper(2.0, dx, seg))
         t0, steps = time.perf_counter(), 0
         for _ in packer.irun():
@@ -269,21 +274,16 @@ def child_quality(method, n, cap):
             if time.perf_counter() - t0 > cap:
                 break
         wall = time.perf_counter() - t0
-        verdict = packer.verdict() if hasattr(packer, "verdict") else None
-        done = packer.stage == "done" if hasattr(packer, "stage") else None
         return dict(method=method, n=len(atoms), quality="BIPIPacker's own stop (tol 0.01 over its window)",
-                    reached=bool(verdict.get("converged")) if isinstance(verdict, dict) else done,
-                    verdict=str(verdict)[:300], steps=steps, wall=wall)
+                    reached=packer.stage == "done", verdict=str(packer.verdict())[:300], steps=steps, wall=wall)
     if method.startswith("alaric"):
         from ase_sphrelax.build import fill
-        from ase_sphrelax.domains import Circle, Sphere
         from ase_sphrelax.drivers.alaric_dynamics import relax_density
         from ase_sphrelax.splitting import SPLIT_COUNT
 
         out = dict(method=method, quality="relax_density's epsilon-dot stop (1e-8)")
+        domain = _alaric_domain(dim, n)
         for route, splits in (("direct", 0), ("split", 1)):
-            radius = (n / np.pi) ** 0.5 if dim == 2 else (3 * n / (4 * np.pi)) ** (1 / 3)
-            domain = Circle((0.0, 0.0), radius) if dim == 2 else Sphere((0.0, 0.0, 0.0), radius)
             dx = 1.0 if not splits else SPLIT_COUNT[dim] ** (1.0 / dim)
             atoms = fill(domain, dx, jitter=0.1, seed=0)
             n_start = len(atoms)
