@@ -279,22 +279,28 @@ class FanModel:
             return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
         if self.boundary_term == "gamma":
             return self._gamma_boundary(r_pc, v0, want_forces, nlist)
+        phi_p, n_pc = self._phi_and_normal(r_pc)
+        s_p = -phi_p
+        e_p = 2.0 * v0 * self.kernel.w1_tail_integral(s_p, self.h)
+        if not want_forces:
+            return e_p, None
+        g_p = self.kernel.w1(np.maximum(s_p, 0.0), self.h)
+        g_p *= -2.0 * v0
+        return e_p, g_p[:, None] * n_pc
+
+    def _phi_and_normal(self, r_pc):
+        """The level set ``phi`` (N,) and its gradient ``n`` (N, 3) at ``r_pc``, (N, 3) or (N, dim)."""
+        n = len(r_pc)
         if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
             phi_p, n_pc = self.domain.phi_and_normal(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
         else:
             phi_p, n_pc = self.domain.phi_and_normal(np.ascontiguousarray(r_pc[:, : self.dim]))
-        s_p = -np.asarray(phi_p, dtype=float).reshape(n)
-        e_p = 2.0 * v0 * self.kernel.w1_tail_integral(s_p, self.h)
-        if not want_forces:
-            return e_p, None
         n_pc = np.asarray(n_pc, dtype=float)
-        if n_pc.shape != (n, 3):  # a Domain returns (P, 3) normals
+        if n_pc.shape != (n, 3):  # normals of fewer columns, padded with zeros
             normal_pc = np.zeros((n, 3))
             normal_pc[:, : n_pc.shape[1]] = n_pc[:, :3]
             n_pc = normal_pc
-        g_p = self.kernel.w1(np.maximum(s_p, 0.0), self.h)
-        g_p *= -2.0 * v0
-        return e_p, g_p[:, None] * n_pc
+        return np.asarray(phi_p, dtype=float).reshape(n), n_pc
 
     def _gamma_boundary(self, r_pc, v0, want_forces, nlist):
         """``2 vt (1 - gamma)`` (+ the outside slope) and its negative gradient (:meth:`boundary`)."""
@@ -314,19 +320,14 @@ class FanModel:
         d0 = CORE_DISTANCE * v0 ** (1.0 / self.dim)
         near = np.nonzero(terms.gamma_p < 1.0)[0]  # within h of the boundary or outside: phi > -d0 only here
         if len(near):
-            if isinstance(self.domain, Domain):
-                phi_o, n_oc = self.domain.phi_and_normal(r3_pc[near])
-            else:
-                phi_o, n_oc = self.domain.phi_and_normal(np.ascontiguousarray(r3_pc[near, : self.dim]))
-            phi_o = np.asarray(phi_o, dtype=float).reshape(len(near))
+            phi_o, n_oc = self._phi_and_normal(r3_pc[near])
             slope = weight * float(self.kernel.w1(0.0, self.h))
             core = weight * self.core_stiffness / (2.0 * d0 * self.h)
             x_o = np.maximum(d0 + phi_o, 0.0)
             e_p[near] += slope * np.maximum(phi_o, 0.0) + core * x_o * x_o
             if want_forces:
-                n_oc = np.asarray(n_oc, dtype=float)
                 g_o = slope * (phi_o > 0.0) + 2.0 * core * x_o
-                f_pc[near, : n_oc.shape[1]] -= g_o[:, None] * n_oc[:, : min(3, n_oc.shape[1])]
+                f_pc[near] -= g_o[:, None] * n_oc
         return e_p, f_pc
 
     def warn_far_outside(self, r_pc, who="FanModel"):
