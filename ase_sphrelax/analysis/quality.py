@@ -153,10 +153,10 @@ class Quality:
             "kernel_sum_error_mean": _mean(self.kernel_sum_error_p[inside]),
             "kernel_sum_error_max": _max(self.kernel_sum_error_p[inside]),
             # spread of sum_j V_j W_ij: uniformity, independent of a global density offset
-            "kernel_sum_std": float(np.std(self.kernel_sum_p[inside])) if inside.any() else None,
+            "kernel_sum_std": _std(self.kernel_sum_p[inside]),
             "gradient_error_mean": _mean(self.gradient_error_p[inside]),
             "gradient_error_max": _max(self.gradient_error_p[inside]),
-            "gradient_error_std": float(np.std(self.gradient_error_p[inside])) if inside.any() else None,
+            "gradient_error_std": _std(self.gradient_error_p[inside]),
         }
         if self.phi_p is not None:
             out.update(
@@ -164,8 +164,7 @@ class Quality:
                 boundary_distance_mean=_mean(self.boundary_distance_b),
                 boundary_distance_min=_min(self.boundary_distance_b),
                 boundary_distance_max=_max(self.boundary_distance_b),
-                boundary_distance_std=float(np.std(self.boundary_distance_b)) if len(self.boundary_distance_b)
-                else None,
+                boundary_distance_std=_std(self.boundary_distance_b),
                 max_phi_over_dp=float(self.phi_p.max() / self.dp),
                 n_outside=int((self.phi_p > 0).sum()),
                 n_near_wall=int((~inside).sum()),
@@ -176,7 +175,7 @@ class Quality:
             out.update(
                 near_wall_kernel_sum_error_max=_max(self.completed_error_p[near]) if done else None,
                 near_wall_kernel_sum_error_mean=_mean(self.completed_error_p[near]) if done else None,
-                near_wall_kernel_sum_std=float(np.std(self.completed_sum_p[near])) if done and near.any() else None,
+                near_wall_kernel_sum_std=_std(self.completed_sum_p[near]) if done else None,
                 near_wall_gradient_error_max=_max(self.completed_gradient_p[near]) if done else None,
             )
         return out
@@ -192,6 +191,10 @@ def _max(x):
 
 def _min(x):
     return float(np.min(x)) if len(x) else None
+
+
+def _std(x):
+    return float(np.std(x)) if len(x) else None
 
 
 def quality_summary(atoms, h, dx=None, domain=None, dim=None, kernel="wendland_c2"):
