@@ -52,6 +52,7 @@ at rest, which ``info["verdict"]["checked"]`` says.
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import logsumexp
 from scipy.stats import binom, norm
 
 from .finish import ellipsoid_frame, mala_finish
@@ -204,15 +205,13 @@ def importance_check(x_pc, log_density, rng, draws=None, alpha=VERDICT_ALPHA / 2
             for start in range(0, draws, 2000):  # in blocks: (2000, len(kc)) at a time
                 u = u_nc[start:start + 2000]
                 a = (u @ kc.T - 0.5 * np.sum(kc * kc, axis=1)[None]) / s2  # -|u - k|^2 / (2 s2) + |u|^2 / (2 s2)
-                top = a.max(axis=1)
-                log_c[start:start + 2000] = (np.log(np.exp(a - top[:, None]).sum(axis=1)) + top
-                                             - 0.5 * np.sum(u * u, axis=1) / s2)
+                log_c[start:start + 2000] = logsumexp(a, axis=1) - 0.5 * np.sum(u * u, axis=1) / s2
             log_c -= np.log(len(kc)) + 0.5 * d * np.log(s2)
         log_q = np.logaddexp(log_q, np.log(weight / weights.sum()) + log_c - 0.5 * d * np.log(2.0 * np.pi))
     with np.errstate(all="ignore"):
         log_p = np.asarray(log_density(centre_c + u_nc @ l_cc.T), dtype=float).reshape(-1)
     log_w = np.where(np.isfinite(log_p), log_p - log_q, -np.inf)
-    out = dict(statistics=int(_is_statistics(z_pc[:1])[0].shape[1]), draws=draws, alpha=float(alpha))
+    out = dict(statistics=len(IS_LEVELS), draws=draws, alpha=float(alpha))
     if not np.any(np.isfinite(log_w)):
         return dict(out, passed=True, conclusive=False, ess=0.0, max_t=None, worst=None, p_value=None,
                     reason=f"the importance check is inconclusive: log p is not finite at any of its {draws} draws")
