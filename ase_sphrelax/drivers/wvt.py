@@ -138,20 +138,17 @@ class WVTRelaxation(Optimizer):
         self.nlist = None
         self.iteration = 0
         self.last_max_move = 0.0
-        self.mu = self.mu0
-        self.stopped = False  # Diehl's stop criterion met
-        self._last_count = None
         self.n_ghosts = 0
-        Optimizer.__init__(self, atoms, logfile=logfile, **kwargs)
+        Optimizer.__init__(self, atoms, logfile=logfile, **kwargs)  # calls initialize()
 
     def initialize(self):
         self.iteration = 0
         self.mu = self.mu0
-        self.stopped = False
+        self.stopped = False  # Diehl's stop criterion met
         self._last_count = None
 
     def read(self):
-        pass
+        self.initialize()  # a restart file holds nothing of WVT's: start the schedule afresh
 
     def _volume(self, atoms):
         if self.domain is not None:
