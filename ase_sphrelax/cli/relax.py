@@ -30,7 +30,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
 
 from ..drivers.optimizers import DEFAULT_C, OPTIMIZERS
 from . import STARTED, registry
