@@ -30,7 +30,6 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-
 from lib.bipi_sph import DEPTH, G, H_OVER_DX, RHO0, WEDGE_HEIGHT, WIDTH, wedge_tank  # noqa: E402
 
 MU = 10.0
