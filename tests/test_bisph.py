@@ -46,20 +46,49 @@ def test_poiseuille_profile():
 
 
 def test_poiseuille_profile_pcg():
-    """The same channel with the PCG viscous form (``viscosity="pcg"``, BIPI Fig. 14b).
+    """The same channel with the PCG viscous form (``viscosity="pcg"``, BIPI Fig. 14b): within 2 %.
 
-    Measured: 2.7 % of u_max (the issue's 2 % is not met with this form; u_max 1.7 % high): the
-    nested gradient is exact only to first order for a parabola next to the walls (the Laplacian
-    of ``test_pcg_laplacian``, 32 % off within h of a wall), which the boundary-layer form's wall
-    shear does not suffer from."""
+    Measured: 0.27 % of u_max at 0.6 W^2/nu (the slowest mode's tail: 0.01 % at 1.2 W^2/nu). The plain
+    nested form (``G_b`` in the divergence, no wall term; commit 92a5089) gave 2.7 % (2.6 % at steady
+    state; the boundary-layer form 0.89 % at 1.2 W^2/nu against the same ``poiseuille``). Controlled
+    experiment on the steady state of the layer-averaged operator (the time runs match it to 1e-4):
+    a wall term alone on the nested form, the wall shear as the wall value of ``G`` 5.7 %, as the
+    midpoint gradient 2.9 % (the odd-even modes stay); the midpoint difference quotient alone 2.3 %
+    (a uniform slip; the odd-even modes gone), plus the wall term with the wall shear as the wall
+    value of ``G`` (half weight) 1.1 %, as the wall's midpoint gradient 0.004 %."""
     width = 0.02
     dx = width / 20
     force, mu = 1.0, 1.0
     sim = channel(width, 10 * dx, dx, force=force, mu=mu, viscosity="pcg")
     sim.run(0.6 * width**2 * sim.rho0 / mu, progress=False)
     u_exact = poiseuille(sim.r[:, 1], width, force, mu)
-    assert np.max(np.abs(sim.v[:, 0] - u_exact)) <= 0.03 * u_exact.max()
+    assert np.max(np.abs(sim.v[:, 0] - u_exact)) <= 0.02 * u_exact.max()
     assert np.max(np.abs(sim.v[:, 1])) <= 1e-4 * u_exact.max()
+
+
+def test_pcg_operator_has_no_odd_even_mode():
+    """The PCG Laplacian on the channel's layers (u uniform along x): its slowest decay rate is the
+    physical ``nu pi^2 / W^2`` (24.67 1/s; measured 24.54, the boundary-layer form 24.34) and the
+    steady profile of ``nu lap u = -F`` is the parabola (measured 3.6e-5 of u_max). The nested form
+    (``G_b`` in place of the midpoint gradient) had an exact null mode alternating across the channel and
+    a second of rate 0.053 1/s: the odd-even checkerboard of nested first derivatives."""
+    width = 0.02
+    n = 20
+    sim = channel(width, 10 * width / n, width / n, force=1.0, mu=1.0, viscosity="pcg")
+    layer = np.round(sim.r[:, 1] / sim.dx - 0.5).astype(int)
+    bt, gamma = sim.walls()
+    op = np.zeros((n, n))
+    for j in range(n):
+        u = np.zeros((len(sim.r), 2))
+        u[layer == j, 0] = 1.0
+        lap = sim.laplacian(u, bt, gamma)[:, 0] * sim.mu / sim.rho0
+        op[:, j] = np.bincount(layer, weights=lap, minlength=n) / np.bincount(layer, minlength=n)
+    rates = np.sort(-np.linalg.eigvals(op).real)
+    physical = sim.mu / sim.rho0 * np.pi**2 / width**2
+    assert abs(rates[0] / physical - 1.0) <= 0.02
+    u = np.linalg.solve(op, -np.ones(n))
+    u_exact = poiseuille(sim.dx * (np.arange(n) + 0.5), width, 1.0, 1.0)
+    assert np.abs(u - u_exact).max() <= 1e-3 * u_exact.max()
 
 
 def test_mass_conserved():
@@ -232,10 +261,13 @@ def test_pcg_laplacian():
     """The viscous term's particle-consistent-gradient form (BIPI Fig. 14b, ``viscosity="pcg"``).
 
     A linear velocity field (wall values through the feet): Laplacian 0 to rounding next to walls and
-    the re-entrant vertex (measured 1.2e-13 against terms of size |grad v| / h ~ 10). A parabola
-    u = y (W - y) in the periodic channel: exact to rounding farther than 2h from the walls; next to
-    them the first gradient is exact only to first order (the cut kernel's first moment), measured
-    32 % max and 16.7 % mean of |lap u| over the particles within h of a wall (20 across, h = 4 dx)."""
+    the re-entrant vertex (measured 6.8e-13 and 1.2e-12 against terms of size |grad v| / h ~ 10). A
+    parabola u = y (W - y) in the periodic channel: exact to rounding farther than 2h from the walls;
+    next to them the first gradient is exact only to first order (the cut kernel's first moment),
+    which the midpoint difference quotient and the wall shear mostly absorb: measured 1.2 % max and
+    0.34 % mean of |lap u| over the particles within h of a wall (20 across, h = 4 dx; the nested form
+    of commit 92a5089: 32 % and 16.7 %). In the box, u = y^2 is off by 1.2 % away from the corners and
+    by 50 % at the corner particles (the wall's midpoint gradient takes only the normal derivative)."""
     dx = 0.05
     for vertices in (BOX, WEDGE):
         walls = BoundarySegments.from_vertices(vertices)
@@ -245,6 +277,12 @@ def test_pcg_laplacian():
         def velocity(x):
             return np.column_stack([2.0 * x[:, 0] - x[:, 1] + 1.0, 0.5 * x[:, 0] + 3.0 * x[:, 1]])
         assert np.abs(sim.laplacian(velocity(sim.r), wall_velocity=velocity)).max() <= 1e-11
+        if vertices is BOX:
+            def parabola(x):
+                return np.column_stack([x[:, 1] ** 2, np.zeros(len(x))])
+            err = np.abs(sim.laplacian(parabola(sim.r), wall_velocity=parabola)[:, 0] - 2.0) / 2.0
+            corner = np.all(np.minimum(sim.r[:, :2], 1.0 - sim.r[:, :2]) < sim.h, axis=1)
+            assert err[~corner].max() <= 0.02 and 0.3 <= err[corner].max() <= 0.7
     width = 0.02
     sim = channel(width, 10 * width / 20, width / 20, force=1.0, mu=1.0, viscosity="pcg")
     u = np.zeros((len(sim.r), 2))
@@ -254,7 +292,7 @@ def test_pcg_laplacian():
     wall_gap = np.minimum(sim.r[:, 1], width - sim.r[:, 1])
     assert err[wall_gap > 2 * sim.h].max() <= 1e-9
     near = wall_gap < sim.h
-    assert 0.25 <= err[near].max() <= 0.35 and err[near].mean() <= 0.2
+    assert err[near].max() <= 0.02 and err[near].mean() <= 0.005
     assert np.abs(lap[:, 1]).max() <= 1e-9 / width**2
 
 
