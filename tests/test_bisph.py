@@ -52,10 +52,11 @@ def test_poiseuille_profile_pcg():
     nested form (``G_b`` in the divergence, no wall term; commit 92a5089) gave 2.7 % (2.6 % at steady
     state; the boundary-layer form 0.89 % at 1.2 W^2/nu against the same ``poiseuille``). Controlled
     experiment on the steady state of the layer-averaged operator (the time runs match it to 1e-4):
-    a wall term alone on the nested form, the wall shear as the wall value of ``G`` 5.7 %, as the
-    midpoint gradient 2.9 % (the odd-even modes stay); the midpoint difference quotient alone 2.3 %
+    a wall term alone on the nested form, the wall shear as the wall value of ``G`` 5.7 %, the wall
+    slope of a parabola through v_a with slope G_a 2.9 % (the odd-even modes stay); the midpoint difference quotient alone 2.3 %
     (a uniform slip; the odd-even modes gone), plus the wall term with the wall shear as the wall
-    value of ``G`` (half weight) 1.1 %, as the wall's midpoint gradient 0.004 %."""
+    value of ``G`` (half weight) 1.1 %, as the wall's midpoint gradient 0.01 % (the study
+    ``reproductions/bipi-pcg-poiseuille``, which has 40 across too)."""
     width = 0.02
     dx = width / 20
     force, mu = 1.0, 1.0
@@ -69,7 +70,7 @@ def test_poiseuille_profile_pcg():
 def test_pcg_operator_has_no_odd_even_mode():
     """The PCG Laplacian on the channel's layers (u uniform along x): its slowest decay rate is the
     physical ``nu pi^2 / W^2`` (24.67 1/s; measured 24.54, the boundary-layer form 24.34) and the
-    steady profile of ``nu lap u = -F`` is the parabola (measured 3.6e-5 of u_max). The nested form
+    steady profile of ``nu lap u = -F`` is the parabola (measured 9.8e-5 of u_max). The nested form
     (``G_b`` in place of the midpoint gradient) had an exact null mode alternating across the channel and
     a second of rate 0.053 1/s: the odd-even checkerboard of nested first derivatives."""
     width = 0.02
