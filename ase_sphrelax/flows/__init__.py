@@ -16,6 +16,7 @@ _WHERE = {
     "cartesian_fill": ".scene",
     "poiseuille": ".scene",
     "wall_distance": ".scene",
+    "elliptic_drop": ".scene",
 }
 __all__ = list(_WHERE)
 __getattr__, __dir__ = lazy_exports(globals(), _WHERE)

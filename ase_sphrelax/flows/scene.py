@@ -1,4 +1,5 @@
-"""Scenes for :class:`~ase_sphrelax.flows.bisph.BISPH`: a tank at rest under gravity, a periodic channel.
+"""Scenes for :class:`~ase_sphrelax.flows.bisph.BISPH`: a tank at rest under gravity, a periodic channel, the
+elliptic drop (a free surface and no walls).
 
 A scene is a :class:`~ase_sphrelax.boundary.BoundarySegments`, fluid particles and a body force.
 The Cartesian start is BIPI2D's particle generator (METHOD_NOTES): one particle at each cell centre
@@ -14,7 +15,7 @@ from ..boundary import BoundarySegments, as_boundary
 from ..checks import check_positive
 from .bisph import BISPH, tait_density
 
-__all__ = ["cartesian_fill", "tank", "channel", "poiseuille", "wall_distance"]
+__all__ = ["cartesian_fill", "tank", "channel", "poiseuille", "wall_distance", "elliptic_drop"]
 
 DROP_FRACTION = 0.125  # BIPI2D drops grid particles within dx/8 of the boundary
 
@@ -109,3 +110,52 @@ def poiseuille(y, width, force, mu, rho0=1000.0):
     """The steady plane Poiseuille profile ``u(y) = force rho0 y (width - y) / (2 mu)``."""
     y = np.asarray(y, dtype=float)
     return force * rho0 * y * (width - y) / (2.0 * mu)
+
+
+def elliptic_drop(positions, dx, a0=100.0, radius=None, rho0=1000.0, c0=None, mu=10.0, box=5.0, **kwargs):
+    """The elliptic drop (Monaghan 1994; BIPI Sec. 4.2.2, Eq. 22): a disc of fluid, free surface all round,
+    no gravity, starting from BIPI's Eq. 22::
+
+        v = (A0 x, -A0 y),   p = rho0 A0^2 (R^2 - |x|^2) / 2      (x from the particles' mean)
+
+    (the density from Eq. 18 inverted; ``p`` floored at 0). BISPH needs a boundary: the walls are a square of
+    half-width ``box R`` about the centre, so far that no particle comes within the support ``h`` of it while
+    the drop's long axis stays below ``box R - h`` (the analytic axis reaches 3.67 R at A0 t = 2): every
+    ``gamma_a`` is then 1 and Eqs. 16-17 have no wall terms, the free surface is left to the truncated
+    particle sums.
+
+    Parameters
+    ----------
+    positions : array (N, 2|3)
+        The disc's particles (all fluid).
+    dx, a0 : float
+        Particle spacing (m) and initial strain rate ``A0`` (1/s).
+    radius : float or None
+        ``R`` of Eq. 22; default the uniform disc's of the particles' second moment, ``sqrt(2 <|x|^2>)``.
+    rho0, mu : float
+    c0 : float or None
+        Default ``14 A0 R`` (Mach 0.07 at the fastest initial particle).
+    box : float
+        The walls' half-width in units of ``R``.
+    **kwargs
+        More :class:`BISPH` parameters.
+    """
+    r = np.asarray(positions, dtype=float)
+    if r.ndim != 2 or r.shape[1] not in (2, 3) or len(r) == 0:
+        raise ValueError(f"positions must have shape (N, 2) or (N, 3) with N >= 1, got {r.shape}")
+    a0 = check_positive("a0", a0)
+    rel = r[:, :2] - r[:, :2].mean(axis=0)
+    r2 = np.einsum("pc,pc->p", rel, rel)
+    radius = math.sqrt(2.0 * float(r2.mean())) if radius is None else check_positive("radius", radius)
+    c0 = 14.0 * a0 * radius if c0 is None else c0
+    half = check_positive("box", box) * radius
+    if half <= math.sqrt(float(r2.max())) + kwargs.get("h_over_dx", 4.0) * dx:
+        raise ValueError(f"box must put the walls beyond the drop plus a support; {box!r} R is too close")
+    centre = r[:, :2].mean(axis=0)
+    walls = BoundarySegments.from_vertices([centre + [-half, -half], centre + [half, -half], centre + [half, half],
+                                            centre + [-half, half]])
+    p = 0.5 * rho0 * a0**2 * (radius**2 - r2)
+    rho = tait_density(np.maximum(p, 0.0), rho0, c0, kwargs.get("p_background", 0.0))
+    v = np.column_stack([a0 * rel[:, 0], -a0 * rel[:, 1]])
+    return BISPH(walls, r, dx, rho0=rho0, c0=c0, mu=mu, body_force=(0.0, 0.0), hydrostatic=False, density=rho,
+                 velocities=v, **kwargs)
