@@ -1,6 +1,7 @@
 """BIPI Figs. 15-18 in BISPH: BIPI2D's own coral tank at rest from a Cartesian and a BIPI start.
 
     python reproductions/bipi-coral-bisph/run.py [--dx 0.02] [--t-end 2.0]
+    python reproductions/bipi-coral-bisph/run.py --t-end 5.0 --tag _t5     # the longer check
     python reproductions/bipi-coral-bisph/run.py --wall-band 0 --t-end 0.5 --tag _band0
     python reproductions/bipi-coral-bisph/run.py --fig18 30 100 1000 --t-end 0.5 --tag _fig18
     python reproductions/bipi-coral-bisph/run.py --plot      # results/ke.png and results/window.json
@@ -34,10 +35,11 @@ Measures, declared before the runs (issue 29 item 2):
   ``rho0 g d`` at the bins' mean depth.
 
 ``--wall-band 0`` switches Eq. 21's compressed density off (the controlled experiment, as in
-bipi-wedge-bisph). Writes ``summary{tag}.json`` and ``ke{tag}.json.gz`` (KE(t) and the pressure error of each start).
-``--plot`` draws ``ke.png`` from every ``ke*.json.gz`` and writes ``window.json``: each run's KE
-averaged over the first WINDOW = 0.5 s (trapezoid rule), so the shorter runs (Eq. 21 off, Fig. 18)
-compare with the first 0.5 s of the main ones, and the Cartesian/BIPI ratios over that window.
+bipi-wedge-bisph). Writes ``summary{tag}.json`` and ``ke{tag}.json.gz`` (KE(t) and the pressure
+error of each start). ``--plot`` draws ``ke.png`` from ``ke.json.gz``, ``ke_band0`` and ``ke_fig18``
+and writes ``window.json``: each run's KE averaged over the first WINDOW = 0.5 s (trapezoid rule),
+so the shorter runs (Eq. 21 off, Fig. 18) compare with the first 0.5 s of the main ones, and the
+Cartesian/BIPI ratios over that window.
 """
 from __future__ import annotations
 
@@ -64,6 +66,7 @@ MU = 10.0
 TANK_TOP = 1.5
 GOAL = 10.0  # issue 29: Cartesian / BIPI run-averaged KE
 WINDOW = 0.5  # s: the common window of the main, Eq.-21-off and Fig. 18 runs
+PLOTTED = ("", "_band0", "_fig18")  # the ke{tag}.json.gz that --plot draws and windows
 
 
 def water():
@@ -120,14 +123,16 @@ def outliers(sim, walls, dx):
 
 
 def plot(out):
-    """``ke.png``: KE(t) on a log scale of every ``ke*.json.gz`` in ``out``; Fig. 18's runs on the right."""
+    """``ke.png``: KE(t) on a log scale of the PLOTTED runs in ``out``; Fig. 18's runs on the right."""
     from lib.bipi_figures import _plt, _save
 
     plt = _plt()
     window = {}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
-    for path in sorted(out.glob("ke*.json.gz")):
-        tag = path.name[2:-8]
+    for tag in PLOTTED:
+        path = out / f"ke{tag}.json.gz"
+        if not path.exists():
+            continue
         with gzip.open(path, "rt") as f:
             curves = json.load(f)
         for name, c in curves.items():
