@@ -75,11 +75,15 @@ def cell_boundary():
     return BoundarySegments.from_edges(EDGES).with_cell(pbc=(True, False), quiet=True)
 
 
+WALL_BAND = 0.5  # Eq. 21's band in dx; --wall-band 0 switches it off (the controlled experiment)
+
+
 def make_sim(boundary, r, dx, v=None, rho=None):
     from ase_sphrelax.flows import BISPH
 
     return BISPH(boundary, r, dx, rho0=RHO0, c0=C0, mu=MU, body_force=(FORCE, 0.0), h_over_dx=H_OVER_DX,
-                 p_background=P_B, hydrostatic=False, viscosity="pcg", velocities=v, density=rho)
+                 p_background=P_B, hydrostatic=False, viscosity="pcg", velocities=v, density=rho,
+                 wall_band=WALL_BAND)
 
 
 def steady_state(boundary, dx, t_steady, t_avg, cache):
@@ -205,6 +209,7 @@ def plot(curves, summary, path):
 
 
 def main(argv=None):
+    global WALL_BAND
     from lib.bipi_sph import make_start
     from ase_sphrelax.drivers.bipi_packer import initial_fill
     from ase_sphrelax.flows.bisph import tait_density
@@ -215,14 +220,19 @@ def main(argv=None):
     parser.add_argument("--t-steady", type=float, default=0.3, help="length of the steady-state run (s)")
     parser.add_argument("--t-run", type=float, default=0.05, help="length of each start's run (s)")
     parser.add_argument("--t-avg", type=float, default=T_AVG, help="the steady run's averaging window (s)")
-    parser.add_argument("--cache", default=None, help="steady samples (default /tmp/bipi-cyl-steady-dx{dx}-t{t}.npz)")
+    parser.add_argument("--wall-band", type=float, default=WALL_BAND,
+                        help="Eq. 21's band in dx, every run (0: compressed density off; the controlled experiment)")
+    parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and rms{tag}.json.gz")
+    parser.add_argument("--cache", default=None, help="steady samples (default a file in /tmp named by the settings)")
     args = parser.parse_args(argv)
     if not args.t_steady > args.t_avg > 0:
         parser.error(f"--t-steady must exceed --t-avg > 0, got {args.t_steady!r} and {args.t_avg!r}")
+    WALL_BAND = args.wall_band
     dx = args.dx
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    cache = Path(args.cache or f"/tmp/bipi-cyl-steady-dx{dx:g}-t{args.t_steady:g}-{args.t_avg:g}.npz")
+    cache = Path(args.cache or f"/tmp/bipi-cyl-steady-dx{dx:g}-t{args.t_steady:g}-{args.t_avg:g}"
+                               f"-band{args.wall_band:g}.npz")
     boundary = cell_boundary()
     h = H_OVER_DX * dx
     print(f"steady run: dx = {dx:g} m, {args.t_steady:g} s", flush=True)
@@ -230,8 +240,8 @@ def main(argv=None):
     ref = Reference(samples, boundary, dx)
     re, v_bar = reynolds(samples, ref.length, h)
     late = ke[:, 0] >= args.t_steady - args.t_avg
-    summary = dict(dx=dx, h_support=h, h_b=h / 2, rho0=RHO0, mu=MU, force=FORCE, c0=C0, p_background=P_B,
-                   viscosity="pcg", t_steady=args.t_steady, t_avg=args.t_avg, t_run=args.t_run,
+    summary = dict(dx=dx, wall_band_dx=args.wall_band, h_support=h, h_b=h / 2, rho0=RHO0, mu=MU, force=FORCE, c0=C0,
+                   p_background=P_B, viscosity="pcg", t_steady=args.t_steady, t_avg=args.t_avg, t_run=args.t_run,
                    reference="linear moving least squares, Wendland C2 weights of support 2 dx, pooled snapshots",
                    steady=dict(wall_time_s=round(steady_wall, 1), n_samples=len(samples),
                                ke_last=float(ke[-1, 1]),
@@ -280,9 +290,10 @@ def main(argv=None):
         q: bool(runs["cartesian"][f"{q}_rms_mean"] > runs["bipi_fixed_100_100"][f"{q}_rms_mean"]
                 >= runs["bipi_fixed_400_300"][f"{q}_rms_mean"]) for q in ("p", "v1", "v2")}
     summary["command"] = " ".join(["python", "reproductions/bipi-cylinders-bisph/run.py"] + sys.argv[1:])
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    write_json(out / "rms.json.gz", curves)
-    plot(curves, summary, out / "rms.png")
+    (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
+    write_json(out / f"rms{args.tag}.json.gz", curves)
+    if not args.tag:
+        plot(curves, summary, out / "rms.png")
     print(json.dumps(summary, indent=1))
 
 
