@@ -13,7 +13,8 @@ water are never reached). Records each start's smallest distance to a wall (in d
 particles start within dx/2 of one (inside Eq. 21's compressed-density band). Writes
 ``summary{tag}.json`` (run-averaged KE of each start, their ratio, the final KE and pressure error,
 the packing's iterations) and ``ke{tag}.json.gz`` (KE(t) of each). ``--wall-band 0`` switches
-Eq. 21 off (the controlled experiment).
+Eq. 21 off (the controlled experiment); ``--viscosity pcg`` runs Fig. 14b's particle-consistent-gradient
+viscous term.
 """
 from __future__ import annotations
 
@@ -73,17 +74,20 @@ def main(argv=None):
     parser.add_argument("--t-end", type=float, default=1.5)
     parser.add_argument("--wall-band", type=float, default=0.5,
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
+    parser.add_argument("--viscosity", choices=("boundary_layer", "pcg"), default="boundary_layer",
+                        help="BISPH's viscous form: the boundary-layer form, or Fig. 14b's particle-consistent gradient")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     walls = tank_walls()
     summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx,
-                   h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end, mu=MU, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
+                   h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end, mu=MU, viscosity=args.viscosity, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
     curves = {}
     for name, (r, info) in starts(args.dx).items():
         print(f"start {name}: {len(r)} particles {info}", flush=True)
-        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band)
+        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band,
+                   viscosity=args.viscosity)
         gap = wall_distance(r, walls) / args.dx
         info = dict(info, wall_distance_min_dx=float(gap.min()), n_within_half_dx=int((gap < 0.5).sum()))
         t = time.perf_counter()
