@@ -556,7 +556,9 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     last = _scan_chunk_growing(scan, nthreads - 1, count_s, regions[-1], *bounds[-1])  # on the calling thread
     results = [job.result() for job in jobs] + [last]
     total = sum(r[1] for r in results)
-    if any(r[2] for r in results):
+    if nthreads == 1 and results[0][2]:
+        buffer = results[0][0]  # one region, already in place: no copy of the grown list
+    elif any(r[2] for r in results):
         # a region outgrew its share: gather all into a new buffer with a margin for the next build
         buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
         dst = 0
@@ -830,12 +832,15 @@ class BinnedPoints:
         return starts
 
     def expected_pairs(self):
-        """Estimated size of the half list (uniform density within the bins' extent)."""
+        """Estimated size of the half list (uniform density within the occupied bins)."""
         spread = self.nbin_c > 1
         dim = int(np.count_nonzero(spread))
         if dim == 0:
             return self.n_extended * (self.n_extended - 1) // 2
-        volume = float(np.prod((self.nbin_c * self.binsize)[spread]))
+        # the occupied bins' volume, not the grid's: a disc fills pi/4 of its box, and a list buffer
+        # sized from the box has to grow (a copy, 2.5 lists at once) on the first build
+        occupied = int(np.count_nonzero(np.diff(self.bin_start)))
+        volume = occupied * self.binsize**dim
         ball = {1: 2.0, 2: np.pi, 3: 4.0 * np.pi / 3.0}[dim] * self.bin_reach**dim
         return int(0.5 * self.n_extended * min(self.n_extended, self.n_extended / volume * ball))
 
@@ -1150,7 +1155,10 @@ class NeighborList:
         if self.points.n_normal < self.points.n_extended:  # room for a wide point's candidates in every region
             want += nthreads * self.points.n_extended
         if self._pair_buffer.shape[0] < want:
-            self._pair_buffer = np.empty(want, dtype=np.int32)
+            # the old buffer goes first; the new one has room to spare: its untouched pages take no memory,
+            # and a list that outgrows its buffer costs a grown copy of it (the buffer and 1.5 times it at once)
+            self._pair_buffer = None
+            self._pair_buffer = np.empty(int(1.5 * want), dtype=np.int32)
         self._pair_start, self._pair_j, self._pair_buffer, self._ends = _one_pass_list(
             scan, self.points.n_extended, self._pair_buffer, nthreads)
         self._pair_count = self._pair_j.shape[0]
