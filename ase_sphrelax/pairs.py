@@ -350,6 +350,29 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     return numba.njit(cache=True, nogil=True)(function), source
 
 
+_SCRATCH = {}  # per thread (and "stacked"): the one float array the pair loops' buffers are views of
+
+
+def _scratch(key, size):
+    """A float64 array of ``size`` elements from the scratch of ``key``, grown (never shrunk) on demand;
+    only the interaction being computed uses it."""
+    buf = _SCRATCH.get(key)
+    if buf is None or buf.shape[0] < size:
+        _SCRATCH[key] = None  # the old one goes first
+        buf = _SCRATCH[key] = np.empty(size)
+    return buf
+
+
+def _carve(flat, shapes):
+    """Consecutive views of ``flat`` with the given shapes (a tuple)."""
+    views, pos = [], 0
+    for shape in shapes:
+        size = int(np.prod(shape))
+        views.append(flat[pos:pos + size].reshape(shape))
+        pos += size
+    return tuple(views)
+
+
 def _names(what, names):
     """A declaration as a tuple of names."""
     if isinstance(names, str) or not all(isinstance(n, str) for n in names):
@@ -430,7 +453,6 @@ class PairInteraction:
         self.dim = int(dim)
         self._pairs = {}
         self._loops = {}
-        self._buffers = {}
         self._stacked = None
 
     def __repr__(self):
@@ -477,8 +499,11 @@ class PairInteraction:
         return self._loops[(kind, None if kernel is None else kernel.key)][1]
 
     def _thread_buffers(self, nthreads, n_ext, forward):
-        """Per-thread accumulators ``buffers[t][k]``, reused between calls of the same size (each
-        loop chunk zeroes its own thread's buffers).
+        """Per-thread accumulators ``buffers[t][k]``: views of one scratch array per thread that every
+        interaction shares (:func:`_scratch`), reused between calls (each loop chunk zeroes its own
+        thread's buffers). The outputs are folded into new arrays before :meth:`compute` returns, so
+        the scratch is free again: a method of several interactions (density, pressure, viscosity)
+        keeps one set of buffers, not one per interaction.
 
         With ``forward`` neighbours thread t writes only the rows from ``partner_starts()[t]``
         on (its chunk's first point, as in :class:`NeighborList`'s half lists and scans, or
@@ -486,20 +511,14 @@ class PairInteraction:
         on 2 threads about 1.5 instead of 2 rows per point to zero and fold. Otherwise every
         thread has all rows (views of one stacked array).
         """
-        key = (nthreads, n_ext, forward)
-        if key not in self._buffers:
-            self._buffers.clear()
-            outputs = list(self.outputs.values())
-            if forward:  # pages are touched only as far as a view reaches
-                self._stacked = None
-                buffers = [tuple(np.empty((n_ext,) + o.shape if o.per_point else (max(o.size, 1),)) for o in outputs)
-                           for t in range(nthreads)]
-            else:
-                self._stacked = [np.empty((nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)))
-                                 for o in outputs]
-                buffers = [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
-            self._buffers[key] = buffers
-        return self._buffers[key]
+        outputs = list(self.outputs.values())
+        if forward:  # pages are touched only as far as a view reaches
+            self._stacked = None
+            shapes = [(n_ext,) + o.shape if o.per_point else (max(o.size, 1),) for o in outputs]
+            return [_carve(_scratch(t, sum(int(np.prod(sh)) for sh in shapes)), shapes) for t in range(nthreads)]
+        shapes = [(nthreads, n_ext) + o.shape if o.per_point else (nthreads, max(o.size, 1)) for o in outputs]
+        self._stacked = _carve(_scratch("stacked", sum(int(np.prod(sh)) for sh in shapes)), shapes)
+        return [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
 
     def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
@@ -561,7 +580,9 @@ class PairInteraction:
             kind, arrays = neighbors.loop_arrays()
             run_chunks(self.loop(kind, kernel), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
                        per_thread=per_thread)
-        return self._fold(neighbors, buffers, bases, forward)
+        result = self._fold(neighbors, buffers, bases, forward)
+        self._stacked = None  # views of the shared scratch: not kept past the call
+        return result
 
     def _fold(self, neighbors, buffers, bases, forward):
         result = PairResult()
