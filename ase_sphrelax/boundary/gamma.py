@@ -235,7 +235,8 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
 
 
 class BoundaryTerms:
-    """Result of :meth:`BoundaryIntegrals.compute`.
+    """Result of :meth:`BoundaryIntegrals.compute`. Its arrays are also the integrals' cache of the
+    unmoved particles: read them, copy before writing.
 
     Attributes
     ----------
@@ -426,8 +427,19 @@ class BoundaryIntegrals:
             grad_pc[same_p] = c["grad_pc"][same_p]
             near_pc[same_p] = c["near_pc"][same_p]
         if _nudge:
-            self._cache = dict(r_pc=r_pc.copy(), band=float(band), rule=band_rule, gamma_p=gamma_p.copy(),
-                               grad_pc=grad_pc.copy(), near_pc=near_pc.copy(), chi_p=chi_p.copy())
+            # the outputs themselves, not copies (64 B per particle): they are new arrays of this call, and
+            # BoundaryTerms' users read them (a caller that writes into them must copy first); the positions
+            # into the last call's copy when it fits (no second copy at once)
+            old = self._cache
+            self._cache = None
+            if old is not None and old["r_pc"].shape == r_pc.shape:
+                np.copyto(old["r_pc"], r_pc)
+                r_copy = old["r_pc"]
+            else:
+                r_copy = r_pc.copy()
+            del old
+            self._cache = dict(r_pc=r_copy, band=float(band), rule=band_rule, gamma_p=gamma_p,
+                               grad_pc=grad_pc, near_pc=near_pc, chi_p=chi_p)
         return BoundaryTerms(gamma_p, grad_pc, chi_p, near_pc if band > 0 else None, pairs,
                              gamma_k if terms else None, grad_k if terms else None, delta_k if terms else None)
 

@@ -163,21 +163,29 @@ class BIPICalculator(SPHCalculator):
         terms = self.integrals.compute(state.nlist, state.r_pc, band=model.band, band_rule=self.parameters.band_rule)
         gamma_p, grad_gamma_pc = terms.gamma_p, terms.grad_gamma_pc
         self._boundary_pairs = terms.pairs
+        terms.pairs.x_sc = None  # the pairs' copy of the positions: not read after compute (24 B per particle)
         out = dict(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
         if set(properties) <= {"gamma", "grad_gamma", "wall_gradient"}:
             return out
         sums = kernel_sums(state.nlist, state.r_pc, model.h, model.kernel)
-        energies_p = model.energies(sums.w_p, gamma_p)
+        # the energy and forces only when asked for (BIPIPacker asks for grad C alone: 32 B per particle less)
+        energetic = not set(properties) <= {"gamma", "grad_gamma", "wall_gradient", "concentration",
+                                            "concentration_gradient"}
+        if energetic:
+            energies_p = model.energies(sums.w_p, gamma_p)
+            out.update(energy=float(energies_p.sum()), energies=energies_p)
         gradient_pc = model.gradient(sums.grad_pc, grad_gamma_pc)
-        out.update(energy=float(energies_p.sum()), energies=energies_p, forces=-gradient_pc)
         empty = np.nonzero(gamma_p <= 0.0)[0]
         if len(empty):
             if {"concentration", "concentration_gradient"} & set(properties):
                 raise ValueError(f"particles {empty[:10].tolist()} lie more than h outside the boundary (gamma = 0): "
                                  "their concentration C_a is undefined")
+            out["forces"] = np.negative(gradient_pc, out=gradient_pc)
             return out  # C and grad C are not stored: asking for them later raises
         out["concentration"] = model.concentration(sums.w_p, gamma_p)
         out["concentration_gradient"] = gradient_pc / gamma_p[:, None]
+        if energetic:
+            out["forces"] = np.negative(gradient_pc, out=gradient_pc)  # in place: one (N, 3) array fewer at once
         return out
 
     def boundary_distances(self, atoms=None):

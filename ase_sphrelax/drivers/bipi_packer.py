@@ -55,6 +55,13 @@ DROP_FRACTION = 1.0 / 8.0  # BIPI2D's generator drops cell centres within dx/8 o
 FLUID, WALL = 1, 2  # atoms.arrays["type"] (read by particle_kinds; lammps_io.sph_flows and flows.settle use it)
 
 
+def _result(calc, name, atoms):
+    """The calculator's result ``name`` for ``atoms`` without ASE's copy (``get_property`` copies; read only)."""
+    if name not in calc.results or calc.check_state(atoms):
+        calc.get_property(name, atoms)
+    return calc.results[name]
+
+
 def particle_kinds(atoms):
     """``atoms.arrays["type"]`` per particle: :data:`FLUID` (1) or :data:`WALL` (2); all fluid without it.
 
@@ -490,9 +497,9 @@ class BIPIPacker(Optimizer):
         pbc[self.model.dim:] = False
         return pbc
 
-    def _displacement(self, r_pc, r0_pc):
-        """``r - r0``, the minimum image along periodic axes."""
-        d = r_pc - r0_pc
+    def _displacement(self, r_pc, r0_pc, out=None):
+        """``r - r0``, the minimum image along periodic axes (into ``out`` if given)."""
+        d = np.subtract(r_pc, r0_pc, out=out)
         periodic = self.calc.boundary.periodic
         if periodic is not None:
             for i in periodic.axes:
@@ -520,14 +527,17 @@ class BIPIPacker(Optimizer):
     # -- iteration ---------------------------------------------------------------------
     def _evaluate(self, atoms, movable):
         """grad C of ``atoms`` and its average over the movable particles."""
-        grad_c = atoms.calc.get_property("concentration_gradient", atoms)
-        gradc_avg = float(np.mean(np.linalg.norm(grad_c[movable], axis=1))) if movable.any() else 0.0
+        grad_c = _result(atoms.calc, "concentration_gradient", atoms)  # read only
+        if not movable.any():
+            return grad_c, 0.0
+        every = movable.all()  # the usual case in 2c: no masked copy
+        gradc_avg = float(np.mean(np.linalg.norm(grad_c if every else grad_c[movable], axis=1)))
         return grad_c, gradc_avg
 
     def _move(self, atoms, grad_c, x0, movable):
         """One Eq. 14-15 move of the movable particles; returns (TPD_avg after it, rejected moves)."""
         calc = atoms.calc
-        step = self.model.shift(grad_c, calc.get_property("wall_gradient", atoms), calc.get_property("gamma", atoms),
+        step = self.model.shift(grad_c, _result(calc, "wall_gradient", atoms), _result(calc, "gamma", atoms),
                                 self.pressure)
         step[~movable] = 0.0
         heavy = self.momentum > 0.0 and self.stage in self.momentum_stages
@@ -544,11 +554,18 @@ class BIPIPacker(Optimizer):
             out = ~self.calc.boundary.contains(atoms.positions[check] + step[check])
             step[check[out]] = 0.0
             rejected = int(out.sum())
-        pos = atoms.positions + step
-        atoms.positions = pos
         if heavy:
             self._velocity = step
-        tpd = np.linalg.norm(self._displacement(pos[movable], x0[movable]), axis=1)
+            pos = atoms.positions + step
+        else:
+            pos = np.add(atoms.positions, step, out=step)
+        del step
+        atoms.positions = pos  # a copy into the atoms' array: pos is free below
+        if movable.all():  # the usual case in 2c: the displacements in pos, no masked copies
+            d = self._displacement(pos, x0, out=pos)
+            tpd = np.sqrt(np.add.reduce(np.multiply(d, d, out=d), axis=1))  # np.linalg.norm(d, axis=1), in place
+        else:
+            tpd = np.linalg.norm(self._displacement(pos[movable], x0[movable]), axis=1)
         return (float(tpd.mean()) if len(tpd) else 0.0), rejected
 
     def _stop(self, values):

@@ -138,8 +138,13 @@ class BIPIModel:
         pressure : bool
             False gives Eq. 12 (no boundary pressure).
         """
-        bracket = grad_c_pc - (0.5 / gamma_p)[:, None] * near_pc if pressure else grad_c_pc
-        step = -self.diffusion * bracket
+        # the same operations as -D (grad C - (0.5 / gamma) near), in one (N, 3) array
+        if pressure:
+            step = np.multiply((0.5 / gamma_p)[:, None], near_pc)
+            np.subtract(grad_c_pc, step, out=step)
+            step *= -self.diffusion
+        else:
+            step = -self.diffusion * grad_c_pc
         norm = np.sqrt(np.einsum("pc,pc->p", step, step))
         over = norm > self.cap
         step[over] *= (self.cap / norm[over])[:, None]
