@@ -710,6 +710,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     h_first = float(h_p.max())
     for iteration in range(1, max_iter + 1):
         nlist.update(r_pc, cell, pbc, cutoff=h_p, store=store)
+        sums_pj = rows = moments = None  # the last pass's sums go before the next pass makes its own
         sums_pj, table_kj, rows = _solve_pass(nlist, r_pc, h_p, m_p, equal, active_p, kernel, dims)
         if rows is None:  # power sums: each particle's moments are formed in the update (no (7, N) rows)
             moments = (sums_pj, table_kj, float(m_p[0]), float(kernel.f0)) + (_NO_ROWS,) * 7
@@ -738,6 +739,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             f"particle {a} at {r_pc[a].tolist()}: smoothing length did not converge in {max_iter} iterations "
             f"(H = {h_p[a]:.6g}, bracket [{lo_p[a]:.6g}, {hi_p[a]:.6g}], {int(active_p.sum())} particles left)"
             + _coincidence_note(r_pc, a, h_p[a]))
+    sums_pj = rows = moments = lo_p = hi_p = None  # done with: freed before the outputs are made
     norm_p = sigma / h_p**d
     omega_p = -t_p / (d * s_p)
     if not np.all(omega_p[:solve] > 0.0):  # NaN included: H is not a differentiable function of the positions there

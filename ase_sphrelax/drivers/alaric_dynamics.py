@@ -169,7 +169,7 @@ class ALARICDynamics(MolecularDynamics):
     # -- physics ------------------------------------------------------------------------------
     def _accelerations(self, v_pc):
         atoms = self.atoms
-        f_pc = atoms.get_forces().copy()
+        f_pc = atoms.get_forces()  # ASE's copy: ours to change
         m = self.calc.mass
         if self.viscosity:
             v_sig = max(self.cs, float(np.sqrt((v_pc**2).sum(axis=1)).max()))
