@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import os
+import weakref
 
 import numba
 import numpy as np
@@ -336,9 +337,10 @@ class BoundaryIntegrals:
         """Inside test of every particle, redone when the neighbour list builds new bins."""
         pts = nlist.points
         reuse = nlist.stored and 0.5 * nlist.skin < self.h
-        if not (reuse and self._inside_points is pts and len(self._inside_p) == len(r_pc)):
+        if not (reuse and self._inside_points is not None and self._inside_points() is pts
+                and len(self._inside_p) == len(r_pc)):
             self._inside_p = np.asarray(self.boundary.contains(r_pc), dtype=bool)
-            self._inside_points = pts
+            self._inside_points = weakref.ref(pts)  # not keeping old bins alive past a rebuild
             self.inside_tests += 1
         return self._inside_p
 

@@ -24,6 +24,7 @@ particle meets every image within ``radius`` once.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numba
 import numpy as np
@@ -213,10 +214,15 @@ class BoundaryPairs:
     def nearest_distance(self):
         """Distance of each particle to its nearest element within the radius (inf if none)."""
         out = np.full(self.n_particles, np.inf)
-        rows = np.nonzero(np.diff(self.start_p))[0]
+        rows = np.flatnonzero(self.start_p[1:] != self.start_p[:-1])  # a bool temporary, not an int64 diff
         if len(rows):  # CSR rows are contiguous: one reduceat over the non-empty rows
             out[rows] = np.minimum.reduceat(self.distance_k, self.start_p[rows])
         return out
+
+
+def _deref(ref):
+    """The object of a weak reference, None for none or a dead one."""
+    return None if ref is None else ref()
 
 
 def _kind(elements):
@@ -254,7 +260,7 @@ class BoundaryQuery:
         self.candidate_builds = 0
 
     def _registered(self, pts, reach):
-        if self._points is pts and reach <= self._reach:
+        if _deref(self._points) is pts and reach <= self._reach:
             return self._reg
         nbins = int(np.prod(pts.nbin_c))
         start = np.zeros(nbins + 1, dtype=np.int64)
@@ -264,7 +270,8 @@ class BoundaryQuery:
         np.cumsum(start, out=start)
         out = np.empty(start[-1], dtype=np.int64)
         _register(*args, start, out, True)
-        self._points, self._reach, self._reg = pts, reach, (start, out)
+        # weak references to the bins: the old bins go when the neighbour list rebuilds (not kept alive here)
+        self._points, self._reach, self._reg = weakref.ref(pts), reach, (start, out)
         self.registrations += 1
         return self._reg
 
@@ -283,12 +290,12 @@ class BoundaryQuery:
     def _candidates(self, pts, x_sc, reg_start, reg_elem, radius, margin, skip_s):
         """Per sorted point, the registered elements within ``radius + 2 margin`` (``row_s``, ``cand_elem``), kept
         while the bins stay, and scratch rows of the same size for the kept pairs."""
-        if self._cand_key is None or self._cand_key[0] is not pts or self._cand_key[1:] != (radius, margin):
+        if self._cand_key is None or _deref(self._cand_key[0]) is not pts or self._cand_key[1:] != (radius, margin):
             count_s = np.zeros(x_sc.shape[0], dtype=np.int64)
             row_s, cand_elem, _ = self._within(x_sc, pts, reg_start, reg_elem, (radius + 2.0 * margin) ** 2, skip_s,
                                                count_s)
             # scratch for the kept pairs, reused by every call on these bins
-            self._cand_key = (pts, radius, margin)
+            self._cand_key = (weakref.ref(pts), radius, margin)
             self._cand = (row_s, cand_elem, np.empty(len(cand_elem), dtype=np.int64), np.empty(len(cand_elem)))
             self.candidate_builds += 1
         return self._cand

@@ -174,7 +174,9 @@ class BIPICalculator(SPHCalculator):
         if energetic:
             energies_p = model.energies(sums.w_p, gamma_p)
             out.update(energy=float(energies_p.sum()), energies=energies_p)
-        gradient_pc = model.gradient(sums.grad_pc, grad_gamma_pc)
+        # model.gradient (V sum grad W - grad gamma) in the sums' own new array: no (N, 3) temporaries
+        gradient_pc = np.subtract(np.multiply(model.volume, sums.grad_pc, out=sums.grad_pc), grad_gamma_pc,
+                                  out=sums.grad_pc)
         empty = np.nonzero(gamma_p <= 0.0)[0]
         if len(empty):
             if {"concentration", "concentration_gradient"} & set(properties):
