@@ -556,21 +556,14 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     last = _scan_chunk_growing(scan, nthreads - 1, count_s, regions[-1], *bounds[-1])  # on the calling thread
     results = [job.result() for job in jobs] + [last]
     total = sum(r[1] for r in results)
-    if nthreads == 1 and results[0][2]:
-        buffer = results[0][0]  # one region, already in place: no copy of the grown list
-    elif any(r[2] for r in results):
-        # a region outgrew its share: gather all into a new buffer with a margin for the next build
-        buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
-        dst = 0
-        for region, pos, _, _ in results:
-            buffer[dst:dst + pos] = region[:pos]
-            dst += pos
-    else:
-        dst = results[0][1]
-        for t in range(1, nthreads):  # move the regions down to close the gaps (dst <= t * cap_t)
-            pos = results[t][1]
-            buffer[dst:dst + pos] = buffer[t * cap_t:t * cap_t + pos]
-            dst += pos
+    # the list gathered into a new, compact buffer (with a margin for the next build), always: a list walked in the
+    # pages the scan wrote was 1.25x slower to walk (Fan 2D at 1e5 on one thread: 48 vs 38 ms per step) than the
+    # same list copied into fresh pages; the scan's buffer is freed when this returns
+    buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
+    dst = 0
+    for region, pos, _, _ in results:
+        buffer[dst:dst + pos] = region[:pos]
+        dst += pos
     np.cumsum(count_s, out=count_s)
     return count_s, buffer[:total], buffer, [r[3] for r in results]
 
