@@ -279,14 +279,30 @@ class FanModel:
             return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
         if self.boundary_term == "gamma":
             return self._gamma_boundary(r_pc, v0, want_forces, nlist)
-        phi_p, n_pc = self._phi_and_normal(r_pc)
-        s_p = -phi_p
-        e_p = 2.0 * v0 * self.kernel.w1_tail_integral(s_p, self.h)
-        if not want_forces:
-            return e_p, None
-        g_p = self.kernel.w1(np.maximum(s_p, 0.0), self.h)
-        g_p *= -2.0 * v0
-        return e_p, g_p[:, None] * n_pc
+        # Fan's term vanishes at and beyond h from the wall (I(s >= h) = 0, W1(s >= h) = 0): the level set
+        # of every particle picks the few within h, whose normals and tail integrals are computed alone
+        near = np.flatnonzero(self._phi(r_pc) > -self.h)
+        e_p = np.zeros(n)
+        f_pc = np.zeros((n, 3)) if want_forces else None
+        if len(near):
+            phi_o, n_oc = self._phi_and_normal(r_pc[near])
+            s_o = -phi_o
+            e_p[near] = 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
+            if want_forces:
+                g_o = self.kernel.w1(np.maximum(s_o, 0.0), self.h)
+                g_o *= -2.0 * v0
+                f_pc[near] = g_o[:, None] * n_oc
+        return e_p, f_pc
+
+    def _phi(self, r_pc):
+        """The level set ``phi`` (N,) at ``r_pc``, (N, 3) or (N, dim)."""
+        if not hasattr(self.domain, "phi"):  # a duck-typed domain with phi_and_normal() only
+            return self._phi_and_normal(r_pc)[0]
+        if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
+            phi_p = self.domain.phi(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
+        else:
+            phi_p = self.domain.phi(np.ascontiguousarray(r_pc[:, : self.dim]))
+        return np.asarray(phi_p, dtype=float).reshape(len(r_pc))
 
     def _phi_and_normal(self, r_pc):
         """The level set ``phi`` (N,) and its gradient ``n`` (N, 3) at ``r_pc``, (N, 3) or (N, dim)."""
