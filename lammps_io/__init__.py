@@ -35,6 +35,7 @@ _WHERE = {
     "lepton_expression": ".potential",
     "pair_commands": ".potential",
     "run": ".relaxation",
+    "trajectory_files": ".relaxation",
     "write_relaxation_input": ".relaxation",
     "cli_export": ".cli",
     "cli_relax": ".cli",

@@ -35,9 +35,11 @@ from .dump import read_dump
 from .potential import check_pair_style, check_table_points, pair_commands
 from .worker_args import domain_to_data, write_worker_args
 
-__all__ = ["write_relaxation_input", "run", "default_timestep", "minimize_report", "CALLBACK_MARKER", "LOG_NAME"]
+__all__ = ["write_relaxation_input", "run", "trajectory_files", "default_timestep", "minimize_report", "CALLBACK_MARKER",
+           "LOG_NAME"]
 
 CALLBACK_MARKER = "# lammps_io: python fix external callback"
+TRAJECTORY_PREFIX = "trajectory"  # dump_every's files: trajectory.<step>.dump
 LOG_NAME = "log.lammps"
 MIN_STYLES = ("fire", "cg", "sd", "quickmin")
 
@@ -76,7 +78,8 @@ def _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, nproc
 
 def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, style="lepton", kernel="wendland_c2",
                            dim=None, ftol=None, dt=None, min_style="fire", skin=None, n_table=20000,
-                           data_name="relax.data", dump_name="relaxed.dump", thermo_every=100, fmax=None):
+                           data_name="relax.data", dump_name="relaxed.dump", thermo_every=100, fmax=None,
+                           dump_every=None):
     """Write a LAMMPS input deck (and its data/table files) relaxing ``atoms``.
 
     Parameters
@@ -104,6 +107,10 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     dt : float or None
         Initial FIRE time step (unit masses); default :func:`default_timestep`.
     min_style : {"fire", "cg", "sd", "quickmin"}
+    dump_every : int or None
+        Also dump the positions every this many minimiser steps, one file per step
+        (``trajectory.<step>.dump`` beside the deck; read them with :func:`trajectory_files` and
+        :func:`~lammps_io.dump.read_dump`). None: the final positions only.
 
     Returns
     -------
@@ -115,6 +122,8 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     model, skin = _check_common(atoms, h, dx, domain, dim, kernel, skin, n_table, steps, 1, style, min_style)
     if fmax is not None and not (isinstance(fmax, (int, float, np.floating)) and math.isfinite(fmax) and fmax >= 0):
         raise ValueError(f"fmax must be a finite number >= 0 or None, got {fmax!r}")
+    if dump_every is not None and not (isinstance(dump_every, (int, np.integer)) and dump_every >= 1):
+        raise ValueError(f"dump_every must be an integer >= 1 or None, got {dump_every!r}")
     h, dim = model.h, model.dim
     n = len(atoms)
     vols = model.volumes(n, periodic_measure(atoms.cell.array, atoms.pbc, dim))
@@ -163,6 +172,9 @@ def write_relaxation_input(atoms, path, h, dx=None, domain=None, steps=1000, sty
     ]
     if fmax is not None:
         cmds.append("min_modify norm max")  # ftol on the largest per-particle |F|, as ASE's fmax
+    if dump_every is not None:
+        cmds += [f"dump trajectory all custom {int(dump_every)} {TRAJECTORY_PREFIX}.*.dump id type x y z",
+                 "dump_modify trajectory sort id format float %.17g"]
     cmds += [
         f"minimize 0.0 {ftol:.17g} {int(steps)} {10 * int(steps) + 10}",
         f"write_dump all custom {dump_name} id type x y z fx fy fz modify sort id format float %.17g",
@@ -303,15 +315,15 @@ def execute_deck(folder, deck="relax.in", model=None, v0=None, nthreads=1, resul
 
 def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", kernel="wendland_c2", dim=None,
         ftol=None, dt=None, min_style="fire", nthreads=1, skin=None, n_table=20000, workdir=None, timeout=None,
-        fmax=None, progress=False):
+        fmax=None, progress=False, dump_every=None):
     """Relax ``atoms`` with Fan's total error in LAMMPS and return the relaxed copy.
 
     Parameters
     ----------
     atoms : ase.Atoms
         Periodic interior set, or open set (pbc False) inside ``domain``.
-    h, dx, domain, steps, style, kernel, dim, ftol, dt, min_style, skin, n_table, fmax
-        See :func:`write_relaxation_input`.
+    h, dx, domain, steps, style, kernel, dim, ftol, dt, min_style, skin, n_table, fmax, dump_every
+        See :func:`write_relaxation_input` (``dump_every`` needs a ``workdir`` to keep its files).
     progress : bool
         Show a tqdm bar of the minimiser's thermo steps (read from LAMMPS' log while it runs).
     nprocs : int
@@ -350,7 +362,7 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
         thermo_every = max(1, min(100, steps // 100)) if progress else 100
         info = write_relaxation_input(atoms, folder / "relax.in", h, dx=dx, domain=domain, steps=steps, style=style,
                                       kernel=kernel, dim=dim, ftol=ftol, dt=dt, min_style=min_style, skin=skin,
-                                      n_table=n_table, fmax=fmax, thermo_every=thermo_every)
+                                      n_table=n_table, fmax=fmax, thermo_every=thermo_every, dump_every=dump_every)
         kwargs = dict(model=info["model"], v0=info["v0"], nthreads=nthreads)
         t0 = time.perf_counter()
         bar = _LogProgress(folder / LOG_NAME, steps, f"lammps {min_style}") if progress else None
@@ -372,6 +384,14 @@ def run(atoms, h, dx=None, domain=None, steps=2000, nprocs=1, style="lepton", ke
     finally:
         if tmp is not None:
             tmp.cleanup()
+
+
+def trajectory_files(workdir):
+    """``[(step, path), ...]`` of the dumps ``dump_every`` wrote in ``workdir``, by step."""
+    found = []
+    for path in Path(workdir).glob(f"{TRAJECTORY_PREFIX}.*.dump"):
+        found.append((int(path.name.split(".")[1]), path))
+    return sorted(found)
 
 
 def _execute(folder, kwargs, nprocs, nthreads, timeout):

@@ -179,6 +179,24 @@ def test_periodic_deck_runs_without_python_driver(tmp_path):
     np.testing.assert_allclose(back.positions, via_run.positions, atol=1e-12)
 
 
+def test_trajectory_dumps_follow_the_minimiser(tmp_path):
+    """``dump_every``: one dump per that many steps, whose frames are the minimiser's own: the
+    frame at step S is the result of a separate run of S steps (FIRE is deterministic), and the
+    last frame the returned positions."""
+    domain = Circle((0.0, 0.0), 3.0)
+    start = fill(domain, 1.0, jitter=0.1, seed=1)
+    done = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=20, dump_every=5, workdir=tmp_path)
+    files = lammps_io.trajectory_files(tmp_path)
+    assert [step for step, _ in files] == [0, 5, 10, 15, 20]
+    last = lammps_io.read_dump(files[-1][1], reference=start)
+    np.testing.assert_allclose(last.positions, done.positions, atol=1e-12)
+    ten = lammps_io.run(start, 2.6, 1.0, domain=domain, steps=10)
+    frame = lammps_io.read_dump(files[2][1], reference=start)
+    np.testing.assert_allclose(frame.positions, ten.positions, atol=1e-12)
+    with pytest.raises(ValueError, match="dump_every"):
+        lammps_io.run(start, 2.6, 1.0, domain=domain, steps=20, dump_every=0, workdir=tmp_path / "w")
+
+
 @pytest.mark.parametrize(
     "kwargs, error, match",
     [
