@@ -1,0 +1,249 @@
+"""Fan's relaxation at 1e6 particles end to end, against LAMMPS's FIRE on the same start (issue 33, item 2).
+
+Scenes: Fan's circle (centre (0.5, 0.5), radius 0.2; in 2D the issue's ``dx = 0.000354 sqrt(1e6 / n)``,
+1 002 739 particles at ``n = 1e6``) and the sphere of the same radius (``dx = (V / n)^(1/3)``), filled by
+``ase_sphrelax.build.fill(domain, dx, jitter=0.1, seed=0)``, ``h = 2.6 dx``.
+
+The measure, declared before any run: the interior mean ``h |sum_j V_j grad W_ij|`` of
+:func:`ase_sphrelax.analysis.quality.quality_summary` (``gradient_error_mean``, particles at least ``h``
+inside the wall), target ``--target`` (6e-4, what 300 of ASE's FIRE steps reached on the 2D circle).
+
+* **ours** (timed, ``--threads`` numba threads): fill, ``FanCalculator(h=, dx=, domain=)``,
+  ``make_optimizer("fire", atoms)`` (the package's defaults), steps until the measure is at most the
+  target, checked every ``--check-every`` steps from the forces the step already has (an interior
+  particle's force is the pair force ``-2 v0^2 sum_j grad W_ij``, so the measure is
+  ``h |F_i| / (2 v0)``; the time of the check is included); the end state is then scored by
+  ``quality_summary`` itself (not timed). numba's compilation is done on a small system first and
+  not counted (its on-disk cache makes it a once-per-machine cost).
+* **LAMMPS** (``lammps_io.run``, ``min_style fire``, ``style="table"``, ``--threads`` OpenMP threads; the
+  wall term by ``fix external``): first an untimed trajectory run of ``--lammps-steps`` steps that dumps
+  every ``--dump-every`` steps (:func:`lammps_io.trajectory_files`), each frame scored by
+  ``quality_summary``; ``S*`` is the first dumped step at or below the target. Then the timed run:
+  ``lammps_io.run(..., steps=S*)`` end to end (deck, data file, minimisation, dump read back), whose
+  final state is scored again. The ratio is ours / LAMMPS (goal <= 0.5) and ours alone (goal <= 30 s
+  on 2 threads, 2D and 3D).
+
+Phases (each merges its part into ``--out``; the load average is printed and stored with each):
+
+    python benchmarks/bench_fan_1e6.py --phase trajectory          # LAMMPS's S* (untimed; any load)
+    python benchmarks/bench_fan_1e6.py --phase timed               # ours and LAMMPS's S* steps, timed
+    python benchmarks/bench_fan_1e6.py --figure                    # docs/_static/bench_fan_1e6.png
+
+``--dims 2,3`` and ``--n 1e6`` choose the scenes. Writes ``benchmarks/results/bench_fan_1e6.json``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:
+    from _provenance import git_version, write_json
+except ImportError:
+    from benchmarks._provenance import git_version, write_json
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "benchmarks" / "results" / "bench_fan_1e6.json"
+FIGURE = ROOT / "docs" / "_static" / "bench_fan_1e6.png"
+RATIO = 2.6  # h / dx
+RADIUS = 0.2
+
+
+def scene(dim, n):
+    """``(domain, dx, atoms)``: Fan's circle or sphere filled with about ``n`` particles."""
+    from ase_sphrelax.build import fill
+    from ase_sphrelax.domains import Circle, Sphere
+
+    if dim == 2:
+        domain, dx = Circle((0.5, 0.5), RADIUS), 0.000354 * np.sqrt(1e6 / n)
+    else:
+        domain = Sphere((0.5, 0.5, 0.5), RADIUS)
+        dx = (4.0 / 3.0 * np.pi * RADIUS**3 / n) ** (1.0 / 3.0)
+    return domain, dx, fill(domain, dx, jitter=0.1, seed=0)
+
+
+def score(atoms, domain, dx):
+    """The declared measure: ``quality_summary``'s interior ``gradient_error_mean``."""
+    from ase_sphrelax.analysis.quality import quality_summary
+
+    return float(quality_summary(atoms, RATIO * dx, dx, domain)["gradient_error_mean"])
+
+
+def warm_up(dim):
+    """Compile (or load from numba's cache) everything the timed run calls, on a small system."""
+    from ase_sphrelax import FanCalculator, make_optimizer
+
+    domain, dx, atoms = scene(dim, 2000)
+    atoms.calc = FanCalculator(h=RATIO * dx, dx=dx, domain=domain)
+    make_optimizer("fire", atoms).run(steps=3, fmax=0)
+    score(atoms, domain, dx)
+
+
+def run_ours(dim, n, target, check_every, max_steps):
+    """Ours end to end until the measure reaches ``target``: a dict of times, steps and the trace."""
+    from ase_sphrelax import FanCalculator, make_optimizer
+
+    t0 = time.perf_counter()
+    domain, dx, atoms = scene(dim, n)
+    t_fill = time.perf_counter() - t0
+    h = RATIO * dx
+    atoms.calc = FanCalculator(h=h, dx=dx, domain=domain)
+    opt = make_optimizer("fire", atoms)
+    v0 = dx**dim
+    trace = []
+    reached = False
+    for _ in opt.irun(fmax=0.0, steps=max_steps):
+        if opt.nsteps % check_every:
+            continue
+        r_pc = atoms.positions
+        inside = domain.phi(r_pc) <= -h
+        f_pc = atoms.calc.results["forces"]  # the step's own forces (no copy)
+        measure = float(h / (2.0 * v0) * np.sqrt((f_pc[inside] ** 2).sum(axis=1)).mean())
+        trace.append([int(opt.nsteps), time.perf_counter() - t0, measure])
+        if measure <= target:
+            reached = True
+            break
+    wall = time.perf_counter() - t0
+    final = score(atoms, domain, dx)
+    return dict(n=len(atoms), dx=dx, wall_time=wall, fill_time=t_fill, steps=int(opt.nsteps), reached=reached,
+                final_measure=final, final_below_target=bool(final <= target), trace=trace,
+                list_builds=int(atoms.calc.nlist.builds))
+
+
+def lammps_trajectory(dim, n, target, steps, dump_every, threads):
+    """Untimed LAMMPS FIRE run dumping every ``dump_every`` steps; each frame scored."""
+    import lammps_io
+
+    domain, dx, atoms = scene(dim, n)
+    frames = []
+    with tempfile.TemporaryDirectory(prefix="bench_fan_1e6_") as work:
+        t0 = time.perf_counter()
+        lammps_io.run(atoms, RATIO * dx, dx, domain=domain, steps=steps, style="table", nthreads=threads,
+                      workdir=work, dump_every=dump_every)
+        wall = time.perf_counter() - t0
+        for step, path in lammps_io.trajectory_files(work):
+            frame = lammps_io.read_dump(path, dim=dim, reference=atoms)
+            frames.append([step, score(frame, domain, dx)])
+            path.unlink()
+            print(f"  {dim}D LAMMPS step {step}: {frames[-1][1]:.3e}", flush=True)
+    below = [s for s, m in frames if m <= target]
+    return dict(n=len(atoms), dx=dx, steps=steps, dump_every=dump_every, trace=frames,
+                first_step_at_target=below[0] if below else None, wall_time_with_dumps=wall)
+
+
+def run_lammps(dim, n, steps, threads):
+    """Timed LAMMPS FIRE run of ``steps`` steps end to end, its final state scored."""
+    import lammps_io
+
+    domain, dx, atoms = scene(dim, n)
+    t0 = time.perf_counter()
+    relaxed = lammps_io.run(atoms, RATIO * dx, dx, domain=domain, steps=steps, style="table", nthreads=threads)
+    wall = time.perf_counter() - t0
+    return dict(steps=steps, wall_time=wall, iterations=int(relaxed.info["lammps"]["iterations"]),
+                final_measure=score(relaxed, domain, dx))
+
+
+def load(path):
+    return json.loads(Path(path).read_text()) if Path(path).exists() else {}
+
+
+def figure(result, path=FIGURE):
+    """Measure against step (ours and LAMMPS) per dimension, with the target and the wall times."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dims = sorted(result.get("scenes", {}))
+    fig, axes = plt.subplots(1, len(dims), figsize=(5.2 * len(dims), 3.8), squeeze=False)
+    for ax, key in zip(axes[0], dims):
+        rec = result["scenes"][key]
+        target = result["target"]
+        ours, traj = rec.get("ours"), rec.get("lammps_trajectory")
+        if ours:
+            s, _, m = np.array(ours["trace"]).T
+            ax.semilogy(s, m, label=f"ours (FIRE), {ours['wall_time']:.0f} s to the target")
+        if traj:
+            s, m = np.array(traj["trace"]).T
+            timed = rec.get("lammps")
+            extra = f", {timed['wall_time']:.0f} s to step {timed['steps']}" if timed else ""
+            ax.semilogy(s, m, "o-", ms=3, label=f"LAMMPS FIRE{extra}")
+        ax.axhline(target, color="k", lw=0.8, ls="--", label=f"target {target:g}")
+        ax.set_xlabel("optimiser step")
+        ax.set_ylabel(r"interior mean $h\,|\sum_j V_j \nabla W_{ij}|$")
+        ax.set_title(f"{key}: N = {(ours or traj or {}).get('n', 0):,}")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    print(f"wrote {path}")
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--phase", choices=("trajectory", "timed"), default=None)
+    parser.add_argument("--dims", default="2,3", help="comma separated dimensions (default 2,3)")
+    parser.add_argument("--n", type=float, default=1e6, help="particles, about (default 1e6)")
+    parser.add_argument("--threads", type=int, default=2, help="numba / OpenMP threads (default 2)")
+    parser.add_argument("--target", type=float, default=6e-4, help="interior mean h|sum V grad W| (default 6e-4)")
+    parser.add_argument("--check-every", type=int, default=5, help="our measure every this many steps (default 5)")
+    parser.add_argument("--max-steps", type=int, default=2000, help="our step cap (default 2000)")
+    parser.add_argument("--lammps-steps", type=int, default=1000, help="the trajectory run's steps (default 1000)")
+    parser.add_argument("--dump-every", type=int, default=50, help="the trajectory run's dump interval (default 50)")
+    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--figure", action="store_true", help="draw the figure from --out and stop")
+    args = parser.parse_args(argv)
+    result = load(args.out)
+    if args.figure:
+        figure(result)
+        return
+    if args.phase is None:
+        parser.error("give --phase trajectory or --phase timed (or --figure)")
+    import numba
+
+    numba.set_num_threads(args.threads)
+    result.update(target=args.target, threads=args.threads, ratio_h_over_dx=RATIO)
+    result.setdefault("scenes", {})
+    result.setdefault("runs", [])
+    for dim in [int(d) for d in args.dims.split(",")]:
+        key = f"{dim}D"
+        rec = result["scenes"].setdefault(key, {})
+        load_start, started = os.getloadavg(), time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        print(f"{key}: phase {args.phase}, load average {load_start[0]:.2f}", flush=True)
+        if args.phase == "trajectory":
+            rec["lammps_trajectory"] = lammps_trajectory(dim, args.n, args.target, args.lammps_steps,
+                                                         args.dump_every, args.threads)
+            print(f"{key}: LAMMPS reaches {args.target:g} at step {rec['lammps_trajectory']['first_step_at_target']}")
+        else:
+            warm_up(dim)
+            ours = run_ours(dim, args.n, args.target, args.check_every, args.max_steps)
+            rec["ours"] = ours
+            print(f"{key}: ours {ours['wall_time']:.1f} s, {ours['steps']} steps, final {ours['final_measure']:.3e}",
+                  flush=True)
+            star = rec.get("lammps_trajectory", {}).get("first_step_at_target")
+            if star is not None:
+                rec["lammps"] = run_lammps(dim, args.n, star, args.threads)
+                rec["ratio_ours_over_lammps"] = ours["wall_time"] / rec["lammps"]["wall_time"]
+                print(f"{key}: LAMMPS {rec['lammps']['wall_time']:.1f} s for {star} steps, final "
+                      f"{rec['lammps']['final_measure']:.3e}; ours / LAMMPS {rec['ratio_ours_over_lammps']:.2f}")
+            rec["goals"] = {"ours <= 30 s": bool(ours["reached"] and ours["wall_time"] <= 30.0)}
+            if "ratio_ours_over_lammps" in rec:
+                rec["goals"]["ours / LAMMPS <= 0.5"] = bool(rec["ratio_ours_over_lammps"] <= 0.5)
+        load_end = os.getloadavg()
+        print(f"{key}: load average {load_end[0]:.2f} at the end", flush=True)
+        result["runs"].append(dict(phase=args.phase, scene=key, version=git_version(),
+                                   started=started,
+                                   load_average_start=load_start, load_average_end=load_end,
+                                   command="python benchmarks/bench_fan_1e6.py " + " ".join(argv or [])))
+        write_json(args.out, result)
+
+
+if __name__ == "__main__":
+    import sys
+
+    main(sys.argv[1:])
