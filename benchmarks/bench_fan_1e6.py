@@ -225,15 +225,19 @@ def main(argv=None):
             rec["ours"] = ours
             print(f"{key}: ours {ours['wall_time']:.1f} s, {ours['steps']} steps, final {ours['final_measure']:.3e}",
                   flush=True)
-            star = rec.get("lammps_trajectory", {}).get("first_step_at_target")
-            if star is not None:
-                rec["lammps"] = run_lammps(dim, args.n, star, args.threads)
-                rec["ratio_ours_over_lammps"] = ours["wall_time"] / rec["lammps"]["wall_time"]
-                print(f"{key}: LAMMPS {rec['lammps']['wall_time']:.1f} s for {star} steps, final "
-                      f"{rec['lammps']['final_measure']:.3e}; ours / LAMMPS {rec['ratio_ours_over_lammps']:.2f}")
+            traj = rec.get("lammps_trajectory")
             rec["goals"] = {"ours <= 30 s": bool(ours["reached"] and ours["wall_time"] <= 30.0)}
-            if "ratio_ours_over_lammps" in rec:
-                rec["goals"]["ours / LAMMPS <= 0.5"] = bool(rec["ratio_ours_over_lammps"] <= 0.5)
+            if traj is not None:
+                # LAMMPS at the target: the timed run stops at S*; never there: its whole trajectory's
+                # length, and the ratio is an upper bound (LAMMPS would need longer)
+                star = traj["first_step_at_target"]
+                rec["lammps"] = run_lammps(dim, args.n, traj["steps"] if star is None else star, args.threads)
+                rec["lammps"]["reached"] = star is not None
+                ratio = ours["wall_time"] / rec["lammps"]["wall_time"]
+                rec["ratio_ours_over_lammps" if star is not None else "ratio_ours_over_lammps_at_most"] = ratio
+                print(f"{key}: LAMMPS {rec['lammps']['wall_time']:.1f} s for {rec['lammps']['steps']} steps, final "
+                      f"{rec['lammps']['final_measure']:.3e}; ours / LAMMPS {'' if star else '< '}{ratio:.2f}")
+                rec["goals"]["ours / LAMMPS <= 0.5"] = bool(ours["reached"] and ratio <= 0.5)
         load_end = os.getloadavg()
         print(f"{key}: load average {load_end[0]:.2f} at the end", flush=True)
         result["runs"].append(dict(phase=args.phase, scene=key, version=git_version(),
