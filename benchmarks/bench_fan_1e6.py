@@ -29,6 +29,14 @@ Phases (each merges its part into ``--out``; the load average is printed and sto
     python benchmarks/bench_fan_1e6.py --phase timed               # ours and LAMMPS's S* steps, timed
     python benchmarks/bench_fan_1e6.py --figure                    # docs/_static/bench_fan_1e6.png
 
+In 3D LAMMPS's trajectory at 1e6 costs over an hour here; its step count comes from a trajectory at 1e5
+and its time per step from a short timed run at 1e6 (``--lammps-estimate-from``), an estimate:
+
+    python benchmarks/bench_fan_1e6.py --phase trajectory --dims 3 --n 1e5 --lammps-steps 1200 --dump-every 50 \
+        --out benchmarks/results/bench_fan_1e6_3d_steps_1e5.json
+    python benchmarks/bench_fan_1e6.py --phase timed --dims 3 \
+        --lammps-estimate-from benchmarks/results/bench_fan_1e6_3d_steps_1e5.json
+
 ``--dims 2,3`` and ``--n 1e6`` choose the scenes. Writes ``benchmarks/results/bench_fan_1e6.json``.
 """
 from __future__ import annotations
@@ -195,6 +203,10 @@ def main(argv=None):
     parser.add_argument("--max-steps", type=int, default=2000, help="our step cap (default 2000)")
     parser.add_argument("--lammps-steps", type=int, default=1000, help="the trajectory run's steps (default 1000)")
     parser.add_argument("--dump-every", type=int, default=50, help="the trajectory run's dump interval (default 50)")
+    parser.add_argument("--lammps-estimate-from", type=Path, default=None,
+                        help="timed phase: LAMMPS's steps to the target from this file's trajectory (a smaller N), "
+                             "its time per step from a timed run of --lammps-rate-steps here (an estimate)")
+    parser.add_argument("--lammps-rate-steps", type=int, default=50, help="the estimate's timed steps (default 50)")
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--figure", action="store_true", help="draw the figure from --out and stop")
     args = parser.parse_args(argv)
@@ -227,7 +239,23 @@ def main(argv=None):
                   flush=True)
             traj = rec.get("lammps_trajectory")
             rec["goals"] = {"ours <= 30 s": bool(ours["reached"] and ours["wall_time"] <= 30.0)}
-            if traj is not None:
+            if args.lammps_estimate_from is not None:
+                # LAMMPS's steps to the target from a smaller system's trajectory, its time per step
+                # measured here over --lammps-rate-steps: an estimate, stored as such
+                small = load(args.lammps_estimate_from)["scenes"][key]["lammps_trajectory"]
+                rate = run_lammps(dim, args.n, args.lammps_rate_steps, args.threads)
+                rate["per_step"] = rate["wall_time"] / args.lammps_rate_steps
+                star = small["first_step_at_target"]
+                estimate = dict(rate_run=rate, steps_from=str(args.lammps_estimate_from), steps_from_n=small["n"],
+                                first_step_at_target=star,
+                                wall_time=None if star is None else rate["per_step"] * star)
+                rec["lammps_estimate"] = estimate
+                if star is not None:
+                    rec["ratio_ours_over_lammps_estimate"] = ours["wall_time"] / estimate["wall_time"]
+                    print(f"{key}: LAMMPS {rate['per_step']:.2f} s per step at N = {ours['n']}, {star} steps at "
+                          f"N = {small['n']}: about {estimate['wall_time']:.0f} s; ours / LAMMPS about "
+                          f"{rec['ratio_ours_over_lammps_estimate']:.2f}")
+            elif traj is not None:
                 # LAMMPS at the target: the timed run stops at S*; never there: its whole trajectory's
                 # length, and the ratio is an upper bound (LAMMPS would need longer)
                 star = traj["first_step_at_target"]
