@@ -176,10 +176,18 @@ def figure(result, path=FIGURE):
         if ours:
             s, _, m = np.array(ours["trace"]).T
             ax.semilogy(s, m, label=f"ours (FIRE), {ours['wall_time']:.0f} s to the target")
+        estimate = rec.get("lammps_estimate")
+        if traj is None and estimate is not None:  # 3D: LAMMPS's trajectory at the smaller N
+            traj = load(ROOT / estimate["steps_from"])["scenes"][key]["lammps_trajectory"]
         if traj:
             s, m = np.array(traj["trace"]).T
             timed = rec.get("lammps")
-            extra = f", {timed['wall_time']:.0f} s to step {timed['steps']}" if timed else ""
+            if timed:
+                extra = f", {timed['wall_time']:.0f} s to step {timed['steps']}"
+            elif estimate and estimate["wall_time"]:
+                extra = f" at N = {traj['n']:,}; at 1e6 about {estimate['wall_time']:.0f} s"
+            else:
+                extra = ""
             ax.semilogy(s, m, "o-", ms=3, label=f"LAMMPS FIRE{extra}")
         ax.axhline(target, color="k", lw=0.8, ls="--", label=f"target {target:g}")
         ax.set_xlabel("optimiser step")
