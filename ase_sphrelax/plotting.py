@@ -54,6 +54,27 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
     return path
 
 
+def save_figure(fig, path, dpi=90, colors=256):
+    """Write ``fig`` to ``path`` as a PNG of ``colors`` palette colours (a third to a quarter of the size), close it.
+
+    Returns ``path``.
+    """
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return quantize_png(path, colors)
+
+
+def quantize_png(path, colors=256):
+    """Rewrite the PNG at ``path`` with ``colors`` palette colours; returns ``path``."""
+    from PIL import Image
+
+    with Image.open(path) as image:
+        image.convert("RGB").quantize(colors=colors).save(path, optimize=True)
+    return path
+
+
 def plot_concentration_gradient(atoms, calc, path, title=""):
     """Particles coloured by ``log10 |grad C_a|`` of a BIPICalculator (the paper's Figs. 10-12); 3D: a slice.
 
@@ -63,11 +84,7 @@ def plot_concentration_gradient(atoms, calc, path, title=""):
     value = np.log10(np.maximum(grad, 1e-300) * calc.model.h)
     plot_particles(atoms, value, path, domain=calc.boundary.domain, dx=calc.model.dx, title=title,
                    label=r"log$_{10}$ (h |$\nabla$C$_a$|)", slice_width=2 * calc.model.dx)
-    from PIL import Image
-
-    with Image.open(path) as image:
-        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
-    return path
+    return quantize_png(path)
 
 
 def plot_packing_history(history, path=None, title=None):

@@ -167,6 +167,8 @@ def figure(result, path=FIGURE):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ase_sphrelax.plotting import save_figure
+
     dims = sorted(result.get("scenes", {}))
     fig, axes = plt.subplots(1, len(dims), figsize=(5.2 * len(dims), 3.8), squeeze=False)
     for ax, key in zip(axes[0], dims):
@@ -196,7 +198,7 @@ def figure(result, path=FIGURE):
         ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
+    save_figure(fig, path, dpi=90, colors=64)
     print(f"wrote {path}")
 
 

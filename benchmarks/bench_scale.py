@@ -336,7 +336,7 @@ def figure(result, path=FIGURE):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
     for k, (method, entry) in enumerate(result["methods"].items()):
@@ -355,8 +355,7 @@ def figure(result, path=FIGURE):
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    Image.open(path).convert("RGB").quantize(colors=64).save(path, optimize=True)
+    save_figure(fig, path, dpi=90, colors=64)
     print(f"wrote {path} ({path.stat().st_size // 1024} KB)")
 
 

@@ -179,7 +179,7 @@ def plot(runs, path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for r in runs:
@@ -190,8 +190,7 @@ def plot(runs, path):
     ax.set_ylabel("epsilon (Eq. 45, mirror ghosts, all particles)")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    Image.open(path).convert("RGB").quantize(colors=64).save(path, optimize=True)
+    save_figure(fig, path, dpi=90, colors=64)
 
 
 if __name__ == "__main__":

@@ -189,7 +189,7 @@ def plot(curves, summary, path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     labels = dict(cartesian="no BIPI (Cartesian)", bipi_fixed_100_100="BIPI 100 + 100",
@@ -204,10 +204,7 @@ def plot(curves, summary, path):
     axes[0].legend(fontsize=8)
     fig.suptitle(f"cylinder array in BISPH, dx = {summary['dx']:g} m: RMS error against the steady fields", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    with Image.open(path) as image:
-        image.convert("RGB").quantize(colors=64).save(path, optimize=True)
+    save_figure(fig, path, dpi=110, colors=64)
 
 
 def main(argv=None):

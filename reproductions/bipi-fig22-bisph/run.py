@@ -100,7 +100,7 @@ def run_start(positions, dx):
 
 
 def plot(results, finals, path):
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), gridspec_kw=dict(width_ratios=[1, 1, 1.3]))
@@ -130,10 +130,7 @@ def plot(results, finals, path):
     ax_err.legend(fontsize=7)
     ax_xy.legend(fontsize=7, loc="upper center", ncol=3, markerscale=5)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    with Image.open(path) as image:
-        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+    save_figure(fig, path, dpi=90)
 
 
 def main(argv=None):

@@ -58,7 +58,7 @@ def plot(curves, path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
     fig, axes = plt.subplots(1, len(curves), figsize=(4 * len(curves), 3.2), sharey=True)
     for ax, (model, runs) in zip(np.atleast_1d(axes), curves.items()):
@@ -70,10 +70,7 @@ def plot(curves, path):
     np.atleast_1d(axes)[0].set_ylabel("KE (J/m)")
     np.atleast_1d(axes)[0].legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    with Image.open(path) as image:
-        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+    save_figure(fig, path, dpi=80)
 
 
 def main(argv=None):

@@ -460,13 +460,9 @@ def _plt():
 
 def _save(fig, path, dpi=90):
     """Write the figure as a 256-colour PNG (a third of the size) and close it."""
-    import matplotlib.pyplot as plt
-    from PIL import Image
+    from ase_sphrelax.plotting import save_figure
 
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    with Image.open(path) as image:
-        image.convert("RGB").quantize(colors=256).save(path, optimize=True)
+    save_figure(fig, path, dpi=dpi)
 
 
 def plot_fig6(out):
