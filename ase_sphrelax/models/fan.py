@@ -294,23 +294,22 @@ class FanModel:
                 f_pc[near] = g_o[:, None] * n_oc
         return e_p, f_pc
 
+    def _domain_points(self, r_pc):
+        """``r_pc`` as the domain takes it: a Domain takes ASE positions (z dropped in 2D), others ``dim`` columns."""
+        if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
+            return r_pc
+        return np.ascontiguousarray(r_pc[:, : self.dim])
+
     def _phi(self, r_pc):
         """The level set ``phi`` (N,) at ``r_pc``, (N, 3) or (N, dim)."""
         if not hasattr(self.domain, "phi"):  # a duck-typed domain with phi_and_normal() only
             return self._phi_and_normal(r_pc)[0]
-        if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
-            phi_p = self.domain.phi(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
-        else:
-            phi_p = self.domain.phi(np.ascontiguousarray(r_pc[:, : self.dim]))
-        return np.asarray(phi_p, dtype=float).reshape(len(r_pc))
+        return np.asarray(self.domain.phi(self._domain_points(r_pc)), dtype=float).reshape(len(r_pc))
 
     def _phi_and_normal(self, r_pc):
         """The level set ``phi`` (N,) and its gradient ``n`` (N, 3) at ``r_pc``, (N, 3) or (N, dim)."""
         n = len(r_pc)
-        if isinstance(self.domain, Domain) and r_pc.shape[1] == 3:
-            phi_p, n_pc = self.domain.phi_and_normal(r_pc)  # a Domain takes ASE positions (z dropped in 2D)
-        else:
-            phi_p, n_pc = self.domain.phi_and_normal(np.ascontiguousarray(r_pc[:, : self.dim]))
+        phi_p, n_pc = self.domain.phi_and_normal(self._domain_points(r_pc))
         n_pc = np.asarray(n_pc, dtype=float)
         if n_pc.shape != (n, 3):  # normals of fewer columns, padded with zeros
             normal_pc = np.zeros((n, 3))
