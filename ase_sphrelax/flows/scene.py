@@ -144,14 +144,14 @@ def elliptic_drop(positions, dx, a0=100.0, radius=None, rho0=1000.0, c0=None, mu
     if r.ndim != 2 or r.shape[1] not in (2, 3) or len(r) == 0:
         raise ValueError(f"positions must have shape (N, 2) or (N, 3) with N >= 1, got {r.shape}")
     a0 = check_positive("a0", a0)
-    rel = r[:, :2] - r[:, :2].mean(axis=0)
+    centre = r[:, :2].mean(axis=0)
+    rel = r[:, :2] - centre
     r2 = np.einsum("pc,pc->p", rel, rel)
     radius = math.sqrt(2.0 * float(r2.mean())) if radius is None else check_positive("radius", radius)
     c0 = 14.0 * a0 * radius if c0 is None else c0
     half = check_positive("box", box) * radius
     if half <= math.sqrt(float(r2.max())) + kwargs.get("h_over_dx", 4.0) * dx:
         raise ValueError(f"box must put the walls beyond the drop plus a support; {box!r} R is too close")
-    centre = r[:, :2].mean(axis=0)
     walls = BoundarySegments.from_vertices([centre + [-half, -half], centre + [half, -half], centre + [half, half],
                                             centre + [-half, half]])
     p = 0.5 * rho0 * a0**2 * (radius**2 - r2)
