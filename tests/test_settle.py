@@ -196,13 +196,13 @@ def test_periodic_runs_without_gravity_and_needs_c0(tmp_path):
 
 
 def test_a_start_that_blows_up_is_the_noisier(scene):
-    """A particle on the floor (Eq. 21 doubles its wall density): BISPH stops it in the first steps, and the
-    comparison calls the Cartesian start calmer whatever the KE ratio before the stop."""
+    """A particle on the floor (Eq. 21 doubles the wall density next to it): its kick takes the run's kinetic
+    energy past ``KE_LIMIT`` M g H, and the comparison calls the Cartesian start calmer whatever the KE ratio."""
     import ase_sphrelax
 
     atoms = read(scene / "jittered.extxyz")
     atoms.positions[np.argmin(atoms.positions[:, 1]), 1] = 1e-9
     record = ase_sphrelax.settle(atoms, scene / "tank.edges", DX, t_end=T_END, compare="cartesian", progress=False)
-    assert not record["stable"] and record["ke_history"][-1][0] < T_END
+    assert not record["stable"] and "kinetic energy" in record["stability_reason"]
     assert record["compare"]["stable"] and record["compare"]["calmer"] == "cartesian"
     assert "was unstable" in record["compare"]["verdict"]
