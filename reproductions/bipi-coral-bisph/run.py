@@ -173,6 +173,10 @@ def main(argv=None):
     parser.add_argument("--wall-band", type=float, default=0.5,
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
     parser.add_argument("--plot", action="store_true", help="only draw ke.png from the results in --out")
+    parser.add_argument("--eq21", choices=("pointwise", "segment"), default="pointwise",
+                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
+    parser.add_argument("--segment-ratio", type=float, default=None,
+                        help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -187,7 +191,7 @@ def main(argv=None):
     region, walls = water(), tank_walls()
     fill = initial_fill(region, args.dx)
     scale = RHO0 * G * DEPTH
-    summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx,
+    summary = dict(wall_band_dx=args.wall_band, eq21=args.eq21, segment_ratio=args.segment_ratio, dx=args.dx, h_support=H_OVER_DX * args.dx,
                    h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end, depth=DEPTH, tank_top=TANK_TOP, mu=MU,
                    c0=10.0 * math.sqrt(2.0 * G * DEPTH), goal=GOAL, runs={})
     curves = {}
@@ -197,7 +201,8 @@ def main(argv=None):
         gap = wall_distance(r, region) / args.dx
         info = dict(info, wall_distance_min_dx=float(gap.min()), n_within_half_dx=int((gap < 0.5).sum()))
         print(f"start {name}: {len(r)} particles {info}", flush=True)
-        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band)
+        sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band,
+                   eq21=args.eq21, segment_ratio=args.segment_ratio)
         t = time.perf_counter()
         hist = sim.run(args.t_end, record_every=args.t_end / 200, progress=False)
         wall_s = round(time.perf_counter() - t, 1)

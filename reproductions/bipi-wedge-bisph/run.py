@@ -19,11 +19,14 @@ viscous term.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import fcntl
 import gzip
 import json
 import math
 import os
 import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -46,13 +49,15 @@ def tank_walls():
                                            [WIDTH, 0.0], [WIDTH, TANK_TOP], [0.0, TANK_TOP]])
 
 
-def starts(dx):
+def starts(dx, names=("cartesian", "bipi")):
     from ase_sphrelax import BIPICalculator
     from ase_sphrelax.drivers.bipi_packer import BIPIPacker, initial_fill
 
     water = wedge_tank()
     fill = initial_fill(water, dx)
     out = {"cartesian": (fill.positions.copy(), {})}
+    if "bipi" not in names:
+        return out
     atoms = fill.copy()
     t = time.perf_counter()
     packer = BIPIPacker(atoms, BIPICalculator(h=H_OVER_DX * dx, dx=dx, boundary=water))
@@ -63,6 +68,30 @@ def starts(dx):
     out["bipi"] = (atoms.positions.copy(), dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"],
                                                 pack_wall_time_s=round(time.perf_counter() - t, 1)))
     return out
+
+
+@contextlib.contextmanager
+def _locked(path):
+    """An exclusive lock on ``path`` (two ``--start`` processes writing one summary)."""
+    with open(path, "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def _merged(out, tag, summary, curves):
+    """This process's run added to what ``summary{tag}.json``/``ke{tag}.json.gz`` already hold."""
+    path = out / f"summary{tag}.json"
+    if not path.exists():
+        return summary, curves
+    old = json.loads(path.read_text())
+    old["runs"].update(summary["runs"])
+    with gzip.open(out / f"ke{tag}.json.gz", "rt") as f:
+        old_curves = json.load(f)
+    old_curves.update(curves)
+    return dict(summary, runs=old["runs"]), old_curves
 
 
 def main(argv=None):
@@ -76,22 +105,32 @@ def main(argv=None):
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
     parser.add_argument("--viscosity", choices=("boundary_layer", "pcg"), default="boundary_layer",
                         help="BISPH's viscous form: the boundary-layer form, or Fig. 14b's particle-consistent gradient")
+    parser.add_argument("--eq21", choices=("pointwise", "segment"), default="pointwise",
+                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
+    parser.add_argument("--segment-ratio", type=float, default=None,
+                        help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
+    parser.add_argument("--start", choices=("cartesian", "bipi"), default=None,
+                        help="run one start only (two processes in parallel), merged into summary{tag}.json "
+                             "and ke{tag}.json.gz under a lock")
+    parser.add_argument("--records", type=int, default=300, help="KE records over the run (default 300)")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     walls = tank_walls()
-    summary = dict(wall_band_dx=args.wall_band, dx=args.dx, h_support=H_OVER_DX * args.dx,
+    summary = dict(wall_band_dx=args.wall_band, eq21=args.eq21, segment_ratio=args.segment_ratio, dx=args.dx, h_support=H_OVER_DX * args.dx,
                    h_b=H_OVER_DX * args.dx / 2, t_end=args.t_end, mu=MU, viscosity=args.viscosity, c0=10.0 * math.sqrt(2.0 * G * DEPTH), runs={})
     curves = {}
-    for name, (r, info) in starts(args.dx).items():
+    for name, (r, info) in starts(args.dx, ("cartesian", "bipi") if args.start is None else (args.start,)).items():
+        if args.start not in (None, name):
+            continue
         print(f"start {name}: {len(r)} particles {info}", flush=True)
         sim = tank(walls, r, args.dx, DEPTH, g=G, mu=MU, rho0=RHO0, wall_band=args.wall_band,
-                   viscosity=args.viscosity)
+                   viscosity=args.viscosity, eq21=args.eq21, segment_ratio=args.segment_ratio)
         gap = wall_distance(r, walls) / args.dx
         info = dict(info, wall_distance_min_dx=float(gap.min()), n_within_half_dx=int((gap < 0.5).sum()))
         t = time.perf_counter()
-        hist = sim.run(args.t_end, record_every=args.t_end / 300)
+        hist = sim.run(args.t_end, record_every=args.t_end / args.records)
         scale = RHO0 * G * DEPTH
         summary["runs"][name] = dict(info, n=len(r), steps=hist.steps,
                                      run_wall_time_s=round(time.perf_counter() - t, 1),
@@ -99,12 +138,16 @@ def main(argv=None):
                                      pressure_error_final=hist.pressure_error[-1] / scale)
         curves[name] = dict(t=hist.t, ke=hist.ke, pressure_error=hist.pressure_error)
         print(f"  {summary['runs'][name]}", flush=True)
-    runs = summary["runs"]
-    summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
-    summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
-    (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
-    with gzip.open(out / f"ke{args.tag}.json.gz", "wt") as f:
-        json.dump(curves, f)
+    with _locked(Path(tempfile.gettempdir()) / f"bipi-wedge-bisph{args.tag}.lock"):
+        if args.start is not None:
+            summary, curves = _merged(out, args.tag, summary, curves)
+        runs = summary["runs"]
+        if {"cartesian", "bipi"} <= set(runs):
+            summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
+            summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
+        (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
+        with gzip.open(out / f"ke{args.tag}.json.gz", "wt") as f:
+            json.dump(curves, f)
     print(json.dumps(summary, indent=1))
 
 
