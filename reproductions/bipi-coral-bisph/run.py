@@ -58,6 +58,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from lib.bipi_sph import G, H_OVER_DX, RHO0, make_start  # noqa: E402
+from lib.results_io import MergedRuns  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 EDGES = HERE / "coral_tank.edges"
@@ -177,6 +178,8 @@ def main(argv=None):
                         help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
     parser.add_argument("--segment-ratio", type=float, default=None,
                         help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
+    parser.add_argument("--start", choices=("cartesian", "bipi"), default=None,
+                        help="run one start only (two processes in parallel), merged into summary{tag}.json")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -187,7 +190,7 @@ def main(argv=None):
         n2c = json.loads((out / "summary.json").read_text())["runs"]["bipi"]["iterations_2c"]
         names = [f"bipi_fixed_{n}_{n2c}" for n in args.fig18]
     else:
-        names = ["cartesian", "bipi"]
+        names = ["cartesian", "bipi"] if args.start is None else [args.start]
     region, walls = water(), tank_walls()
     fill = initial_fill(region, args.dx)
     scale = RHO0 * G * DEPTH
@@ -213,14 +216,12 @@ def main(argv=None):
         curves[name] = dict(t=hist.t, ke=hist.ke, pressure_error=hist.pressure_error)
         print(f"  {name}: ke_mean {hist.mean_ke():.3g} ke_final {hist.ke[-1]:.3g} "
               f"p_err {hist.pressure_error[-1] / scale:.3g} wall {wall_s} s", flush=True)
-    runs = summary["runs"]
-    if "cartesian" in runs:
-        summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
-        summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
-        summary["goal_met"] = summary["ke_mean_ratio_cartesian_over_bipi"] >= GOAL
-    (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
-    with gzip.open(out / f"ke{args.tag}.json.gz", "wt") as f:
-        json.dump(curves, f)
+    with MergedRuns(out, args.tag, summary, curves, merge=args.start is not None) as (summary, curves):
+        runs = summary["runs"]
+        if {"cartesian", "bipi"} <= set(runs):
+            summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
+            summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
+            summary["goal_met"] = summary["ke_mean_ratio_cartesian_over_bipi"] >= GOAL
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1))
 
 

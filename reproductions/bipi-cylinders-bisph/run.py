@@ -77,6 +77,7 @@ def cell_boundary():
 
 
 WALL_BAND = 0.5  # Eq. 21's band in dx; --wall-band 0 switches it off (the controlled experiment)
+EQ21 = "pointwise"  # --eq21 segment: Eq. 21 at each segment's nearest point (the earlier runs)
 
 
 def make_sim(boundary, r, dx, v=None, rho=None):
@@ -84,7 +85,7 @@ def make_sim(boundary, r, dx, v=None, rho=None):
 
     return BISPH(boundary, r, dx, rho0=RHO0, c0=C0, mu=MU, body_force=(FORCE, 0.0), h_over_dx=H_OVER_DX,
                  p_background=P_B, hydrostatic=False, viscosity="pcg", velocities=v, density=rho,
-                 wall_band=WALL_BAND)
+                 wall_band=WALL_BAND, eq21=EQ21)
 
 
 def steady_state(boundary, dx, t_steady, t_avg, cache):
@@ -208,7 +209,7 @@ def plot(curves, summary, path):
 
 
 def main(argv=None):
-    global WALL_BAND
+    global WALL_BAND, EQ21
     from lib.bipi_sph import make_start
     from ase_sphrelax.drivers.bipi_packer import initial_fill
     from ase_sphrelax.flows.bisph import tait_density
@@ -221,17 +222,19 @@ def main(argv=None):
     parser.add_argument("--t-avg", type=float, default=T_AVG, help="the steady run's averaging window (s)")
     parser.add_argument("--wall-band", type=float, default=WALL_BAND,
                         help="Eq. 21's band in dx, every run (0: compressed density off; the controlled experiment)")
+    parser.add_argument("--eq21", choices=("pointwise", "segment"), default=EQ21,
+                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and rms{tag}.json.gz")
     parser.add_argument("--cache", default=None, help="steady samples (default a file in /tmp named by the settings)")
     args = parser.parse_args(argv)
     if not args.t_steady > args.t_avg > 0:
         parser.error(f"--t-steady must exceed --t-avg > 0, got {args.t_steady!r} and {args.t_avg!r}")
-    WALL_BAND = args.wall_band
+    WALL_BAND, EQ21 = args.wall_band, args.eq21
     dx = args.dx
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cache = Path(args.cache or f"/tmp/bipi-cyl-steady-dx{dx:g}-t{args.t_steady:g}-{args.t_avg:g}"
-                               f"-band{args.wall_band:g}.npz")
+                               f"-band{args.wall_band:g}-{args.eq21}.npz")
     boundary = cell_boundary()
     h = H_OVER_DX * dx
     print(f"steady run: dx = {dx:g} m, {args.t_steady:g} s", flush=True)
@@ -239,7 +242,7 @@ def main(argv=None):
     ref = Reference(samples, boundary, dx)
     re, v_bar = reynolds(samples, ref.length, h)
     late = ke[:, 0] >= args.t_steady - args.t_avg
-    summary = dict(dx=dx, wall_band_dx=args.wall_band, h_support=h, h_b=h / 2, rho0=RHO0, mu=MU, force=FORCE, c0=C0,
+    summary = dict(dx=dx, wall_band_dx=args.wall_band, eq21=args.eq21, h_support=h, h_b=h / 2, rho0=RHO0, mu=MU, force=FORCE, c0=C0,
                    p_background=P_B, viscosity="pcg", t_steady=args.t_steady, t_avg=args.t_avg, t_run=args.t_run,
                    reference="linear moving least squares, Wendland C2 weights of support 2 dx, pooled snapshots",
                    steady=dict(wall_time_s=round(steady_wall, 1), n_samples=len(samples),

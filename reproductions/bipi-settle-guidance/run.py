@@ -81,6 +81,8 @@ def main(argv=None):
     parser.add_argument("--out", default="reproductions/bipi-settle-guidance/results")
     parser.add_argument("--dx", type=float, default=0.02)
     parser.add_argument("--t-end", type=float, default=0.5)
+    parser.add_argument("--models", nargs="+", choices=tuple(MODELS), default=tuple(MODELS),
+                        help="the downstream wall models to run (default all three)")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json, ke{tag}.json.gz, ke{tag}.png")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -93,12 +95,14 @@ def main(argv=None):
         atoms, info = make_start(START_RECIPES[name], water, dx, h, fill)
         starts[name] = (atoms, {k: v for k, v in info.items() if k != "reason"})
         print(f"start {name}: {len(atoms)} particles {starts[name][1]}", flush=True)
-    packed, packed_info = packed_walls(water, dx, h, DEPTH)
-    print(f"packed walls: {packed_info['n']} in {packed_info['layers']} layers", flush=True)
+    if "packed wall particles" in args.models:
+        packed, packed_info = packed_walls(water, dx, h, DEPTH)
+        print(f"packed walls: {packed_info['n']} in {packed_info['layers']} layers", flush=True)
     summary = dict(tank="wedge (reproductions/lib/bipi_sph.py)", dx=dx, h=h, t_end=args.t_end, rho0=RHO0, g=G,
                    starts={n: i for n, (_, i) in starts.items()}, models={})
     curves = {}
-    for model, (solver, walls) in MODELS.items():
+    for model in args.models:
+        solver, walls = MODELS[model]
         rows, curves[model] = {}, {}
         for name, (atoms, _) in starts.items():
             run_atoms = atoms if walls is None else with_walls(atoms, water, dx, h, DEPTH,

@@ -19,14 +19,10 @@ viscous term.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import fcntl
-import gzip
 import json
 import math
 import os
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -34,6 +30,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from lib.results_io import MergedRuns  # noqa: E402
 from lib.bipi_sph import DEPTH, G, H_OVER_DX, RHO0, WEDGE_HEIGHT, WIDTH, wedge_tank  # noqa: E402
 
 MU = 10.0
@@ -68,30 +65,6 @@ def starts(dx, names=("cartesian", "bipi")):
     out["bipi"] = (atoms.positions.copy(), dict(iterations_2a=s["iterations_2a"], iterations_2c=s["iterations_2c"],
                                                 pack_wall_time_s=round(time.perf_counter() - t, 1)))
     return out
-
-
-@contextlib.contextmanager
-def _locked(path):
-    """An exclusive lock on ``path`` (two ``--start`` processes writing one summary)."""
-    with open(path, "w") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
-
-
-def _merged(out, tag, summary, curves):
-    """This process's run added to what ``summary{tag}.json``/``ke{tag}.json.gz`` already hold."""
-    path = out / f"summary{tag}.json"
-    if not path.exists():
-        return summary, curves
-    old = json.loads(path.read_text())
-    old["runs"].update(summary["runs"])
-    with gzip.open(out / f"ke{tag}.json.gz", "rt") as f:
-        old_curves = json.load(f)
-    old_curves.update(curves)
-    return dict(summary, runs=old["runs"]), old_curves
 
 
 def main(argv=None):
@@ -138,16 +111,11 @@ def main(argv=None):
                                      pressure_error_final=hist.pressure_error[-1] / scale)
         curves[name] = dict(t=hist.t, ke=hist.ke, pressure_error=hist.pressure_error)
         print(f"  {summary['runs'][name]}", flush=True)
-    with _locked(Path(tempfile.gettempdir()) / f"bipi-wedge-bisph{args.tag}.lock"):
-        if args.start is not None:
-            summary, curves = _merged(out, args.tag, summary, curves)
+    with MergedRuns(out, args.tag, summary, curves, merge=args.start is not None) as (summary, curves):
         runs = summary["runs"]
         if {"cartesian", "bipi"} <= set(runs):
             summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
             summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
-        (out / f"summary{args.tag}.json").write_text(json.dumps(summary, indent=1) + "\n")
-        with gzip.open(out / f"ke{args.tag}.json.gz", "wt") as f:
-            json.dump(curves, f)
     print(json.dumps(summary, indent=1))
 
 

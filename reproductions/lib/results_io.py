@@ -21,3 +21,44 @@ def write_json(path, data):
             out.write(text.encode())
     else:
         path.write_text(text)
+
+
+class MergedRuns:
+    """Per-start runs of one comparison made by separate processes (``--start NAME``), merged into one
+    ``summary{tag}.json`` and ``ke{tag}.json.gz``.
+
+    ``with MergedRuns(out, tag, summary, curves) as (summary, curves):`` holds an exclusive lock, reads
+    what the files already hold and adds this process's ``summary["runs"]`` and ``curves`` to it; the caller
+    adds what needs every start (ratios), and the files are written when the block ends."""
+
+    def __init__(self, out, tag, summary, curves, merge=True):
+        import tempfile
+
+        self.out = Path(out)
+        self.tag = tag
+        self.summary, self.curves, self.merge = summary, curves, merge
+        self._lock = Path(tempfile.gettempdir()) / f"{self.out.resolve().as_posix().replace('/', '_')}{tag}.lock"
+
+    def __enter__(self):
+        import fcntl
+
+        self._handle = open(self._lock, "w")
+        fcntl.flock(self._handle, fcntl.LOCK_EX)
+        path = self.out / f"summary{self.tag}.json"
+        if self.merge and path.exists():
+            old = read_json(path)
+            self.summary = dict(self.summary, runs={**old["runs"], **self.summary["runs"]})
+            self.curves = {**read_json(self.out / f"ke{self.tag}.json.gz"), **self.curves}
+        return self.summary, self.curves
+
+    def __exit__(self, kind, value, traceback):
+        import fcntl
+
+        try:
+            if kind is None:
+                (self.out / f"summary{self.tag}.json").write_text(json.dumps(self.summary, indent=1) + "\n")
+                with gzip.open(self.out / f"ke{self.tag}.json.gz", "wt") as f:
+                    json.dump(self.curves, f)
+        finally:
+            fcntl.flock(self._handle, fcntl.LOCK_UN)
+            self._handle.close()
