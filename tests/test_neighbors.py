@@ -240,3 +240,27 @@ def test_property_any_cutoff_spread_gives_every_pair_once(seed, n, dim, periodic
             _check_wide(r_pc, cell, pbc, cut_p, skin)
         finally:
             neighbors.thread_count, pairs.thread_count = neighbors_thread_count, pairs_thread_count
+
+
+@pytest.mark.skipif(neighbors._MADVISE is None, reason="madvise: Linux only")
+def test_copy_releasing_copies_and_gives_back_the_source_pages(monkeypatch):
+    """The list's closing copy: the values arrive, and the source's whole pages already copied read as zeros (given
+    back to the system), nothing outside the source is touched, and the lists of a rebuild stay those of before."""
+    monkeypatch.setattr(neighbors, "_COPY_CHUNK", 4096)
+    outer = np.arange(1, 300_001, dtype=np.int32)
+    src = outer[1000:-1000]
+    dst = np.empty_like(src)
+    neighbors._copy_releasing(dst, src)
+    assert np.array_equal(dst, np.arange(1001, 299_001, dtype=np.int32))
+    assert np.count_nonzero(src == 0) * src.itemsize >= src.nbytes - 2 * 4096  # all but the two partial pages
+    assert np.array_equal(outer[:1000], np.arange(1, 1001))
+    assert np.array_equal(outer[-1000:], np.arange(299_001, 300_001))
+    rng = np.random.default_rng(1)
+    r_pc = np.zeros((20_000, 3))
+    r_pc[:, :2] = rng.random((20_000, 2))
+    nl = NeighborList(0.02, skin=0.002)
+    nl.update(r_pc, np.zeros((3, 3)), [False] * 3)
+    start, pairs_j = nl.pair_start.copy(), nl.pair_j.copy()
+    nl.update(r_pc + 0.01, np.zeros((3, 3)), [False] * 3)
+    nl.update(r_pc, np.zeros((3, 3)), [False] * 3)
+    assert np.array_equal(nl.pair_start, start) and np.array_equal(nl.pair_j, pairs_j)
