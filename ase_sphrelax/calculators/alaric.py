@@ -438,6 +438,9 @@ class ALARICCalculator(SPHCalculator):
         p = self.parameters
         atoms, d, n = st.atoms, st.dim, len(st.r_pc)
         want_stress = "stress" in properties
+        # the last evaluation's sums and mirror ghosts go before this one makes its own (the H solve is the peak
+        # of memory): self.h_p keeps the smoothing lengths, the only thing the solve starts from
+        self.state = self._ghosts = None
         # the target first: bad targets fail before any SPH work
         x_pd = self.points(atoms.positions, atoms)
         target_p = self.target.values(x_pd)
