@@ -264,13 +264,13 @@ def _band_excess(x, y, e, seg, band, dx, ra, rho0, b7, w_scale, inv_h, breaks, c
     if hi <= lo:
         return 0.0
     pa = (ra / rho0) ** 7
+    flat = d < 1e-9 * band
     total = 0.0
     for half in range(2):
         t0 = max(lo, 0.0) if half == 1 else lo
         t1 = hi if half == 1 else min(hi, 0.0)
         if t1 <= t0:
             continue
-        flat = d < 1e-9 * band
         s0 = t0 if flat else math.asinh(t0 / d)
         s1 = t1 if flat else math.asinh(t1 / d)
         mid = 0.5 * (s0 + s1)
@@ -324,8 +324,8 @@ def _wall_terms(start_p, element_k, point_k, x_sc, distance_k, grad_k, seg, rho_
             if pointwise:
                 f = (p_p[a] + b7 * ((ra / rho0) ** 7 - 1.0) + p_b + impact) * g
                 if dist < band:
-                    s = point_k[k]
-                    f += _band_excess(x_sc[s, 0], x_sc[s, 1], e, seg, band, dx, ra, rho0, b7, w_scale, inv_h,
+                    img = point_k[k]
+                    f += _band_excess(x_sc[img, 0], x_sc[img, 1], e, seg, band, dx, ra, rho0, b7, w_scale, inv_h,
                                       breaks, coef, nodes, weights)
             else:
                 f = (p_p[a] + ps) * g
