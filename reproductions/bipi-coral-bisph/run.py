@@ -57,7 +57,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from lib.bipi_sph import G, H_OVER_DX, RHO0, make_start  # noqa: E402
+from lib.bipi_sph import G, H_OVER_DX, RHO0, add_bisph_options, add_start_ratios, make_start  # noqa: E402
 from lib.results_io import MergedRuns  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -174,12 +174,7 @@ def main(argv=None):
     parser.add_argument("--wall-band", type=float, default=0.5,
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
     parser.add_argument("--plot", action="store_true", help="only draw ke.png from the results in --out")
-    parser.add_argument("--eq21", choices=("pointwise", "segment"), default="pointwise",
-                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
-    parser.add_argument("--segment-ratio", type=float, default=None,
-                        help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
-    parser.add_argument("--start", choices=("cartesian", "bipi"), default=None,
-                        help="run one start only (two processes in parallel), merged into summary{tag}.json")
+    add_bisph_options(parser)
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -217,10 +212,7 @@ def main(argv=None):
         print(f"  {name}: ke_mean {hist.mean_ke():.3g} ke_final {hist.ke[-1]:.3g} "
               f"p_err {hist.pressure_error[-1] / scale:.3g} wall {wall_s} s", flush=True)
     with MergedRuns(out, args.tag, summary, curves, merge=args.start is not None) as (summary, curves):
-        runs = summary["runs"]
-        if {"cartesian", "bipi"} <= set(runs):
-            summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
-            summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
+        if add_start_ratios(summary):
             summary["goal_met"] = summary["ke_mean_ratio_cartesian_over_bipi"] >= GOAL
     print(json.dumps({k: v for k, v in summary.items() if k != "runs"}, indent=1))
 

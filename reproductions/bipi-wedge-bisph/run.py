@@ -31,7 +31,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lib.results_io import MergedRuns  # noqa: E402
-from lib.bipi_sph import DEPTH, G, H_OVER_DX, RHO0, WEDGE_HEIGHT, WIDTH, wedge_tank  # noqa: E402
+from lib.bipi_sph import (DEPTH, G, H_OVER_DX, RHO0, WEDGE_HEIGHT, WIDTH, add_bisph_options,  # noqa: E402
+                          add_start_ratios, wedge_tank)
 
 MU = 10.0
 TANK_TOP = 1.0
@@ -78,13 +79,7 @@ def main(argv=None):
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
     parser.add_argument("--viscosity", choices=("boundary_layer", "pcg"), default="boundary_layer",
                         help="BISPH's viscous form: the boundary-layer form, or Fig. 14b's particle-consistent gradient")
-    parser.add_argument("--eq21", choices=("pointwise", "segment"), default="pointwise",
-                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
-    parser.add_argument("--segment-ratio", type=float, default=None,
-                        help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
-    parser.add_argument("--start", choices=("cartesian", "bipi"), default=None,
-                        help="run one start only (two processes in parallel), merged into summary{tag}.json "
-                             "and ke{tag}.json.gz under a lock")
+    add_bisph_options(parser)
     parser.add_argument("--records", type=int, default=300, help="KE records over the run (default 300)")
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
@@ -112,10 +107,7 @@ def main(argv=None):
         curves[name] = dict(t=hist.t, ke=hist.ke, pressure_error=hist.pressure_error)
         print(f"  {summary['runs'][name]}", flush=True)
     with MergedRuns(out, args.tag, summary, curves, merge=args.start is not None) as (summary, curves):
-        runs = summary["runs"]
-        if {"cartesian", "bipi"} <= set(runs):
-            summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
-            summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
+        add_start_ratios(summary)
     print(json.dumps(summary, indent=1))
 
 

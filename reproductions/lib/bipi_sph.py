@@ -423,3 +423,26 @@ def main(argv=None):
 
 if __name__ == "__main__":
     main()
+
+
+def add_bisph_options(parser, start=True):
+    """The BISPH options the tank comparisons share: ``--eq21``, ``--segment-ratio`` and (``start``) ``--start``."""
+    parser.add_argument("--eq21", choices=("pointwise", "segment"), default="pointwise",
+                        help="Eq. 21 pointwise along the wall (default) or at each segment's nearest point")
+    parser.add_argument("--segment-ratio", type=float, default=None,
+                        help="split the walls into segments of at most dx / RATIO (BIPI2D: 10; default: one per side)")
+    if start:
+        parser.add_argument("--start", choices=("cartesian", "bipi"), default=None,
+                            help="run one start only (two processes in parallel), merged into summary{tag}.json "
+                                 "and ke{tag}.json.gz under a lock")
+
+
+def add_start_ratios(summary):
+    """Cartesian/BIPI ratios of the run-averaged and the final KE into ``summary`` when both starts ran; returns
+    whether they did."""
+    runs = summary["runs"]
+    if not {"cartesian", "bipi"} <= set(runs):
+        return False
+    summary["ke_mean_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_mean"] / runs["bipi"]["ke_mean"]
+    summary["ke_final_ratio_cartesian_over_bipi"] = runs["cartesian"]["ke_final"] / runs["bipi"]["ke_final"]
+    return True
