@@ -1,6 +1,6 @@
 """KE of each start averaged over time windows of one stored run: describes where a run's average comes from.
 
-    python reproductions/bipi-wedge-bisph/windows.py reproductions/bipi-wedge-bisph/results/ke_dx001_t20.json.gz
+    python reproductions/lib/ke_windows.py reproductions/bipi-wedge-bisph/results/ke_dx001_t20.json.gz
 
 Writes ``windows{tag}.json`` and the figure ``ke{tag}.png`` (KE(t) of each start, log scale, as the paper's
 Fig. 14) beside the KE file: for each start the trapezoid mean of KE(t) over ``[0, 1]`` s,
