@@ -5,6 +5,7 @@
     python reproductions/bipi-coral-bisph/run.py --wall-band 0 --t-end 0.5 --tag _band0
     python reproductions/bipi-coral-bisph/run.py --fig18 30 100 1000 --t-end 0.5 --tag _fig18
     python reproductions/bipi-coral-bisph/run.py --plot      # results/ke.png and results/window.json
+    python reproductions/bipi-coral-bisph/run.py --plot pointwise   # results/ke_pointwise.png, window_pointwise.json
 
 Geometry: ``coral_tank.edges`` beside this file, converted by ``reproductions/lib/nastran.py`` from
 BIPI2D's ``CoralInTank/bulkBdry1D.dat`` (commit 3b28f85, MIT): a trapezoidal tank (left wall x = 0,
@@ -39,7 +40,9 @@ bipi-wedge-bisph). Writes ``summary{tag}.json`` and ``ke{tag}.json.gz`` (KE(t) a
 error of each start). ``--plot`` draws ``ke.png`` from ``ke.json.gz``, ``ke_band0`` and ``ke_fig18``
 and writes ``window.json``: each run's KE averaged over the first WINDOW = 0.5 s (trapezoid rule),
 so the shorter runs (Eq. 21 off, Fig. 18) compare with the first 0.5 s of the main ones, and the
-Cartesian/BIPI ratios over that window.
+Cartesian/BIPI ratios over that window. ``--plot pointwise`` does the same for the runs with the
+default (pointwise) Eq. 21: ``ke_pw``, ``ke_band0`` (Eq. 21 off reads the same either way) and
+``ke_fig18_pw``, into ``ke_pointwise.png`` and ``window_pointwise.json``.
 """
 from __future__ import annotations
 
@@ -67,7 +70,9 @@ MU = 10.0
 TANK_TOP = 1.5
 GOAL = 10.0  # issue 29: Cartesian / BIPI run-averaged KE
 WINDOW = 0.5  # s: the common window of the main, Eq.-21-off and Fig. 18 runs
-PLOTTED = ("", "_band0", "_fig18")  # the ke{tag}.json.gz that --plot draws and windows
+PLOTTED = {"segment": ("", "_band0", "_fig18"),  # the ke{tag}.json.gz that --plot READING draws and windows
+           "pointwise": ("_pw", "_band0", "_fig18_pw")}
+PLOT_FILES = {"segment": ("ke.png", "window.json"), "pointwise": ("ke_pointwise.png", "window_pointwise.json")}
 
 
 def water():
@@ -123,14 +128,16 @@ def outliers(sim, walls, dx):
                 worst_wall_distance_dx=float(wall_distance(r[worst:worst + 1], walls)[0] / dx))
 
 
-def plot(out):
-    """``ke.png``: KE(t) on a log scale of the PLOTTED runs in ``out``; Fig. 18's runs on the right."""
+def plot(out, reading="segment"):
+    """``ke.png`` (``ke_pointwise.png``): KE(t) on a log scale of the PLOTTED runs of one Eq. 21 reading in
+    ``out``; Fig. 18's runs on the right."""
     from lib.bipi_figures import _plt, _save
 
     plt = _plt()
     window = {}
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
-    for tag in PLOTTED:
+    main_tag, band0_tag, fig18_tag = PLOTTED[reading]
+    for tag in PLOTTED[reading]:
         path = out / f"ke{tag}.json.gz"
         if not path.exists():
             continue
@@ -140,25 +147,26 @@ def plot(out):
             t, ke = np.asarray(c["t"]), np.maximum(np.asarray(c["ke"]), 1e-6)
             w = t <= WINDOW + 1e-9
             window[f"{name}{tag}"] = float(np.trapezoid(np.asarray(c["ke"])[w], t[w]) / (t[w][-1] - t[w][0]))
-            label = f"{name}{' (Eq. 21 off)' if tag == '_band0' else ''}"
-            if tag == "_fig18":
+            label = f"{name}{' (Eq. 21 off)' if tag == band0_tag else ''}"
+            if tag == fig18_tag:
                 axes[1].semilogy(t, ke, lw=1, label=f"BIPI, {name.split('_')[2]} Step-2a iterations")
                 continue
-            axes[0].semilogy(t, ke, lw=1, ls="--" if tag else "-", label=label)
-            if not tag:
-                keep = t <= 0.5 + 1e-9
+            axes[0].semilogy(t, ke, lw=1, ls="--" if tag != main_tag else "-", label=label)
+            if tag == main_tag:
+                keep = t <= (WINDOW if reading == "segment" else np.inf) + 1e-9
                 axes[1].semilogy(t[keep], ke[keep], lw=1, color="k" if name == "cartesian" else "grey",
                                  label=f"{name} (1 % rules)" if name == "bipi" else name)
-    axes[0].set(xlabel="t (s)", ylabel="KE (J/m)", title="coral tank, BISPH, dx = 0.02 m")
+    axes[0].set(xlabel="t (s)", ylabel="KE (J/m)", title=f"coral tank, BISPH (Eq. 21 {reading}), dx = 0.02 m")
     axes[1].set(xlabel="t (s)", title="Fig. 18: Step-2a iterations")
     axes[0].set_ylim(1e-5, None)  # KE(0) = 0 is drawn at the clip
     for ax in axes:
         ax.legend(fontsize=7)
     fig.tight_layout()
-    _save(fig, out / "ke.png")
+    figure, window_file = PLOT_FILES[reading]
+    _save(fig, out / figure)
     ratios = {f"cartesian_over_bipi{tag}": window[f"cartesian{tag}"] / window[f"bipi{tag}"]
-              for tag in ("", "_band0") if f"cartesian{tag}" in window and f"bipi{tag}" in window}
-    (out / "window.json").write_text(json.dumps(dict(window_s=WINDOW, ke_mean=window, ratios=ratios), indent=1) + "\n")
+              for tag in (main_tag, band0_tag) if f"cartesian{tag}" in window and f"bipi{tag}" in window}
+    (out / window_file).write_text(json.dumps(dict(window_s=WINDOW, ke_mean=window, ratios=ratios), indent=1) + "\n")
 
 
 def main(argv=None):
@@ -173,14 +181,15 @@ def main(argv=None):
                         help="Step-2a counts of fixed-iteration BIPI starts (Fig. 18); only these run")
     parser.add_argument("--wall-band", type=float, default=0.5,
                         help="Eq. 21's band in dx (0: compressed density off; the controlled experiment)")
-    parser.add_argument("--plot", action="store_true", help="only draw ke.png from the results in --out")
+    parser.add_argument("--plot", nargs="?", const="segment", choices=sorted(PLOTTED),
+                        help="only draw ke.png (segment, the earlier runs) or ke_pointwise.png from the results in --out")
     add_bisph_options(parser)
     parser.add_argument("--tag", default="", help="suffix of summary{tag}.json and ke{tag}.json.gz")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.plot:
-        return plot(out)
+        return plot(out, args.plot)
     if args.fig18:
         n2c = json.loads((out / "summary.json").read_text())["runs"]["bipi"]["iterations_2c"]
         names = [f"bipi_fixed_{n}_{n2c}" for n in args.fig18]
