@@ -1,4 +1,4 @@
-"""SPHFIRE and SPHLBFGS (issue 33, item 1) follow ASE's FIRE and LBFGS step for step."""
+"""SPHFIRE, SPHFIRE2 and SPHLBFGS (issue 33) follow ASE's FIRE, FIRE2 and LBFGS step for step."""
 import io
 
 import numpy as np
@@ -10,7 +10,7 @@ from ase_sphrelax import FanCalculator
 from ase_sphrelax.build import fill
 from ase_sphrelax.domains import Box, Circle, Difference, Sphere
 from ase_sphrelax.drivers import KeepInDomain, make_optimizer
-from ase_sphrelax.drivers.sph_optimizers import SPHFIRE, SPHLBFGS
+from ase_sphrelax.drivers.sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS
 
 
 def fan_case(dim, domain=None, dx=None):
@@ -37,14 +37,15 @@ def trajectory(name, backend, dim, steps=40, prepare=None, **kwargs):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-@pytest.mark.parametrize("name,kwargs", [("fire", {}), ("lbfgs", {"memory": 20}), ("lbfgs", {"memory": 3})],
-                         ids=["fire", "lbfgs-memory20", "lbfgs-memory3"])
+@pytest.mark.parametrize("name,kwargs", [("fire", {}), ("fire2", {}), ("lbfgs", {"memory": 20}),
+                                         ("lbfgs", {"memory": 3})],
+                         ids=["fire", "fire2", "lbfgs-memory20", "lbfgs-memory3"])
 def test_same_trajectory_as_ases_optimiser(dim, name, kwargs):
     """Every step's positions to 1e-9 dx and energies to 1e-9 relative over 40 steps (memory 20 and 3:
     the history wraps)."""
     ours, _, _, frames = trajectory(name, "sph", dim, **kwargs)
     ase_opt, _, _, reference = trajectory(name, "ase", dim, **kwargs)
-    assert type(ours) is (SPHFIRE if name == "fire" else SPHLBFGS)
+    assert type(ours) is {"fire": SPHFIRE, "fire2": SPHFIRE2, "lbfgs": SPHLBFGS}[name]
     assert type(ase_opt).__module__.startswith("ase.optimize")
     assert len(frames) == len(reference) == 41
     dx = 1 / 48 if dim == 2 else 1 / 16
@@ -56,18 +57,34 @@ def test_same_trajectory_as_ases_optimiser(dim, name, kwargs):
     assert reference[-1][1] < 0.99 * reference[0][1]
 
 
-@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_fire2_goes_back_half_a_step_after_an_uphill_step_as_ase(dim):
+    """FIRE2's correction (x -= dt v / 2, v = 0, forces anew) happens in these 60 steps, in ours at the
+    same steps as in ASE's: the same positions to 1e-9 dx after every step and the same force count."""
+    runs = []
+    for backend in ("sph", "ase"):
+        opt, atoms, _, frames = trajectory("fire2", backend, dim, steps=60)
+        runs.append((frames, atoms.calc.evaluations, opt.dt))
+    (frames, evaluations, dt), (reference, evaluations_ase, dt_ase) = runs
+    assert evaluations == evaluations_ase > 61  # 1 + 60 steps + one per correction
+    assert dt == pytest.approx(dt_ase, rel=1e-12)
+    dx = 1 / 48 if dim == 2 else 1 / 16
+    for (r, _), (r_ase, _) in zip(frames, reference):
+        np.testing.assert_allclose(r, r_ase, rtol=0, atol=1e-9 * dx)
+
+
+@pytest.mark.parametrize("name", ["fire", "fire2", "lbfgs"])
 def test_2d_never_moves_z_and_keeps_dim_times_n_buffers(name):
     opt, atoms, _, frames = trajectory(name, "sph", 2, steps=10)
     assert opt.dim == 2
-    buffer = opt.vel if name == "fire" else opt._s
+    buffer = opt._s if name == "lbfgs" else opt.vel
     assert buffer.shape[-1] == 2 and buffer.shape[-2] == len(atoms)
     assert all(np.all(r[:, 2] == 0.0) for r, _ in frames)
     opt3, atoms3, _, _ = trajectory(name, "sph", 3, steps=2)
-    assert opt3.dim == 3 and (opt3.vel if name == "fire" else opt3._s).shape[-1] == 3
+    assert opt3.dim == 3 and (opt3._s if name == "lbfgs" else opt3.vel).shape[-1] == 3
 
 
-@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+@pytest.mark.parametrize("name", ["fire", "fire2", "lbfgs"])
 def test_fixed_particles_stay_and_the_rest_follows_ase(name):
     def fix_first(atoms):
         atoms.set_constraint(FixAtoms(indices=range(20)))
@@ -80,7 +97,7 @@ def test_fixed_particles_stay_and_the_rest_follows_ase(name):
     np.testing.assert_allclose(frames[-1][0], reference[-1][0], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+@pytest.mark.parametrize("name", ["fire", "fire2", "lbfgs"])
 def test_keep_in_domain_holds_for_every_step_and_matches_ase(name):
     """A domain with a thin part and sharp corners, long steps (c = 0.2): KeepInDomain cuts steps
     in ours exactly as in ASE's optimiser, and no particle is outside after any step."""
@@ -138,6 +155,8 @@ def test_a_step_can_be_called_by_hand_with_given_forces():
     (SPHFIRE, {"dt": 0.0}, "dt must be a positive"),
     (SPHFIRE, {"maxstep": -1.0}, "maxstep must be positive"),
     (SPHFIRE, {"dim": 4}, "dim must be None, 2 or 3"),
+    (SPHFIRE2, {"dtmin": 0.0}, "dtmin must be a positive"),
+    (SPHFIRE2, {"maxstep": -1.0}, "maxstep must be positive"),
     (SPHLBFGS, {"restart": "state.json"}, "restart: SPHLBFGS keeps no restart file"),
 ])
 def test_bad_input_is_a_one_line_error(cls, kwargs, match):
@@ -153,7 +172,7 @@ def test_make_optimizer_refuses_an_unknown_backend():
         make_optimizer("fire", atoms, backend="numpy")
 
 
-@pytest.mark.parametrize("cls,ase_name", [(SPHFIRE, "FIRE"), (SPHLBFGS, "LBFGS")])
+@pytest.mark.parametrize("cls,ase_name", [(SPHFIRE, "FIRE"), (SPHFIRE2, "FIRE2"), (SPHLBFGS, "LBFGS")])
 def test_a_filter_goes_through_ases_optimizable_and_matches_ase(cls, ase_name):
     """Not an Atoms: get_x / get_gradient / set_x on all 3 coordinates, the same steps as ASE's."""
     import ase.optimize
@@ -164,7 +183,7 @@ def test_a_filter_goes_through_ases_optimizable_and_matches_ase(cls, ase_name):
         atoms, _ = fan_case(2)
         atoms.calc.silence_scale_hint()
         moving = Filter(atoms, indices=range(30, len(atoms)))
-        opt = make(moving, logfile=None, **({"dt": 0.05} if ase_name == "FIRE" else {"alpha": 1.0, "memory": 4}))
+        opt = make(moving, logfile=None, **({"alpha": 1.0, "memory": 4} if ase_name == "LBFGS" else {"dt": 0.05}))
         start = atoms.positions.copy()
         opt.run(fmax=0.0, steps=12)
         runs.append((start, atoms.positions.copy()))

@@ -171,7 +171,7 @@ def add_arguments(parser):
                         help=f"maximum number of iterations (default {DEFAULT_STEPS}); given, it is a fixed length: "
                              "a run that does not reach --fmax then exits 0 (and records converged: false)")
     parser.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
-                        help="fan: Eq. 2.4 with step c*h; fire/bfgs/lbfgs: ASE optimisers scaled to SPH units "
+                        help="fan: Eq. 2.4 with step c*h; fire/fire2/bfgs/lbfgs: ASE optimisers scaled to SPH units "
                              "(drivers.make_optimizer). Default: fan for --engine ase, fire for --engine lammps "
                              "(which maps fire to its min_style and refuses the others: see --min-style)")
     stop = parser.add_mutually_exclusive_group()

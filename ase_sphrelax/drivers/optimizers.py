@@ -6,8 +6,10 @@ ASE's defaults are set for atoms in eV and Angstrom (FIRE ``dt = 0.1``,
 ``dx = 1/256``. :func:`make_optimizer` sets them from the initial forces so
 that the first step moves the fastest particle by ``c h``, the step of Eq. 2.4.
 
-``"fire"`` and ``"lbfgs"`` are by default :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`
-and :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS`: ASE's algorithms step for step
+``"fire"``, ``"fire2"`` and ``"lbfgs"`` are by default
+:class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`,
+:class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE2` and
+:class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS`: ASE's algorithms step for step
 (the same trajectories to round-off), with numba vector work on the coordinates that move and
 buffers reused between steps (issue 33, item 1); ``backend="ase"`` gives ASE's own classes.
 """
@@ -41,12 +43,12 @@ def _checked(cls):
     return _CHECKED[cls]
 
 # the one list of optimiser names (CLI choices, relax_lattice); importing it loads no ASE optimiser
-OPTIMIZERS = ("fan", "fire", "bfgs", "lbfgs")
+OPTIMIZERS = ("fan", "fire", "fire2", "bfgs", "lbfgs")
 
 # default step scale c per optimiser (first step c h, largest step 10 c h); measured in
 # benchmarks/bench_speed_vs_error.py: LBFGS with c = 0.05 (and memory 20) reaches the error of
 # 2000 Eq. 2.4 steps with 0.14-0.17 of its force evaluations, with c = 0.01 only 0.29-0.38
-DEFAULT_C = {"fan": 0.01, "fire": 0.01, "bfgs": 0.05, "lbfgs": 0.05}
+DEFAULT_C = {"fan": 0.01, "fire": 0.01, "fire2": 0.01, "bfgs": 0.05, "lbfgs": 0.05}
 
 # who does the FIRE / LBFGS vector work: "sph" (numba, drivers/sph_optimizers.py) or "ase" (numpy)
 BACKENDS = ("sph", "ase")
@@ -69,9 +71,9 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
 
     Parameters
     ----------
-    name : {"fan", "fire", "bfgs", "lbfgs"}
-        ``"fan"`` is :class:`FanRelaxation` (Eq. 2.4); ``"fire"`` and ``"lbfgs"`` ASE's
-        algorithms (see ``backend``), ``"bfgs"`` ASE's.
+    name : {"fan", "fire", "fire2", "bfgs", "lbfgs"}
+        ``"fan"`` is :class:`FanRelaxation` (Eq. 2.4); ``"fire"``, ``"fire2"`` (Guénolé et al.
+        2020) and ``"lbfgs"`` ASE's algorithms (see ``backend``), ``"bfgs"`` ASE's.
     atoms : Atoms or Filter
         With a calculator attached.
     c : float or None
@@ -90,8 +92,9 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         thread variable), False leaves BLAS alone, an integer sets that limit. Multi-threaded
         BLAS on these short vectors collapses under a competing load (12x slower LBFGS).
     backend : {"sph", "ase"}
-        For ``"fire"`` and ``"lbfgs"``: ``"sph"`` (default) returns
+        For ``"fire"``, ``"fire2"`` and ``"lbfgs"``: ``"sph"`` (default) returns
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE` /
+        :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE2` /
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS` (ASE's algorithms with numba
         vector work, the same trajectories), ``"ase"`` ASE's own classes.
     **kwargs
@@ -100,7 +103,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     from ase.optimize import BFGS, FIRE, LBFGS
 
     from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
-    from .sph_optimizers import SPHFIRE, SPHLBFGS
+    from .sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS
 
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
@@ -122,14 +125,21 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     f_max = float(np.sqrt((forces**2).sum(axis=1)).max())
     step = c * h
     f_max = f_max if f_max > 0 else 1.0
-    if name == "fire":
+    if name in ("fire", "fire2"):
         # FIRE's first move is dt^2 F: pick dt so that it is c h for the largest force. ASE's FIRE caps
         # the norm of the whole 3N step, not each particle's move: scaled by sqrt(N), the cap is an RMS
         # particle move of 10 c h (unscaled, 1e5 particles needed 1522 steps where LAMMPS FIRE took 200)
         dt = np.sqrt(step / f_max)
         params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step * np.sqrt(max(len(forces), 1)))
+        if name == "fire2":  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
+            params["dtmin"] = 0.02 * dt
         params.update(kwargs)
-        cls = SPHFIRE if sph else _checked(FIRE)  # SPHFIRE's run warns itself
+        if name == "fire2":
+            from ase.optimize.fire2 import FIRE2
+
+            cls = SPHFIRE2 if sph else _checked(FIRE2)
+        else:
+            cls = SPHFIRE if sph else _checked(FIRE)  # SPHFIRE's (SPHFIRE2's) run warns itself
         return limit_blas_in_steps(cls(atoms, logfile=logfile, **params), blas_threads)
     # quasi-Newton: the first step is F / alpha
     params = dict(alpha=f_max / step, maxstep=10 * step)

@@ -32,7 +32,7 @@ from ..checks import ASE_DEFAULT_FMAX
 from ..parallel import run_chunks, thread_count
 from .step_scale import warn_if_nothing_relaxed
 
-__all__ = ["SPHFIRE", "SPHLBFGS"]
+__all__ = ["SPHFIRE", "SPHFIRE2", "SPHLBFGS"]
 
 _NOGIL = dict(nogil=True, cache=True)
 
@@ -189,6 +189,32 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, d, first, last):
             f_pc[p, c] = x_pc[p, c] + dr
         for c in range(d, 3):
             f_pc[p, c] = x_pc[p, c]
+
+
+@numba.njit(**_NOGIL)
+def _fire2_back(x_pc, v_pc, half_dt, d, new_pc, first, last):
+    """FIRE2's correction after an uphill step: new positions x - dt v / 2 into new_pc."""
+    for p in range(first, last):
+        for c in range(d):
+            new_pc[p, c] = x_pc[p, c] + half_dt * v_pc[p, c]  # half_dt = -dt / 2 (ASE: r + (-0.5 dt) v)
+        for c in range(d, 3):
+            new_pc[p, c] = x_pc[p, c]
+
+
+@numba.njit(**_NOGIL)
+def _fire2_velocity(v_pc, f_pc, fresh, a, scale, dt, d, out, first, last):
+    """FIRE2's semi-implicit Euler and mixing: v = (1 - a)(v + dt F) + scale F (v = 0 first when
+    ``fresh``; scale = a |v + dt F| / |F|); out += |dt v|^2."""
+    acc = 0.0
+    for p in range(first, last):
+        for c in range(d):
+            f = f_pc[p, c]
+            v = 0.0 if fresh else v_pc[p, c]
+            v = (1.0 - a) * (v + dt * f) + scale * f
+            v_pc[p, c] = v
+            dr = dt * v
+            acc += dr * dr
+    out[0] += acc
 
 
 def _chunks(loop, n, args, nout):
@@ -391,6 +417,98 @@ class SPHFIRE(_SPHOptimizer):
             self.dt *= self.fdec
             self.Nsteps = 0
         outs = _chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
+        normdr = float(np.sqrt(_sum(outs)))
+        scaled = normdr > self.maxstep
+        run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
+        self._set_positions(f_pc)
+
+    def todict(self):
+        description = Optimizer.todict(self)
+        description.update(dt=self.dt, dim=self.dim)
+        return description
+
+
+class SPHFIRE2(_SPHOptimizer):
+    """ASE's FIRE2 (Guénolé et al. 2020, as :class:`ase.optimize.fire2.FIRE2`) with numba vector work.
+
+    FIRE (Bitzek et al. 2006) with the changes of Guénolé et al. (2020, Comput. Mater. Sci. 175,
+    109584, Algorithm 2): semi-implicit Euler (``v += dt F`` before the mixing
+    ``v = (1 - a) v + a |v| F / |F|``, their Eq. 6-7), ``dt`` never below ``dtmin``, and after an
+    uphill step (``F . v <= 0``) the correction ``x -= dt v / 2`` then ``v = 0``: the particles go back
+    half the step that overshot and the step continues from the forces there, a second force
+    evaluation in that step (as ASE's; ``calc.evaluations`` counts it). ABC-FIRE (``use_abc``) and
+    ``position_reset_callback`` are not supported.
+
+    Per step: one pass for ``F . v``, ``F . F``, ``v . v``; after an uphill step one pass for the
+    correction and one for ``F . F`` at the corrected positions; one pass for the velocity (whose
+    norm ``|v + dt F|`` is ``sqrt(v.v + 2 dt F.v + dt^2 F.F)`` from the first pass's sums) and one
+    for the move, on the ``dim * N`` coordinates that move.
+
+    Parameters
+    ----------
+    atoms : Atoms or Filter
+        With a calculator.
+    dt, maxstep, dtmax, dtmin, Nmin, finc, fdec, astart, fa : float
+        As :class:`ase.optimize.fire2.FIRE2` (``maxstep`` caps the norm of the whole step, as ASE's).
+    dim : None, 2 or 3
+        Coordinates that move: None takes 2 from an SPH calculator in 2D, else 3.
+    logfile, trajectory, **kwargs
+        As :class:`ase.optimize.optimize.Optimizer` (``restart`` is refused).
+    """
+
+    def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dt=0.1, maxstep=None, dtmax=1.0,
+                 dtmin=2e-3, Nmin=20, finc=1.1, fdec=0.5, astart=0.25, fa=0.99, dim=None, **kwargs):
+        for name, value in dict(dt=dt, dtmax=dtmax, dtmin=dtmin, finc=finc, fdec=fdec, fa=fa).items():
+            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        _SPHOptimizer.__init__(self, atoms, restart=restart, logfile=logfile, trajectory=trajectory, dim=dim,
+                               **kwargs)
+        self.dt = float(dt)
+        self.Nsteps = 0
+        self.maxstep = self.defaults["maxstep"] if maxstep is None else float(maxstep)
+        if not self.maxstep > 0:
+            raise ValueError(f"maxstep must be positive, got {maxstep!r}")
+        self.dtmax, self.dtmin, self.Nmin = float(dtmax), float(dtmin), Nmin
+        self.finc, self.fdec, self.astart, self.fa = float(finc), float(fdec), float(astart), float(fa)
+        self.a = self.astart
+
+    def initialize(self):
+        self.vel = None
+
+    def _step(self, f_pc=None):
+        f_pc = self._forces() if f_pc is None else f_pc
+        x_pc = self._positions()
+        d = self._setup_dim()
+        n = len(f_pc)
+        fresh = self.vel is None
+        if fresh:
+            self.vel = np.zeros((n, d))
+            vf = vv = 0.0
+            ff = _sum(_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
+        else:
+            if self.vel.shape[0] != n:
+                raise ValueError(f"atoms: the number of particles changed from {self.vel.shape[0]} to {n}")
+            outs = _chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
+            vf, ff, vv = _sum(outs, 0), _sum(outs, 1), _sum(outs, 2)
+            if vf > 0.0:
+                self.Nsteps += 1
+                if self.Nsteps > self.Nmin:
+                    self.dt = min(self.dt * self.finc, self.dtmax)
+                    self.a *= self.fa
+            else:
+                self.Nsteps = 0
+                self.dt = max(self.dt * self.fdec, self.dtmin)
+                self.a = self.astart
+                # back half the step that went uphill (f_pc is ours to overwrite), then the forces there
+                run_chunks(_fire2_back, n, (x_pc, self.vel, -0.5 * self.dt, d, f_pc))
+                self._set_positions(f_pc)
+                f_pc, x_pc = self._forces(), self._positions()
+                fresh, vf, vv = True, 0.0, 0.0  # v = 0
+                ff = _sum(_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
+        # |v + dt F| from the sums, then the mixing's coefficient of F
+        norm_v = float(np.sqrt(max(vv + 2.0 * self.dt * vf + self.dt * self.dt * ff, 0.0)))
+        scale = self.a * norm_v / np.sqrt(ff) if ff > 0.0 else 0.0
+        outs = _chunks(_fire2_velocity, n, (self.vel, f_pc, fresh, self.a, scale, self.dt, d), 1)
         normdr = float(np.sqrt(_sum(outs)))
         scaled = normdr > self.maxstep
         run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
