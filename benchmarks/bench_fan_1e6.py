@@ -9,7 +9,10 @@ The measure, declared before any run: the interior mean ``h |sum_j V_j grad W_ij
 inside the wall), target ``--target`` (6e-4, what 300 of ASE's FIRE steps reached on the 2D circle).
 
 * **ours** (timed, ``--threads`` numba threads): fill, ``FanCalculator(h=, dx=, domain=)``,
-  ``make_optimizer("fire", atoms)`` (the package's defaults), steps until the measure is at most the
+  ``make_optimizer("fire", atoms)`` (the package's defaults; since ``FIRE_DYNAMICS``, ``dtmax`` 2.5 dt and a
+  constant mixing ``a = 0.15``, about half the steps of ASE's FIRE dynamics on this start,
+  ``benchmarks/bench_optimizer_steps.py``: the stored 2D and 3D runs, 310 and 285 steps, were taken with ASE's
+  ``dtmax`` 10 dt and ``a`` 0.1 shrinking by 0.99 a step), steps until the measure is at most the
   target, checked every ``--check-every`` steps from the forces the step already has (an interior
   particle's force is the pair force ``-2 v0^2 sum_j grad W_ij``, so the measure is
   ``h |F_i| / (2 v0)``; the time of the check is included); the end state is then scored by

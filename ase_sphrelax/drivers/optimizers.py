@@ -23,7 +23,7 @@ from .keep_inside import attach_keep_inside
 # re-exported: NothingRelaxedWarning and check_c have been public names of this module
 from .step_scale import NothingRelaxedWarning, calculator_h, check_c, mark_scaled, warn_if_nothing_relaxed
 
-__all__ = ["OPTIMIZERS", "BACKENDS", "DEFAULT_C", "DEFAULT_MEMORY", "make_optimizer", "check_c",
+__all__ = ["OPTIMIZERS", "BACKENDS", "DEFAULT_C", "DEFAULT_MEMORY", "FIRE_DYNAMICS", "make_optimizer", "check_c",
            "NothingRelaxedWarning", "SPHScaleWarning", "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
 
 
@@ -52,6 +52,15 @@ DEFAULT_C = {"fan": 0.01, "fire": 0.01, "fire2": 0.01, "bfgs": 0.05, "lbfgs": 0.
 
 # who does the FIRE / LBFGS vector work: "sph" (numba, drivers/sph_optimizers.py) or "ase" (numpy)
 BACKENDS = ("sph", "ase")
+
+# FIRE's dynamics for SPH, set relative to the scaled first dt (issue 33, item 2;
+# benchmarks/bench_optimizer_steps.py, Fan's circle, steps to the interior mean h|sum V grad W| of 6e-4):
+# dt grows up to dtmax = 2.5 dt (with ASE's 10 dt the steps went unstable beyond about 3-6 dt, and
+# every restart then cost tens of steps) and the velocity mixing keeps a = 0.15 (fa = 1; ASE's a
+# starts at 0.1 and shrinks by 0.99 per step, which left the velocities to swing for a hundred steps
+# between restarts): half the steps of ASE's values in 2D at 1e4-1e6, 0.7 of them on the sphere at 1e4
+# (the entry speed-optimizer-steps)
+FIRE_DYNAMICS = dict(dtmax_over_dt=2.5, astart=0.15, a=0.15, fa=1.0)
 
 # LBFGS history length per backend: ASE's LBFGS keeps 20 pairs (its own 100 cost more than a force call);
 # SPHLBFGS 5, each pair 16 dim bytes per particle: on Fan's circle and sphere it converges per step as
@@ -98,7 +107,9 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS` (ASE's algorithms with numba
         vector work, the same trajectories), ``"ase"`` ASE's own classes.
     **kwargs
-        Override the optimiser's own parameters.
+        Override the optimiser's own parameters. ``"fire"`` sets ``dtmax``, ``a``, ``astart`` and
+        ``fa`` from :data:`FIRE_DYNAMICS` (``dtmax`` 2.5 times the first ``dt``, a constant mixing
+        ``a = 0.15``; ASE's are ``dtmax`` 10 dt, ``a`` 0.1 shrinking by 0.99 a step).
     """
     from ase.optimize import BFGS, FIRE, LBFGS
 
@@ -131,7 +142,10 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         # particle move of 10 c h (unscaled, 1e5 particles needed 1522 steps where LAMMPS FIRE took 200)
         dt = np.sqrt(step / f_max)
         params = dict(dt=dt, dtmax=10 * dt, maxstep=10 * step * np.sqrt(max(len(forces), 1)))
-        if name == "fire2":  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
+        if name == "fire":  # FIRE_DYNAMICS: about half the steps of ASE's values on Fan's circle
+            dynamics = dict(FIRE_DYNAMICS)
+            params.update(dtmax=dynamics.pop("dtmax_over_dt") * dt, **dynamics)
+        else:  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
             params["dtmin"] = 0.02 * dt
         params.update(kwargs)
         if name == "fire2":
