@@ -38,7 +38,7 @@ from ..checks import check_positive
 from ..domains.closest import closest_on_triangle
 from ..parallel import run_chunks, thread_count
 from .line_integrals import at_vertex, line_offset, segment_terms
-from .query import BoundaryQuery
+from .query import BoundaryQuery, _element_dist2, boundary_pairs
 from .radial import RadialTables
 from .segments import BoundarySegments
 from .surface_integrals import EDGE_COLUMNS, edge_frames, edge_ids, row_scratch, triangle_row_terms, triangle_terms
@@ -139,10 +139,83 @@ def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a
 
 
 @numba.njit(cache=True, nogil=True)
+def _row(kind, p, k0, k1, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid, next_s, prev_s, pseudo,
+         inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k,
+         sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit):
+    """The terms of particle ``p`` from its pairs ``k0:k1`` (see :func:`_rows`); returns the last edge visit."""
+    slot_w, slot_pair, pair_c, row_cuts, mom = scratch
+    h = 1.0 / inv_h
+    run = k0
+    while kind == 1 and run < k1:  # per point: every pair of this particle's row has the same (see BoundaryPairs)
+        s = point_k[run]
+        end = run + 1
+        while end < k1 and point_k[end] == s:
+            end += 1
+        visit += 1
+        triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
+                           breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
+                           row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
+        run = end
+    total = 0.0
+    g0 = g1 = g2 = 0.0
+    w0 = w1 = w2 = 0.0
+    best = np.inf
+    k_best = -1
+    delta_best = 0.0
+    for k in range(k0, k1):
+        s = point_k[k]
+        e = elem_k[k]
+        x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
+        if kind == 1:
+            g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
+        else:
+            g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
+        total += g
+        g0 += gr * nrm[e, 0]
+        g1 += gr * nrm[e, 1]
+        g2 += gr * nrm[e, 2]
+        gb = 0.0
+        if rule == 2:
+            if dist_k[k] < band:
+                gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                                    band * inv_h, cuts)[1]
+        elif rule == 1:
+            cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
+            gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
+        elif abs(d) * h < band:
+            gb = gr
+        w0 += gb * nrm[e, 0]
+        w1 += gb * nrm[e, 1]
+        w2 += gb * nrm[e, 2]
+        if want_terms:
+            gamma_k[k] = g
+            grad_k[k] = gr
+            delta_k[k] = d * h
+        if dist_k[k] < best:
+            best = dist_k[k]
+            k_best = k
+            delta_best = d
+    sum_p[p] = total
+    grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
+    near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
+    nearest_p[p] = best
+    if k_best < 0:
+        chi_p[p] = -1.0
+        return visit
+    s = point_k[k_best]
+    if kind == 0:
+        chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
+    else:
+        chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best, close2)
+    return visit
+
+
+@numba.njit(cache=True, nogil=True)
 def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
           pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k,
-          grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, first, last):
-    """Per particle: sum_s gamma_as, grad gamma_a, the band sum and the point term (see the module docstring).
+          grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, first, last):
+    """Per particle: sum_s gamma_as, grad gamma_a, the band sum, the point term and the nearest element's distance
+    (see the module docstring).
 
     ``rule``: 0 normal, 1 centroid, 2 ball (:data:`BAND_RULES`). The kernel tables are those of
     :class:`~ase_sphrelax.boundary.radial.RadialTables` (segments use fc, gc, a; triangles lp, lq,
@@ -153,13 +226,12 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     (:func:`~ase_sphrelax.boundary.surface_integrals.triangle_row_terms`): each edge near it is integrated
     once for both its triangles (``edge_tk``: edge ids shared by the triangles of an edge).
     """
-    h = 1.0 / inv_h
     cuts = np.empty(2 * breaks.shape[0] + 5)
     use_skip = skip_p.shape[0] > 0
     longest = 1
     for p in range(first, last):
         longest = max(longest, start_p[p + 1] - start_p[p])
-    slot_w, slot_pair, pair_c, row_cuts, mom = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
+    scratch = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
     row_g = np.empty(longest)
     row_gr = np.empty(longest)
     row_d = np.empty(longest)
@@ -169,70 +241,82 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     for p in range(first, last):
         if use_skip and skip_p[p]:
             continue
-        k0 = start_p[p]
-        k1 = start_p[p + 1]
-        run = k0
-        while kind == 1 and run < k1:  # per point: every pair of this particle's row has the same (see BoundaryPairs)
-            s = point_k[run]
-            end = run + 1
-            while end < k1 and point_k[end] == s:
-                end += 1
-            visit += 1
-            triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
-                               breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
-                               row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
-            run = end
-        total = 0.0
-        g0 = g1 = g2 = 0.0
-        w0 = w1 = w2 = 0.0
-        best = np.inf
-        k_best = -1
-        delta_best = 0.0
-        for k in range(k0, k1):
-            s = point_k[k]
-            e = elem_k[k]
-            x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-            if kind == 1:
-                g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
-            else:
-                g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
-            total += g
-            g0 += gr * nrm[e, 0]
-            g1 += gr * nrm[e, 1]
-            g2 += gr * nrm[e, 2]
-            gb = 0.0
-            if rule == 2:
-                if dist_k[k] < band:
-                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                        band * inv_h, cuts)[1]
-            elif rule == 1:
-                cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
-                gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
-            elif abs(d) * h < band:
-                gb = gr
-            w0 += gb * nrm[e, 0]
-            w1 += gb * nrm[e, 1]
-            w2 += gb * nrm[e, 2]
-            if want_terms:
-                gamma_k[k] = g
-                grad_k[k] = gr
-                delta_k[k] = d * h
-            if dist_k[k] < best:
-                best = dist_k[k]
-                k_best = k
-                delta_best = d
-        sum_p[p] = total
-        grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
-        near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
-        if k_best < 0:
-            chi_p[p] = -1.0
+        visit = _row(kind, p, start_p[p], start_p[p + 1], x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk,
+                     centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band,
+                     rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts,
+                     scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
+
+
+@numba.njit(cache=True, nogil=True)
+def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, radius2, elem, nrm, frames,
+                edge_tk, n_edges, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                close2, band, rule, skip_p, sum_p, grad_pc, near_pc, chi_p, nearest_p, first, last):
+    """:func:`_rows` with the query fused in: no pair arrays. Each sorted point ``s`` (ghosts skipped: every
+    particle's pairs are those of its own point) finds its elements closer than ``sqrt(radius2)`` among its
+    source row (``by_bin``: the elements registered in its bin, ``src_start[bin_s[s]]:``; else its candidate
+    row ``src_start[s]:``) in their order, as :class:`~ase_sphrelax.boundary.query.BoundaryQuery` does, into a
+    row of scratch, and gets the terms of :func:`_rows` from that row (the same values)."""
+    cuts = np.empty(2 * breaks.shape[0] + 5)
+    use_skip = skip_p.shape[0] > 0
+    longest = 1
+    if by_bin:
+        for b in range(src_start.shape[0] - 1):
+            longest = max(longest, src_start[b + 1] - src_start[b])
+    else:
+        for s in range(first, last):
+            longest = max(longest, src_start[s + 1] - src_start[s])
+    scratch = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
+    row_g = np.empty(longest)
+    row_gr = np.empty(longest)
+    row_d = np.empty(longest)
+    elem_r = np.empty(longest, dtype=np.int64)
+    dist_r = np.empty(longest)
+    point_r = np.empty(longest, dtype=np.int64)
+    no_terms = np.empty(0)
+    stamp_e = np.full(n_edges if kind == 1 else 1, -1, dtype=np.int64)
+    slot_e = np.empty(stamp_e.shape[0], dtype=np.int64)
+    visit = -1
+    for s in range(first, last):
+        if is_ghost_s[s]:
             continue
-        s = point_k[k_best]
-        if kind == 0:
-            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
-        else:
-            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best,
-                                     close2)
+        p = src_s[s]
+        if use_skip and skip_p[p]:
+            continue
+        row = bin_s[s] if by_bin else s
+        x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
+        n = 0
+        for k in range(src_start[row], src_start[row + 1]):
+            e = src_elem[k]
+            d2 = _element_dist2(kind, elem, e, x, y, z)
+            if d2 < radius2:
+                elem_r[n] = e
+                dist_r[n] = math.sqrt(d2)
+                point_r[n] = s
+                n += 1
+        visit = _row(kind, p, 0, n, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid, next_s,
+                     prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
+                     no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
+                     row_gr, row_d, stamp_e, slot_e, visit)
+
+
+@numba.njit(cache=True)
+def _inherit_chi(chi_p, r_pc, r0_pc, chi0_p, reach2):
+    """``chi_p[p] = chi0_p[p]`` for the particles still UNKNOWN whose last ``chi`` was 0 or 1 and that moved less
+    than ``sqrt(reach2)`` since (:meth:`BoundaryIntegrals._resolve_unknown`); returns how many are left."""
+    left = 0
+    for p in range(chi_p.shape[0]):
+        if chi_p[p] != UNKNOWN:
+            continue
+        c = chi0_p[p]
+        if c == 0.0 or c == 1.0:
+            d0 = r_pc[p, 0] - r0_pc[p, 0]
+            d1 = r_pc[p, 1] - r0_pc[p, 1]
+            d2 = r_pc[p, 2] - r0_pc[p, 2]
+            if d0 * d0 + d1 * d1 + d2 * d2 < reach2:
+                chi_p[p] = c
+                continue
+        left += 1
+    return left
 
 
 class BoundaryTerms:
@@ -255,9 +339,13 @@ class BoundaryTerms:
     gamma_k, grad_k, delta_k : ndarray or None
         Per pair (with ``terms=True``): ``gamma_as``, ``|grad gamma_as|`` (along ``n_s``) and the
         signed distance ``(x_a - x_s) . n_s``.
+    nearest_p : ndarray (N,) or None
+        Distance of each particle to its nearest element within ``h`` (inf if none), as
+        :meth:`~ase_sphrelax.boundary.query.BoundaryPairs.nearest_distance`.
     """
 
-    def __init__(self, gamma_p, grad_gamma_pc, chi_p, near_pc, pairs, gamma_k=None, grad_k=None, delta_k=None):
+    def __init__(self, gamma_p, grad_gamma_pc, chi_p, near_pc, pairs, gamma_k=None, grad_k=None, delta_k=None,
+                 nearest_p=None):
         self.gamma_p = gamma_p
         self.grad_gamma_pc = grad_gamma_pc
         self.chi_p = chi_p
@@ -266,6 +354,7 @@ class BoundaryTerms:
         self.gamma_k = gamma_k
         self.grad_k = grad_k
         self.delta_k = delta_k
+        self.nearest_p = nearest_p
 
     @property
     def inside_p(self):
@@ -352,7 +441,7 @@ class BoundaryIntegrals:
         same_p = np.all(c["r_pc"] == r_pc, axis=1)
         return same_p if same_p.any() else None
 
-    def compute(self, nlist, r_pc, terms=False, band=0.0, band_rule="ball", _nudge=True):
+    def compute(self, nlist, r_pc, terms=False, band=0.0, band_rule="ball", keep_pairs=True, _nudge=True):
         """Boundary terms for particles at ``r_pc`` (N, 3); ``nlist`` updated for them.
 
         Parameters
@@ -371,6 +460,10 @@ class BoundaryIntegrals:
             (the distance to the element's line or plane, as BIPI's Eq. 14 is written);
             "centroid": whole elements with ``|x_a - c_s| < band``, ``c_s`` the centroid (as Eq. 21
             is written; depends on the element size, hence BIPI2D's refinement to ``dx / 10``).
+        keep_pairs : bool
+            False: the particle-element query runs inside the per-particle loop and no pair arrays are made
+            (``pairs`` of the result is None; ``nearest_p`` holds what is kept of them). The same values;
+            per particle a row of scratch instead of 24 B per pair (and 24 B per candidate of a stored list).
 
         Notes
         -----
@@ -384,8 +477,11 @@ class BoundaryIntegrals:
             raise ValueError(f"band_rule must be one of {BAND_RULES}, got {band_rule!r}")
         r_pc = np.asarray(r_pc, dtype=float)
         n = len(r_pc)
-        pairs = self.query.pairs(nlist, r_pc, self.h)
-        m = pairs.n_pairs
+        # no pair arrays (the query fused into the rows) when none are asked for and every particle's pairs are
+        # those of its own sorted point
+        source = None if keep_pairs or terms else self.query.sources(nlist, r_pc, self.h)
+        pairs = self.query.pairs(nlist, r_pc, self.h) if source is None else None
+        m = pairs.n_pairs if pairs is not None else 0
         gamma_k = np.empty(m) if terms else np.empty(0)
         grad_k = np.empty(m) if terms else np.empty(0)
         delta_k = np.empty(m) if terms else np.empty(0)
@@ -393,6 +489,7 @@ class BoundaryIntegrals:
         grad_pc = np.empty((n, 3))
         near_pc = np.empty((n, 3))
         chi_p = np.empty(n)
+        nearest_p = np.empty(n)
         t = self.tables
         b = self.boundary
         if self.dim == 2:
@@ -409,18 +506,32 @@ class BoundaryIntegrals:
             c = self._cache
             chi_p[same_p] = c["chi_p"][same_p]  # final values: never UNKNOWN or NEAR_SURFACE
             sum_p[same_p] = 0.0
-        # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
-        run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k, elem,
-                              nrm, self._frames, self._edge_tk, self._n_edges, centroid, self._next, self._prev, self._pseudo, 1.0 / self.h, *tables, t.sigma,
-                              close2, float(band), BAND_RULES.index(band_rule), bool(terms), skip_p,
-                              gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p), nthreads=thread_count(m))
+            nearest_p[same_p] = c["nearest_p"][same_p]
+        geometry = (elem, nrm, self._frames, self._edge_tk, self._n_edges, centroid, self._next, self._prev,
+                    self._pseudo, 1.0 / self.h, *tables, t.sigma, close2, float(band), BAND_RULES.index(band_rule))
+        outputs = (sum_p, grad_pc, near_pc, chi_p, nearest_p)
+        if pairs is not None:
+            # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
+            run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k,
+                                  *geometry, bool(terms), skip_p, gamma_k, grad_k, delta_k, *outputs),
+                       nthreads=thread_count(m))
+        else:
+            x_sc, pts, by_bin, src_start, src_elem, work = source
+            run_chunks(_rows_fused, x_sc.shape[0], (kind, x_sc, pts.src_s, pts.is_ghost_s, pts.bin_s, by_bin,
+                                                    src_start, src_elem, self.h * self.h, *geometry, skip_p, *outputs),
+                       nthreads=thread_count(work))
+            del source, x_sc, src_start, src_elem
         unknown = chi_p == UNKNOWN
         if unknown.any():
-            chi_p[unknown] = self._inside(nlist, r_pc)[unknown]
+            self._resolve_unknown(nlist, r_pc, chi_p, unknown)
         gamma_p = chi_p - sum_p
         close = chi_p == NEAR_SURFACE
         if close.any():
-            gamma_p[close] = self._nudged(r_pc[close], pairs, np.nonzero(close)[0])
+            rows = np.nonzero(close)[0]
+            if pairs is None:  # the pairs of these few particles, from a query of their own
+                pairs = boundary_pairs(r_pc[close], self.boundary, self.h)
+                rows = np.arange(len(rows))
+            gamma_p[close] = self._nudged(r_pc[close], pairs, rows)
             chi_p[close] = 1.0 if self.dim == 3 else chi_p[close]
         self.reused = 0 if same_p is None else int(same_p.sum())
         if same_p is not None:
@@ -441,9 +552,28 @@ class BoundaryIntegrals:
                 r_copy = r_pc.copy()
             del old
             self._cache = dict(r_pc=r_copy, band=float(band), rule=band_rule, gamma_p=gamma_p,
-                               grad_pc=grad_pc, near_pc=near_pc, chi_p=chi_p)
+                               grad_pc=grad_pc, near_pc=near_pc, chi_p=chi_p, nearest_p=nearest_p)
         return BoundaryTerms(gamma_p, grad_pc, chi_p, near_pc if band > 0 else None, pairs,
-                             gamma_k if terms else None, grad_k if terms else None, delta_k if terms else None)
+                             gamma_k if terms else None, grad_k if terms else None, delta_k if terms else None,
+                             nearest_p=nearest_p)
+
+    def _resolve_unknown(self, nlist, r_pc, chi_p, unknown):
+        """``chi`` of the particles with no element within ``h`` (``unknown``), in place.
+
+        With a stored list: the inside test of every particle, made once per bins (:meth:`_inside`). Without
+        one (one-shot bins, a new grid at every call): a particle that moved less than ``h`` since the last
+        call, where it was inside (or outside), still is (the straight path from there would have met the
+        surface, which is farther than ``h`` from it now), and keeps that ``chi``; only the others are tested.
+        """
+        c = self._cache
+        if nlist.stored or c is None or c["r_pc"].shape != r_pc.shape:
+            chi_p[unknown] = self._inside(nlist, r_pc)[unknown]
+            return
+        left = _inherit_chi(chi_p, r_pc, c["r_pc"], c["chi_p"], self.h * self.h)
+        if left:
+            rest = np.nonzero(chi_p == UNKNOWN)[0]
+            chi_p[rest] = np.asarray(self.boundary.contains(r_pc[rest]), dtype=bool)
+            self.inside_tests += 1
 
     def _nudged(self, r_pc, pairs, rows):
         """3D gamma of points within NUDGE h of the surface, from a point NUDGE h inside it.

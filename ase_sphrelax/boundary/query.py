@@ -287,18 +287,51 @@ class BoundaryQuery:
         run_chunks(_query_chunk, n_ext, common + (row_s, elem_s, d_s, True))
         return row_s, elem_s, d_s
 
-    def _candidates(self, pts, x_sc, reg_start, reg_elem, radius, margin, skip_s):
+    def _candidates(self, pts, x_sc, reg_start, reg_elem, radius, margin, skip_s, scratch=True):
         """Per sorted point, the registered elements within ``radius + 2 margin`` (``row_s``, ``cand_elem``), kept
-        while the bins stay, and scratch rows of the same size for the kept pairs."""
+        while the bins stay, and (``scratch``) scratch rows of the same size for the kept pairs (made on first
+        use: :meth:`sources` needs none)."""
         if self._cand_key is None or _deref(self._cand_key[0]) is not pts or self._cand_key[1:] != (radius, margin):
+            self._cand = None  # the old candidates go before the new ones are made
             count_s = np.zeros(x_sc.shape[0], dtype=np.int64)
             row_s, cand_elem, _ = self._within(x_sc, pts, reg_start, reg_elem, (radius + 2.0 * margin) ** 2, skip_s,
                                                count_s)
-            # scratch for the kept pairs, reused by every call on these bins
             self._cand_key = (weakref.ref(pts), radius, margin)
-            self._cand = (row_s, cand_elem, np.empty(len(cand_elem), dtype=np.int64), np.empty(len(cand_elem)))
+            self._cand = (row_s, cand_elem, None, None)
             self.candidate_builds += 1
+        if scratch and self._cand[2] is None:  # scratch for the kept pairs, reused by every call on these bins
+            row_s, cand_elem = self._cand[:2]
+            self._cand = (row_s, cand_elem, np.empty(len(cand_elem), dtype=np.int64), np.empty(len(cand_elem)))
         return self._cand
+
+    def sources(self, nlist, r_pc, radius):
+        """What a fused query needs (:func:`~ase_sphrelax.boundary.gamma._rows_fused`): ``(x_sc, points, by_bin,
+        src_start, src_elem, work)``, the rows of elements each sorted point tests, by bin (the registration,
+        one-shot bins) or by point (the candidates of a stored list), as :meth:`pairs` tests them; None when a
+        ghost can meet an element (bounded elements with periodic particles: use :meth:`pairs`)."""
+        radius = self._check_radius(radius)
+        pts = nlist.points
+        if self.periodic is None and pts.n_extended != pts.n_particles:
+            return None
+        margin = 0.5 * nlist.skin if nlist.stored else 0.0
+        reg_start, reg_elem = self._registered(pts, radius + margin)
+        x_sc = nlist.extend(r_pc)
+        if margin > 0.0:
+            skip_s = pts.is_ghost_s if self.periodic is not None else np.zeros(0, dtype=np.bool_)
+            row_s, cand_elem = self._candidates(pts, x_sc, reg_start, reg_elem, radius, margin, skip_s,
+                                                scratch=False)[:2]
+            return x_sc, pts, False, row_s, cand_elem, len(cand_elem)
+        return x_sc, pts, True, reg_start, reg_elem, x_sc.shape[0]
+
+    def _check_radius(self, radius):
+        radius = float(radius)
+        if not radius > 0:
+            raise ValueError(f"radius must be > 0, got {radius!r}")
+        if self.periodic is not None and radius > self.periodic.image_reach:
+            raise ValueError(f"radius (the kernel support h) {radius!r} exceeds the periodic images' reach "
+                             f"{self.periodic.image_reach!r}; build the boundary with with_cell(..., reach=k) for "
+                             "k periods of images")
+        return radius
 
     def pairs(self, nlist, r_pc, radius):
         """All (particle, element) pairs closer than ``radius``.
@@ -315,13 +348,7 @@ class BoundaryQuery:
         -------
         BoundaryPairs
         """
-        radius = float(radius)
-        if not radius > 0:
-            raise ValueError(f"radius must be > 0, got {radius!r}")
-        if self.periodic is not None and radius > self.periodic.image_reach:
-            raise ValueError(f"radius (the kernel support h) {radius!r} exceeds the periodic images' reach "
-                             f"{self.periodic.image_reach!r}; build the boundary with with_cell(..., reach=k) for "
-                             "k periods of images")
+        radius = self._check_radius(radius)
         pts = nlist.points
         margin = 0.5 * nlist.skin if nlist.stored else 0.0
         reg_start, reg_elem = self._registered(pts, radius + margin)

@@ -287,6 +287,11 @@ class SPHCalculator(Calculator):
             self.dim = dim
         return dim
 
+    def stores_list(self):
+        """Whether evaluations after the first keep a Verlet list (True here; a method may choose one-shot bins
+        at every evaluation, trading a bin scan per evaluation for the list's memory)."""
+        return True
+
     def prepare(self, atoms, cutoff, skin, dim=None):
         """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
@@ -310,7 +315,8 @@ class SPHCalculator(Calculator):
         if cutoff is not None:
             if self.nlist is None or self.nlist.skin != skin:
                 self.nlist = NeighborList(cutoff, skin=skin)
-            self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff, store=self._evaluations > 0)
+            self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff,
+                              store=self._evaluations > 0 and self.stores_list())
         self._evaluations += 1
         return r_pc, pbc
 

@@ -73,6 +73,12 @@ class BIPICalculator(SPHCalculator):
         Verlet skin (default ``0.1 h``).
     dim : int or None
         Must match the boundary (default: the boundary's).
+    store_list : bool
+        True (default): evaluations after the first walk a stored Verlet list (4 B per pair within
+        ``h + skin``: about 630 B per particle in 3D at ``h = 4 dx``). False: every evaluation scans
+        one-shot bins (no list, and no stored particle-element candidates), the same values to
+        rounding for less memory and a bin scan per evaluation (``benchmarks/bench_scale.py``'s
+        ``bipi3d``, issue 33 item 4).
     band_rule : {"ball", "normal", "centroid"}
         Which part of the boundary feels the step pressure (``wall_gradient``,
         :meth:`ase_sphrelax.boundary.BoundaryIntegrals.compute`): "ball" (default) the part within
@@ -93,12 +99,12 @@ class BIPICalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "gamma", "grad_gamma", "concentration",
                               "concentration_gradient", "wall_gradient"]
     default_parameters = dict(h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
-                              band_rule="ball")
+                              band_rule="ball", store_list=True)
 
     def __init__(self, h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
-                 band_rule="ball", **kwargs):
+                 band_rule="ball", store_list=True, **kwargs):
         super().__init__(h=h, dx=dx, boundary=boundary, kernel=kernel, J=J, skin=skin, dim=dim, band_rule=band_rule,
-                         **kwargs)
+                         store_list=store_list, **kwargs)
 
     @classmethod
     def from_paper(cls, h_over_dx_paper, dx, boundary, **kwargs):
@@ -121,6 +127,8 @@ class BIPICalculator(SPHCalculator):
         self.skin = verlet_skin(p.skin, self.model.h)
         if p.band_rule not in BAND_RULES:
             raise ValueError(f"band_rule must be one of {BAND_RULES}, got {p.band_rule!r}")
+        if not isinstance(p.store_list, (bool, np.bool_)):
+            raise ValueError(f"store_list must be True or False, got {p.store_list!r}")
         self.boundary = boundary
         elements = boundary
         if boundary.dim == 2 and p.band_rule != "centroid":
@@ -128,8 +136,11 @@ class BIPICalculator(SPHCalculator):
             # elements (AirFoilFluid: 5224 -> 686); only the "centroid" rule depends on the elements
             elements = boundary.merged()
         self.integrals = BoundaryIntegrals(elements, self.model.h, p.kernel)
-        self._boundary_pairs = None
+        self._nearest_p = None
         self._spacing_checked = None
+
+    def stores_list(self):
+        return bool(self.parameters.store_list)
 
     def check_atoms(self, atoms, dim, properties):
         check_periodic_atoms(atoms, self.boundary, dim)
@@ -160,10 +171,12 @@ class BIPICalculator(SPHCalculator):
 
     def evaluate(self, state, properties):
         model = self.model
-        terms = self.integrals.compute(state.nlist, state.r_pc, band=model.band, band_rule=self.parameters.band_rule)
+        self._nearest_p = None  # the last evaluation's, not kept while this one runs
+        # the query fused into the boundary rows: no (particle, element) pair arrays (24 B per pair)
+        terms = self.integrals.compute(state.nlist, state.r_pc, band=model.band, band_rule=self.parameters.band_rule,
+                                       keep_pairs=False)
         gamma_p, grad_gamma_pc = terms.gamma_p, terms.grad_gamma_pc
-        self._boundary_pairs = terms.pairs
-        terms.pairs.x_sc = None  # the pairs' copy of the positions: not read after compute (24 B per particle)
+        self._nearest_p = terms.nearest_p
         out = dict(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
         if set(properties) <= {"gamma", "grad_gamma", "wall_gradient"}:
             return out
@@ -193,9 +206,9 @@ class BIPICalculator(SPHCalculator):
     def boundary_distances(self, atoms=None):
         """Distance from each particle to its nearest boundary element within the kernel support (inf
         beyond), from the last evaluation (``atoms`` given: evaluated for them first)."""
-        if atoms is not None or self._boundary_pairs is None:
+        if atoms is not None or self._nearest_p is None:
             self.get_property("gamma", atoms)
-        return self._boundary_pairs.nearest_distance()
+        return self._nearest_p.copy()
 
     # -- convenience ------------------------------------------------------------------
     def get_gamma(self, atoms=None):
