@@ -176,7 +176,9 @@ class ALARICDynamics(MolecularDynamics):
             f_visc, div_p = self.calc.viscous_forces(v_pc, self.alpha_p, v_sig)
             f_pc += f_visc
             self.div_p = div_p
-        a_pc = f_pc / m
+            del f_visc
+        a_pc = f_pc  # in place: no third (N, 3) array at the end of an evaluation
+        a_pc /= m
         if self.friction > 0:
             a_pc -= self.friction * v_pc
         a_pc[:, self.dim:] = 0.0
@@ -215,9 +217,10 @@ class ALARICDynamics(MolecularDynamics):
         if not np.all(np.isfinite(atoms.positions)):
             raise TimeStepError(f"step {self.nsteps}: positions became non-finite (dt = {dt:.4g})")
         self.force_calls += 1
-        a_new = self._accelerations(v)  # dissipative terms with the half-step velocity
-        v = v + 0.5 * dt * a_new
-        self._accel = a_new
+        # the last accelerations go before the evaluation (its peak of memory) makes the new ones
+        self._accel = None
+        self._accel = self._accelerations(v)  # dissipative terms with the half-step velocity
+        v += 0.5 * dt * self._accel
         if self.viscosity:
             self.alpha_p = sph.update_alpha(self.alpha_p, self.div_p, self.cs, self.calc.results["smoothing_lengths"],
                                             dt, alpha_min=0.0, alpha_max=self.alpha_max)
@@ -225,6 +228,7 @@ class ALARICDynamics(MolecularDynamics):
         self.time += dt
         self.since_stop += dt
         ek = 0.5 * float((self.masses * v * v).sum())
+        v = None  # not held through an interval end's evaluation
         decreasing = ek < self.ek_prev
         self.ek_prev = ek
         # end of an interval: tau reached, or (first interval) the kinetic energy peaked (Eq. 38)
@@ -251,6 +255,7 @@ class ALARICDynamics(MolecularDynamics):
 
             self.calc.set_mass(reset_mass(res["target"], res["number_density"]))  # Eq. 44
             self._sync_masses()
+            self._accel = None  # not held through the evaluation
             atoms.get_forces()
             self._accel = self._accelerations(atoms.get_velocities())
             res = self.calc.results
