@@ -903,7 +903,8 @@ def pressure_forces(nlist, r_pc, masses, h, pr, kernel, want_virial=False, dims=
     return out.forces, virial
 
 
-def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, beta=0.0, approaching_only=False):
+def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, beta=0.0, approaching_only=False,
+                     dims=None):
     """Artificial viscosity forces (Eq. 15/35) and the velocity divergence (Eq. 21) in one pass.
 
     Parameters
@@ -921,10 +922,14 @@ def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, be
         Quadratic (von Neumann-Richtmyer) coefficient; 0 in Eq. 35.
     approaching_only : bool
         Apply the viscosity only to approaching pairs (``v_ab . r_ab < 0``, Monaghan 1997); False in Eq. 35.
+    dims : int or None
+        The pairs see the first ``dims`` coordinates of ``r_pc`` and ``v_pc`` (default all ``D``; ``v_pc`` may then
+        have ``dims`` columns): as in :func:`pressure_forces`, ``dims = d`` for a d < 3 system gives the same
+        forces without their zero columns, and gathers ``dims`` velocity components per point, not ``D``.
 
     Returns
     -------
-    f_pc : ndarray (N, D)
+    f_pc : ndarray (N, D), or (N, dims)
         ``m_a (dv_a/dt)_visc``; pairwise antisymmetric (momentum conserving).
     div_p : ndarray (N,)
         ``(div v)_a`` of Eq. 21.
@@ -935,14 +940,16 @@ def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, be
     h_p = _per_particle("h", h, n)
     rho_p = _per_particle("rho", rho, n)
     alpha_p = _per_particle("alpha", alpha, n, positive=False)
+    dims = _check_dims(dims, r_pc)
     v_pc = np.ascontiguousarray(v_pc, dtype=float)
-    if v_pc.shape != r_pc.shape:
-        raise ValueError(f"velocities must have the shape of the positions {r_pc.shape}, got {v_pc.shape}")
+    if v_pc.shape != r_pc.shape and v_pc.shape != (n, dims):
+        raise ValueError(f"velocities must have the shape of the positions {r_pc.shape} (or {(n, dims)} with dims="
+                         f"{dims}), got {v_pc.shape}")
     g_p = kernel.sigma / h_p ** (kernel.dim + 1)
     params = dict(v_sig=float(v_sig), beta=float(beta), approaching_only=bool(approaching_only))
     inputs = dict(ih_s=1.0 / h_p, g_s=g_p, m_s=m_p, rho_s=rho_p, alpha_s=alpha_p, v_sc=v_pc)
-    out = _interaction("viscosity", r_pc.shape[1]).compute(nlist, r_pc, params=params, inputs=inputs,
-                                                           reach=float(h_p.max()), kernel=kernel)
+    out = _interaction("viscosity", dims).compute(nlist, r_pc, params=params, inputs=inputs, reach=float(h_p.max()),
+                                                  kernel=kernel)
     return out.forces, out.div_v
 
 

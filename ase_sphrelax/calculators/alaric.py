@@ -332,22 +332,27 @@ class ALARICCalculator(SPHCalculator):
             return sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
                                         res["density"], alpha_p, v_sig, self.kernel)
         # with mirror ghosts: a ghost moves as J v of its owner; its share goes back through J^T
+        # the pairs see the first d components (the rest are zeros): d velocity and force columns per point, not 3
         owner_g, jac_gdd, y_pc, h_q = self._ghosts
         d, n = self.dim, len(v_pc)
-        v_qc = np.zeros((len(y_pc), 3))
-        v_qc[:n] = v_pc
-        v_qc[n:, :d] = np.einsum("gij,gj->gi", jac_gdd, np.asarray(v_pc)[owner_g, :d])
+        v_qd = np.empty((len(y_pc), d))
+        v_qd[:n] = np.asarray(v_pc)[:, :d]
+        v_qd[n:] = np.einsum("gij,gj->gi", jac_gdd, v_qd[owner_g])
         rho_q = np.concatenate([res["density"], res["density"][owner_g]])
         alpha_q = np.concatenate([np.asarray(alpha_p, dtype=float), np.asarray(alpha_p, dtype=float)[owner_g]])
-        f_qc, div_q = sph.viscosity_forces(self.nlist, y_pc, v_qc, self.mass, h_q, rho_q, alpha_q, v_sig, self.kernel)
-        return self._fold_ghosts(f_qc, n), div_q[:n]
+        f_qd, div_q = sph.viscosity_forces(self.nlist, y_pc, v_qd, self.mass, h_q, rho_q, alpha_q, v_sig, self.kernel,
+                                           dims=d)
+        v_qd = rho_q = alpha_q = None
+        return self._fold_ghosts(f_qd, n, columns=3), div_q[:n]
 
-    def _fold_ghosts(self, f_qc, n):
-        """Real particles' forces from those on the real and ghost points: ``F_a + sum_g J_g^T F_g``."""
+    def _fold_ghosts(self, f_qd, n, columns=None):
+        """Real particles' forces from those on the real and ghost points: ``F_a + sum_g J_g^T F_g``, with
+        ``columns`` columns (default those of ``f_qd``; the first ``dim`` are summed, the rest zeros)."""
         owner_g, jac_gdd = self._ghosts[:2]
         d = self.dim
-        out = np.array(f_qc[:n], dtype=float)
-        np.add.at(out[:, :d], owner_g, np.einsum("gji,gj->gi", jac_gdd, f_qc[n:, :d]))
+        out = np.zeros((n, f_qd.shape[1] if columns is None else columns))
+        out[:, :f_qd.shape[1]] = f_qd[:n]
+        np.add.at(out[:, :d], owner_g, np.einsum("gji,gj->gi", jac_gdd, f_qd[n:, :d]))
         return out
 
     # -- the contract's hooks ---------------------------------------------------------------------------
