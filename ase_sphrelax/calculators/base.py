@@ -367,6 +367,9 @@ class SPHCalculator(Calculator):
         """The shared steps, then :meth:`evaluate` (class docstring): checks, dimension, list, results."""
         Calculator.calculate(self, atoms, properties, system_changes)
         atoms = self.atoms
+        if not self.velocity_dependent:  # ASE's copy is compared by positions, numbers, cell and pbc only
+            for name in ("momenta", "masses"):  # not held through the evaluation (32 bytes per particle)
+                atoms.arrays.pop(name, None)
         if not self.conservative:
             refused = [name for name in properties if name in ENERGY_PROPERTIES]
             if refused:
