@@ -86,7 +86,7 @@ import numba
 import numpy as np
 
 from .kernels import KERNEL_FUNCTIONS
-from .neighbors import SCAN_HELPERS, SCAN_SOURCE
+from .neighbors import SCAN_HELPERS, SCAN_SOURCE, release_free_memory, release_pages
 from .parallel import chunk_bounds, run_chunks, thread_count
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
@@ -548,6 +548,7 @@ class PairInteraction:
         params = _by_name(self, "params", self.params, params)
         inputs = _by_name(self, "inputs", self.inputs, inputs)
         self._kernel(kernel)  # a missing kernel fails before any work
+        release_free_memory()  # the caller's freed arrays: not held (as the heap's pages) through this sum's peak
         x_sc = neighbors.extend(positions)
         inp = tuple(neighbors.gather(values, slot=k) for k, values in enumerate(inputs))
         reach = neighbors.max_cutoff if reach is None else float(reach)
@@ -581,7 +582,12 @@ class PairInteraction:
             run_chunks(self.loop(kind, kernel), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
                        per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward)
-        self._stacked = None  # views of the shared scratch: not kept past the call
+        self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
+        for buf in _SCRATCH.values():  # its pages: not held through the next sum's peak (the H solve's update)
+            release_pages(buf)
+        if hasattr(neighbors, "release_gathered"):  # the gathered inputs: not held through the next sum's peak
+            neighbors.release_gathered()
+        release_free_memory()
         return result
 
     def _fold(self, neighbors, buffers, bases, forward):
