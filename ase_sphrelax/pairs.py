@@ -520,7 +520,7 @@ class PairInteraction:
         self._stacked = _carve(_scratch("stacked", sum(int(np.prod(sh)) for sh in shapes)), shapes)
         return [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
 
-    def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None):
+    def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None, consume_inputs=False):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
 
         Parameters
@@ -538,6 +538,9 @@ class PairInteraction:
             Largest interaction distance (default: the neighbour list's largest cut-off).
         kernel : Kernel or None
             The kernel bound to the pair function's placeholders (required when it calls one).
+        consume_inputs : bool
+            True: ``inputs`` is emptied once its arrays are gathered (arrays made for the call, referenced by the
+            dict only, are freed before the pair loop's buffers are made).
 
         Returns
         -------
@@ -546,11 +549,15 @@ class PairInteraction:
             summed over threads.
         """
         params = _by_name(self, "params", self.params, params)
-        inputs = _by_name(self, "inputs", self.inputs, inputs)
+        given, inputs = inputs, _by_name(self, "inputs", self.inputs, inputs)
         self._kernel(kernel)  # a missing kernel fails before any work
         release_free_memory()  # the caller's freed arrays: not held (as the heap's pages) through this sum's peak
         x_sc = neighbors.extend(positions)
         inp = tuple(neighbors.gather(values, slot=k) for k, values in enumerate(inputs))
+        inputs = None
+        if consume_inputs and given is not None:
+            given.clear()
+        given = None
         reach = neighbors.max_cutoff if reach is None else float(reach)
         n_ext = x_sc.shape[0]
         nthreads = thread_count(n_ext)

@@ -247,8 +247,9 @@ def _pressure_pair_equal(a, b, r2, d, m2, hc_s, with_virial):
 
 
 @numba.njit(cache=True, inline="always")
-def _viscosity_pair(a, b, r2, d, v_sig, beta, approaching_only, ih_s, g_s, m_s, rho_s, alpha_s, v_sc):
-    """Pi_ab grad Wbar_ab forces and the Eq. 21 divergence of both partners."""
+def _viscosity_pair(a, b, r2, d, v_sig, beta, approaching_only, m, ih_s, g_s, m_s, rho_s, alpha_s, v_sc,
+                    equal_masses):
+    """Pi_ab grad Wbar_ab forces and the Eq. 21 divergence of both partners (equal masses: ``m``, no ``m_s``)."""
     if r2 == 0.0:
         z = scaled(0.0, d)
         return (0.0,) + z, (0.0,) + z, ()
@@ -260,15 +261,20 @@ def _viscosity_pair(a, b, r2, d, v_sig, beta, approaching_only, ih_s, g_s, m_s, 
     w = -vd / r
     ga = g_s[a] * kernel_profile(r * ih_s[a])[1]  # dW/dr (H_a) <= 0, zero beyond H_a
     gb = g_s[b] * kernel_profile(r * ih_s[b])[1]
+    if equal_masses:
+        ma = mb = m
+    else:
+        ma = m_s[a]
+        mb = m_s[b]
     # Eq. 21: div_a = sum_b m_b/rho_b (v_ab . r_ab) F_ab(H_a), F = -(dW/dr)/r
-    div_a = -m_s[b] / rho_s[b] * w * ga
-    div_b = -m_s[a] / rho_s[a] * w * gb
+    div_a = -mb / rho_s[b] * w * ga
+    div_b = -ma / rho_s[a] * w * gb
     if approaching_only and w >= 0.0:
         z = scaled(0.0, d)
         return (div_a,) + z, (div_b,) + z, ()
     pi = (-0.5 * (alpha_s[a] + alpha_s[b]) * v_sig * w + beta * w * w) / (0.5 * (rho_s[a] + rho_s[b]))
     # F_a = -m_a m_b Pi grad_a Wbar, grad_a Wbar = 0.5 (ga + gb) (-d / r)
-    k = m_s[a] * m_s[b] * pi * 0.5 * (ga + gb) / r
+    k = ma * mb * pi * 0.5 * (ga + gb) / r
     return (div_a,) + scaled(k, d), (div_b,) + scaled(-k, d), ()
 
 
@@ -331,7 +337,13 @@ def _build_interaction(name, dim_points):
     if name == "viscosity":
         return PairInteraction(_viscosity_pair, dict(div_v=scalar, forces=Output((dim_points,))),
                                params=("v_sig", "beta", "approaching_only"), inputs=_GRADIENT_INPUTS[:4] + (
-                                   "alpha_s", "v_sc"), symmetric=True, dim=dim_points)
+                                   "alpha_s", "v_sc"), constants=dict(equal_masses=False, m=0.0), symmetric=True,
+                               dim=dim_points)
+    if name == "viscosity_equal":  # the mass a parameter: no per-particle array of it, nor its gathered copy
+        return PairInteraction(_viscosity_pair, dict(div_v=scalar, forces=Output((dim_points,))),
+                               params=("v_sig", "beta", "approaching_only", "m"), inputs=("ih_s", "g_s", "rho_s",
+                                                                                         "alpha_s", "v_sc"),
+                               constants=dict(equal_masses=True, m_s=None), symmetric=True, dim=dim_points)
     if name == "divergence":
         return PairInteraction(_continuity_pair, dict(div_v=scalar), inputs=_GRADIENT_INPUTS, symmetric=False,
                                constants=dict(divergence=True, diffusion=0.0, c0=0.0), dim=dim_points)
@@ -945,11 +957,17 @@ def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, be
     if v_pc.shape != r_pc.shape and v_pc.shape != (n, dims):
         raise ValueError(f"velocities must have the shape of the positions {r_pc.shape} (or {(n, dims)} with dims="
                          f"{dims}), got {v_pc.shape}")
-    g_p = kernel.sigma / h_p ** (kernel.dim + 1)
     params = dict(v_sig=float(v_sig), beta=float(beta), approaching_only=bool(approaching_only))
-    inputs = dict(ih_s=1.0 / h_p, g_s=g_p, m_s=m_p, rho_s=rho_p, alpha_s=alpha_p, v_sc=v_pc)
-    out = _interaction("viscosity", dims).compute(nlist, r_pc, params=params, inputs=inputs, reach=float(h_p.max()),
-                                                  kernel=kernel)
+    # 1/H and the gradient factor live in the inputs dict only: compute frees them once gathered (consume_inputs)
+    inputs = dict(ih_s=1.0 / h_p, g_s=kernel.sigma / h_p ** (kernel.dim + 1), m_s=m_p, rho_s=rho_p, alpha_s=alpha_p,
+                  v_sc=v_pc)
+    name = "viscosity"
+    if np.all(m_p == m_p[0]):  # equal masses: m a parameter (the same forces bit for bit)
+        params["m"], name = float(m_p[0]), "viscosity_equal"
+        del inputs["m_s"]
+    m_p = None
+    out = _interaction(name, dims).compute(nlist, r_pc, params=params, inputs=inputs, reach=float(h_p.max()),
+                                           kernel=kernel, consume_inputs=True)
     return out.forces, out.div_v
 
 
