@@ -16,6 +16,7 @@ from ..checks import check_positive
 from ..kernels import get_kernel
 from ..models import alaric as model
 from ..neighbors import NeighborList, release_free_memory
+from ..pairs import RELEASE_MIN_POINTS
 from .base import SPHCalculator
 
 __all__ = ["ALARICCalculator", "FLOOR", "PAPER_ETA", "PAPER_OMEGA_FLOOR", "QUADRATIC_WALL_FACTOR", "WALL_FORMS",
@@ -446,7 +447,8 @@ class ALARICCalculator(SPHCalculator):
         # the last evaluation's sums and mirror ghosts go before this one makes its own (the H solve is the peak
         # of memory): self.h_p keeps the smoothing lengths, the only thing the solve starts from
         self.state = self._ghosts = None
-        release_free_memory()  # and the heap's free pages (the dynamics' freed arrays) before the list and the solve
+        if n >= RELEASE_MIN_POINTS:  # and the heap's free pages (the dynamics' freed arrays) before the list and solve
+            release_free_memory()
         # the target first: bad targets fail before any SPH work
         x_pd = self.points(atoms.positions, atoms)
         target_p = self.target.values(x_pd)
