@@ -355,7 +355,8 @@ RELEASE_MIN_POINTS = 500_000
 """Sums over at least this many points (particles and ghosts) give their scratch pages, gathered inputs and the
 heap's free pages back to the system after each sum (:meth:`PairInteraction.compute`): at 1e6 particles that keeps
 ALARIC 2D near 600 bytes per particle. Below it they are kept: re-faulting the pages and ``malloc_trim`` cost
-20-25 % of a step at 1e4 particles (ALARIC 2D, BISPH; interleaved A/B in one process), where the memory is small."""
+20-25 % of a step at 1e4 particles (ALARIC 2D, BISPH; interleaved A/B in one process), where the memory is small;
+at 1e6 (ALARIC 2D) about 7 %."""
 
 
 def _scratch(key, size):
