@@ -358,6 +358,22 @@ class _SPHOptimizer(Optimizer):
         raise NotImplementedError
 
 
+def _check_positive_finite(**values):
+    """ValueError naming the first of ``values`` that is not a positive finite number (before any work)."""
+    for name, value in values.items():
+        if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def _set_fire_step(opt, dt, maxstep):
+    """FIRE's and FIRE2's time step, step counter and step cap (``maxstep`` None: the optimiser's default)."""
+    opt.dt = float(dt)
+    opt.Nsteps = 0
+    opt.maxstep = opt.defaults["maxstep"] if maxstep is None else float(maxstep)
+    if not opt.maxstep > 0:
+        raise ValueError(f"maxstep must be positive, got {maxstep!r}")
+
+
 class SPHFIRE(_SPHOptimizer):
     """ASE's FIRE (Bitzek et al. 2006, as :class:`ase.optimize.FIRE`) with numba vector work.
 
@@ -375,16 +391,10 @@ class SPHFIRE(_SPHOptimizer):
 
     def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dt=0.1, maxstep=None, dtmax=1.0, Nmin=5,
                  finc=1.1, fdec=0.5, astart=0.1, fa=0.99, a=0.1, dim=None, **kwargs):
-        for name, value in dict(dt=dt, dtmax=dtmax, finc=finc, fdec=fdec, fa=fa).items():
-            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        _check_positive_finite(dt=dt, dtmax=dtmax, finc=finc, fdec=fdec, fa=fa)
         _SPHOptimizer.__init__(self, atoms, restart=restart, logfile=logfile, trajectory=trajectory, dim=dim,
                                **kwargs)
-        self.dt = float(dt)
-        self.Nsteps = 0
-        self.maxstep = self.defaults["maxstep"] if maxstep is None else float(maxstep)
-        if not self.maxstep > 0:
-            raise ValueError(f"maxstep must be positive, got {maxstep!r}")
+        _set_fire_step(self, dt, maxstep)
         self.dtmax, self.Nmin, self.finc, self.fdec = float(dtmax), Nmin, float(finc), float(fdec)
         self.astart, self.fa, self.a = float(astart), float(fa), float(a)
 
@@ -458,16 +468,10 @@ class SPHFIRE2(_SPHOptimizer):
 
     def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dt=0.1, maxstep=None, dtmax=1.0,
                  dtmin=2e-3, Nmin=20, finc=1.1, fdec=0.5, astart=0.25, fa=0.99, dim=None, **kwargs):
-        for name, value in dict(dt=dt, dtmax=dtmax, dtmin=dtmin, finc=finc, fdec=fdec, fa=fa).items():
-            if not (isinstance(value, (int, float, np.floating)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        _check_positive_finite(dt=dt, dtmax=dtmax, dtmin=dtmin, finc=finc, fdec=fdec, fa=fa)
         _SPHOptimizer.__init__(self, atoms, restart=restart, logfile=logfile, trajectory=trajectory, dim=dim,
                                **kwargs)
-        self.dt = float(dt)
-        self.Nsteps = 0
-        self.maxstep = self.defaults["maxstep"] if maxstep is None else float(maxstep)
-        if not self.maxstep > 0:
-            raise ValueError(f"maxstep must be positive, got {maxstep!r}")
+        _set_fire_step(self, dt, maxstep)
         self.dtmax, self.dtmin, self.Nmin = float(dtmax), float(dtmin), Nmin
         self.finc, self.fdec, self.astart, self.fa = float(finc), float(fdec), float(astart), float(fa)
         self.a = self.astart
