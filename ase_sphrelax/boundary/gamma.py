@@ -211,6 +211,17 @@ def _row(kind, p, k0, k1, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge
 
 
 @numba.njit(cache=True, nogil=True)
+def _row_buffers(kind, longest, breaks, cols, n_edges):
+    """One thread's buffers for rows of at most ``longest`` elements: the integrals' scratch, the row's gamma,
+    grad-gamma and distance, and the edge stamps/slots of triangles (``kind == 1``; edge e is integrated once per
+    visit)."""
+    scratch = row_scratch(longest if kind == 1 else 1, breaks, cols)
+    stamp_e = np.full(n_edges if kind == 1 else 1, -1, dtype=np.int64)  # the visit whose slot holds edge e
+    return (scratch, np.empty(longest), np.empty(longest), np.empty(longest), stamp_e,
+            np.empty(stamp_e.shape[0], dtype=np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
 def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
           pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k,
           grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, first, last):
@@ -231,12 +242,7 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     longest = 1
     for p in range(first, last):
         longest = max(longest, start_p[p + 1] - start_p[p])
-    scratch = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
-    row_g = np.empty(longest)
-    row_gr = np.empty(longest)
-    row_d = np.empty(longest)
-    stamp_e = np.full(n_edges if kind == 1 else 1, -1, dtype=np.int64)  # the visit whose slot holds edge e
-    slot_e = np.empty(stamp_e.shape[0], dtype=np.int64)
+    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
     visit = -1
     for p in range(first, last):
         if use_skip and skip_p[p]:
@@ -265,16 +271,11 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
     else:
         for s in range(first, last):
             longest = max(longest, src_start[s + 1] - src_start[s])
-    scratch = row_scratch(longest if kind == 1 else 1, breaks, lp.shape[1])
-    row_g = np.empty(longest)
-    row_gr = np.empty(longest)
-    row_d = np.empty(longest)
+    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
     elem_r = np.empty(longest, dtype=np.int64)
     dist_r = np.empty(longest)
     point_r = np.empty(longest, dtype=np.int64)
     no_terms = np.empty(0)
-    stamp_e = np.full(n_edges if kind == 1 else 1, -1, dtype=np.int64)
-    slot_e = np.empty(stamp_e.shape[0], dtype=np.int64)
     visit = -1
     for s in range(first, last):
         if is_ghost_s[s]:
