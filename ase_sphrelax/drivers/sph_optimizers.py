@@ -374,7 +374,23 @@ def _set_fire_step(opt, dt, maxstep):
         raise ValueError(f"maxstep must be positive, got {maxstep!r}")
 
 
-class SPHFIRE(_SPHOptimizer):
+class _FIREBase(_SPHOptimizer):
+    """What FIRE and FIRE2 share: the move ``x += dt v`` capped at ``maxstep`` (the velocity update's partial sums
+    ``outs`` of |dt v|^2 give its length) and ``todict``."""
+
+    def _move(self, outs, x_pc, f_pc, n, d):
+        normdr = float(np.sqrt(_sum(outs)))
+        scaled = normdr > self.maxstep
+        run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
+        self._set_positions(f_pc)
+
+    def todict(self):
+        description = Optimizer.todict(self)
+        description.update(dt=self.dt, dim=self.dim)
+        return description
+
+
+class SPHFIRE(_FIREBase):
     """ASE's FIRE (Bitzek et al. 2006, as :class:`ase.optimize.FIRE`) with numba vector work.
 
     Parameters
@@ -427,18 +443,10 @@ class SPHFIRE(_SPHOptimizer):
             self.dt *= self.fdec
             self.Nsteps = 0
         outs = _chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
-        normdr = float(np.sqrt(_sum(outs)))
-        scaled = normdr > self.maxstep
-        run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
-        self._set_positions(f_pc)
-
-    def todict(self):
-        description = Optimizer.todict(self)
-        description.update(dt=self.dt, dim=self.dim)
-        return description
+        self._move(outs, x_pc, f_pc, n, d)
 
 
-class SPHFIRE2(_SPHOptimizer):
+class SPHFIRE2(_FIREBase):
     """ASE's FIRE2 (Guénolé et al. 2020, as :class:`ase.optimize.fire2.FIRE2`) with numba vector work.
 
     FIRE (Bitzek et al. 2006) with the changes of Guénolé et al. (2020, Comput. Mater. Sci. 175,
@@ -513,15 +521,7 @@ class SPHFIRE2(_SPHOptimizer):
         norm_v = float(np.sqrt(max(vv + 2.0 * self.dt * vf + self.dt * self.dt * ff, 0.0)))
         scale = self.a * norm_v / np.sqrt(ff) if ff > 0.0 else 0.0
         outs = _chunks(_fire2_velocity, n, (self.vel, f_pc, fresh, self.a, scale, self.dt, d), 1)
-        normdr = float(np.sqrt(_sum(outs)))
-        scaled = normdr > self.maxstep
-        run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
-        self._set_positions(f_pc)
-
-    def todict(self):
-        description = Optimizer.todict(self)
-        description.update(dt=self.dt, dim=self.dim)
-        return description
+        self._move(outs, x_pc, f_pc, n, d)
 
 
 class SPHLBFGS(_SPHOptimizer):
