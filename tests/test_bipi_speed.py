@@ -6,20 +6,9 @@ import pytest
 
 from ase_sphrelax.boundary import BoundaryIntegrals, BoundaryQuery, BoundaryTriangles, boundary_pairs
 from ase_sphrelax.boundary.surface_integrals import edge_frames
-from ase_sphrelax.domains import Box, Sphere
+from ase_sphrelax.domains import Box
 from ase_sphrelax.neighbors import NeighborList
-
-H = 0.2
-SKIN = 0.1 * H
-
-
-def sphere():
-    return BoundaryTriangles.from_domain(Sphere((0.0, 0.0, 0.0), 0.5).to_mesh(2))
-
-
-def cloud(n, rng, scale=0.55):
-    r = rng.uniform(-scale, scale, size=(4 * n, 3))
-    return r[np.linalg.norm(r, axis=1) < scale][:n]
+from bipi_meshes import H, SKIN, cloud, sphere
 
 
 def same_pairs(got, ref):
