@@ -375,8 +375,16 @@ def _set_fire_step(opt, dt, maxstep):
 
 
 class _FIREBase(_SPHOptimizer):
-    """What FIRE and FIRE2 share: the move ``x += dt v`` capped at ``maxstep`` (the velocity update's partial sums
+    """What FIRE and FIRE2 share: the velocity reset, the step's inputs, the move ``x += dt v`` capped at ``maxstep`` (the velocity update's partial sums
     ``outs`` of |dt v|^2 give its length) and ``todict``."""
+
+    def initialize(self):
+        self.vel = None
+
+    def _start_step(self, f_pc):
+        """The step's forces (asked for when not given), positions, moving dimensions and particle count."""
+        f_pc = self._forces() if f_pc is None else f_pc
+        return f_pc, self._positions(), self._setup_dim(), len(f_pc)
 
     def _move(self, outs, x_pc, f_pc, n, d):
         normdr = float(np.sqrt(_sum(outs)))
@@ -414,14 +422,8 @@ class SPHFIRE(_FIREBase):
         self.dtmax, self.Nmin, self.finc, self.fdec = float(dtmax), Nmin, float(finc), float(fdec)
         self.astart, self.fa, self.a = float(astart), float(fa), float(a)
 
-    def initialize(self):
-        self.vel = None
-
     def _step(self, f_pc=None):
-        f_pc = self._forces() if f_pc is None else f_pc
-        x_pc = self._positions()
-        d = self._setup_dim()
-        n = len(f_pc)
+        f_pc, x_pc, d, n = self._start_step(f_pc)
         if self.vel is None:
             self.vel = np.zeros((n, d))
             mode, sqrt_ff, sqrt_vv = 0, 1.0, 1.0
@@ -484,14 +486,8 @@ class SPHFIRE2(_FIREBase):
         self.finc, self.fdec, self.astart, self.fa = float(finc), float(fdec), float(astart), float(fa)
         self.a = self.astart
 
-    def initialize(self):
-        self.vel = None
-
     def _step(self, f_pc=None):
-        f_pc = self._forces() if f_pc is None else f_pc
-        x_pc = self._positions()
-        d = self._setup_dim()
-        n = len(f_pc)
+        f_pc, x_pc, d, n = self._start_step(f_pc)
         fresh = self.vel is None
         if fresh:
             self.vel = np.zeros((n, d))
