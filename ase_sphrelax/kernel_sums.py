@@ -15,7 +15,7 @@ import math
 import numba
 import numpy as np
 
-from .kernels import kernel_profile
+from .kernels import kernel_slope_over_q
 from .pairs import Output, PairInteraction
 
 __all__ = ["pair_potential_sums", "kernel_sums", "KernelSums", "PAIR_POTENTIAL", "PAIR_POTENTIAL_VIRIAL", "KERNEL_SUMS"]
@@ -28,10 +28,9 @@ __all__ = ["pair_potential_sums", "kernel_sums", "KernelSums", "PAIR_POTENTIAL",
 def _radial_potential(a, b, r2, d, inv_h, scale, with_virial):
     """phi = scale f(r/h): half the pair energy to each partner, the force +g d on a, and (``with_virial``)
     the virial phi'(r) d d^T / r (Voigt order xx yy zz yz xz xy)."""
-    r = math.sqrt(r2)
-    value, slope = kernel_profile(r * inv_h)
-    # coincident points: the profile is flat at q = 0, no force
-    g = scale * slope * inv_h / r if r2 > 0.0 else 0.0
+    # g = scale f'(q) / (h r) = scale (f'(q) / q) / h^2: no division (coincident points: d = 0, no force)
+    value, slope_over_q = kernel_slope_over_q(math.sqrt(r2) * inv_h)
+    g = scale * slope_over_q * inv_h * inv_h
     half = 0.5 * scale * value
     f0, f1, f2 = g * d[0], g * d[1], g * d[2]
     if with_virial:
@@ -40,14 +39,14 @@ def _radial_potential(a, b, r2, d, inv_h, scale, with_virial):
     return (half, f0, f1, f2), (half, -f0, -f1, -f2), ()
 
 
-_PER_POINT = dict(energies=Output(()), forces=Output((3,)))
+_PER_POINT = dict(energies=Output(()), forces=Output((3,), spatial=True))
 _POTENTIAL_DATA = dict(params=("inv_h", "scale"))
 PAIR_POTENTIAL = PairInteraction(_radial_potential, _PER_POINT, constants=dict(with_virial=False), **_POTENTIAL_DATA)
 PAIR_POTENTIAL_VIRIAL = PairInteraction(_radial_potential, dict(_PER_POINT, virial=Output((6,), per_point=False)),
                                         constants=dict(with_virial=True), **_POTENTIAL_DATA)
 
 
-def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
+def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False):
     """Energy, forces and virial of ``phi(r) = scale * f(r / h)`` summed over pairs.
 
     Parameters
@@ -61,6 +60,10 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
         ``phi(r) = scale * f(r/h)``; for a kernel-valued potential ``c W(r, h)``
         use ``scale = c * kernel.sigma / h**dim``.
     kernel : Kernel
+    want_virial : bool
+        Also the virial (periodic stress).
+    planar : bool
+        Every ``r_pc`` has z = 0 (1D/2D): the loops read x and y only (:meth:`PairInteraction.compute`).
 
     Returns
     -------
@@ -74,9 +77,9 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
     h = float(h)
     params = dict(inv_h=1.0 / h, scale=float(scale))
     if not want_virial:
-        out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel)
+        out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar)
         return out.energies, out.forces, np.zeros((3, 3))
-    out = PAIR_POTENTIAL_VIRIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel)
+    out = PAIR_POTENTIAL_VIRIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar)
     v = out.virial
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
     return out.energies, out.forces, virial
@@ -85,15 +88,14 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False):
 @numba.njit(cache=True, inline="always")
 def _kernel_sum_pair(a, b, r2, d, inv_h):
     """Per point: sum_j f(r/h) (j != i) and sum_j f'(r/h) (x_i - x_j)/r."""
-    r = math.sqrt(r2)
-    value, slope = kernel_profile(r * inv_h)
-    g = slope / r if r2 > 0.0 else 0.0
+    value, slope_over_q = kernel_slope_over_q(math.sqrt(r2) * inv_h)
+    g = slope_over_q * inv_h  # f'(q) / r
     # grad_i W(|x_i - x_j|) = W' (x_i - x_j) / r, with d = x_b - x_a
     g0, g1, g2 = g * d[0], g * d[1], g * d[2]
     return (value, -g0, -g1, -g2), (value, g0, g1, g2), ()
 
 
-KERNEL_SUMS = PairInteraction(_kernel_sum_pair, dict(w=Output(()), grad=Output((3,))), params=("inv_h",))
+KERNEL_SUMS = PairInteraction(_kernel_sum_pair, dict(w=Output(()), grad=Output((3,), spatial=True)), params=("inv_h",))
 
 
 class KernelSums:
@@ -104,9 +106,10 @@ class KernelSums:
         self.grad_pc = grad_pc
 
 
-def kernel_sums(nlist, r_pc, h, kernel):
-    """Return :class:`KernelSums` for particles at ``r_pc`` (neighbours already updated)."""
+def kernel_sums(nlist, r_pc, h, kernel, planar=False):
+    """Return :class:`KernelSums` for particles at ``r_pc`` (neighbours already updated); ``planar``: every
+    ``r_pc`` has z = 0 (see :func:`pair_potential_sums`)."""
     h = float(h)
-    out = KERNEL_SUMS.compute(nlist, r_pc, dict(inv_h=1.0 / h), reach=h, kernel=kernel)
+    out = KERNEL_SUMS.compute(nlist, r_pc, dict(inv_h=1.0 / h), reach=h, kernel=kernel, planar=planar)
     norm = kernel.sigma / h**kernel.dim
     return KernelSums(norm * (out.w + kernel.f0), norm / h * out.grad)

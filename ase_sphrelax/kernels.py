@@ -57,7 +57,7 @@ from numpy.polynomial import polynomial as P
 from .checks import check_dim
 
 __all__ = ["Kernel", "get_kernel", "KERNEL_NAMES", "register_kernel", "KernelDefinition", "kernel_profile",
-           "kernel_derivatives", "KERNEL_FUNCTIONS", "profile_value_and_slope"]
+           "kernel_derivatives", "kernel_slope_over_q", "KERNEL_FUNCTIONS", "profile_value_and_slope"]
 
 _SPHERE_SURFACE = {1: 2.0, 2: 2.0 * math.pi, 3: 4.0 * math.pi}
 
@@ -225,7 +225,18 @@ def kernel_derivatives(q):
     raise NotImplementedError("kernel_derivatives is bound by PairInteraction(...).compute(..., kernel=k)")
 
 
-KERNEL_FUNCTIONS = ("kernel_profile", "kernel_derivatives")
+def kernel_slope_over_q(q):
+    """f(q) and f'(q) / q (zero for q >= 1): a placeholder, as :func:`kernel_profile`.
+
+    A radial pair force ``f'(r/h) d / (h r)`` is ``f'(q)/q d / h^2``: with ``f'(q)/q`` in closed form (a
+    polynomial on the segment at q = 0 when ``f'(0) = 0``, as for every smooth kernel) the pair loop needs no
+    division by ``r`` and no branch at ``r = 0``. On the other segments (``q >= b_1 > 0``) it is ``f'(q) / q``.
+    A profile with ``f'(0) != 0`` gives 0 at ``q = 0`` (no force between coincident points).
+    """
+    raise NotImplementedError("kernel_slope_over_q is bound by PairInteraction(...).compute(..., kernel=k)")
+
+
+KERNEL_FUNCTIONS = ("kernel_profile", "kernel_derivatives", "kernel_slope_over_q")
 _ORDERS = {"kernel_profile": 1, "kernel_derivatives": 4}
 
 
@@ -313,6 +324,46 @@ def _closed_form_source(name, breaks, pieces_u, orders):
     return "\n".join(lines) + "\n"
 
 
+def _slope_over_q_source(name, breaks, pieces_q, pieces_u):
+    """Source of ``name(q)`` -> (f, f'/q): on the first segment ``f'/q`` is the polynomial
+    ``sum_k k c_k q^(k-2)`` (exact when ``c_1 = 0``), written in ``u`` as the profile is; on the others
+    ``f' / q``. One segment whose terms all have a factor ``u``: branchless, as :func:`_closed_form_source`."""
+    first = _exact(pieces_q[0])
+    smooth = len(first) < 2 or first[1] == 0
+    over_q = _to_u([k * c for k, c in enumerate(first)][2:] or [0], breaks[1]) if smooth else None
+    value = [_horner(np.asarray(p, dtype=float)) for p in pieces_u]
+    slope = [_horner(_derivative_in_q(p, 1)) for p in pieces_u]
+    if smooth and len(pieces_u) == 1 and float(breaks[1]) >= 1.0 and value[0][1] >= 1 and _horner(over_q)[1] >= 1:
+        terms = [value[0], _horner(over_q)]
+        top = max(low for _, low in terms)
+        lines = [f"def {name}(q):", "    u = 0.0 if q >= 1.0 else 1.0 - q  # a select: zeros beyond the support"]
+        lines += [f"    u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
+        lines.append(f"    return ({terms[0][0]}, {terms[1][0]})")
+        return "\n".join(lines) + "\n"
+    lines = [f"def {name}(q):", "    if q >= 1.0:", "        return (0.0, 0.0)"]
+    for s in range(len(pieces_u)):
+        right = min(float(breaks[s + 1]), 1.0)
+        last = s == len(pieces_u) - 1
+        pad = " " * (4 if last else 8)
+        if not last:
+            lines.append(f"    if q < {right!r}:")
+        lines.append(f"{pad}u = {right!r} - q")
+        if s == 0 and smooth:
+            ratio = _horner(over_q)
+        else:
+            ratio = (f"({slope[s][0]}) / q" + (" if q > 0.0 else 0.0" if s == 0 else ""), slope[s][1])
+        top = max(value[s][1], ratio[1])
+        lines += [f"{pad}u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
+        lines.append(f"{pad}return ({value[s][0]}, {ratio[0]})")
+    return "\n".join(lines) + "\n"
+
+
+def _placeholder_source(kernel, placeholder, name):
+    if placeholder == "kernel_slope_over_q":
+        return _slope_over_q_source(name, kernel.breaks, kernel._pieces_exact, kernel._pieces_u)
+    return _closed_form_source(name, kernel.breaks, kernel._pieces_u, _ORDERS[placeholder])
+
+
 _CLOSED_FORMS: dict = {}
 
 
@@ -323,7 +374,7 @@ def _closed_forms(kernel):
         functions = {}
         for placeholder in KERNEL_FUNCTIONS:
             name = f"_{placeholder}__{kernel.key}"
-            source = _closed_form_source(name, kernel.breaks, kernel._pieces_u, _ORDERS[placeholder])
+            source = _placeholder_source(kernel, placeholder, name)
             exec(compile(source, __file__, "exec"), namespace)  # noqa: S102 (generated from the coefficients)
             function = namespace[name]
             function.__module__ = __name__
@@ -369,6 +420,7 @@ class Kernel:
         self.extrapolation_step = definition.extrapolation_step
         self.breaks = np.asarray(list(breaks) + [np.inf], dtype=float)
         self._pieces = [np.array([float(c) for c in p]) for p in pieces]
+        self._pieces_exact = [_exact(p) for p in pieces]
         self._pieces_u = [_to_u(p, self.breaks[s + 1]) for s, p in enumerate(pieces)]
         deg = max(len(p) for p in self._pieces_u) - 1
         self.coef = np.zeros((len(pieces), deg + 1))
@@ -376,7 +428,7 @@ class Kernel:
             self.coef[s, : len(p)] = p
         # the closed forms' source (coefficients and generator): in the names of everything compiled from them,
         # so that numba's disk cache never serves code inlined from an older kernel or generator
-        sources = "".join(_closed_form_source("f", self.breaks, self._pieces_u, order) for order in _ORDERS.values())
+        sources = "".join(_placeholder_source(self, placeholder, "f") for placeholder in KERNEL_FUNCTIONS)
         self._stamp = hashlib.sha1(sources.encode()).hexdigest()[:8]
         # exact moments of the profile: int_0^1 f(q) q^(d-1) dq
         self.sigma = 1.0 / (_SPHERE_SURFACE[dim] * self._moment(dim - 1))

@@ -102,10 +102,16 @@ class Output:
         Per-point shape: ``()`` for a scalar per point, ``(3,)`` for a vector.
     per_point : bool
         False for a global sum (e.g. the virial, shape ``(6,)``).
+    spatial : bool
+        True for a per-point vector of shape ``(3,)`` whose components are x, y, z of a spatial vector that
+        vanishes along z when every point and every ``d`` lies in the plane z = 0 (a force ``g d``, a kernel
+        gradient). A planar loop (:meth:`PairInteraction.compute` with ``planar=True``) does not accumulate its
+        z component, which stays zero.
     """
 
     shape: tuple = ()
     per_point: bool = True
+    spatial: bool = False
 
     @property
     def size(self):
@@ -208,15 +214,19 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
 """
 
 
-def _targets(outputs, per_point, point):
+def _targets(outputs, per_point, point, planar=False):
     """Buffer element of every flattened term of the per-point (or global) outputs:
     "o0[b - base]", "o1[b - base, 2]", "o2[5]", ... with ``o{k}`` this thread's buffer of
-    output k, whose row 0 is point ``base`` (see :meth:`PairInteraction._thread_buffers`)."""
+    output k, whose row 0 is point ``base`` (see :meth:`PairInteraction._thread_buffers`);
+    None for the z component of a spatial output in a ``planar`` loop (not accumulated)."""
     names = []
     for k, output in enumerate(outputs):
         if output.per_point != per_point:
             continue
         for index in itertools.product(*[range(n) for n in output.shape]):
+            if planar and output.spatial and index == (2,):
+                names.append(None)
+                continue
             parts = ([f"{point} - base"] if per_point else []) + [str(i) for i in index]
             names.append(f"o{k}[{', '.join(parts or ['0'])}]")
     return names
@@ -227,33 +237,38 @@ def _bound_name(name, params):
     return f"p__{name}" if name in params else f"i__{name}"
 
 
-def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=()):
+def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=(),
+                 planar=False):
     """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
 
     ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
     declared order); the pair function is called with ``arguments`` (its data, in its signature's order).
+    ``planar`` (``dim`` 3): points in the plane z = 0; the loop reads x and y, passes ``d2 = 0.0`` (a constant
+    the compiler folds into the pair function) and leaves the z components of spatial outputs alone.
     """
-    own = _targets(outputs, True, "a")
-    other = _targets(outputs, True, "b")
+    own = _targets(outputs, True, "a", planar)
+    other = _targets(outputs, True, "b", planar)
     glob_t = _targets(outputs, False, None)
     pad = "\n" + " " * indent
+    read = 2 if planar else dim
     d = "(" + "".join(f"d{c}, " for c in range(dim)) + ")"
     minus_d = "(" + "".join(f"-d{c}, " for c in range(dim)) + ")"
     data = "".join(f", {_bound_name(n, params)}" for n in arguments)
     unpack = [f"({''.join(_bound_name(n, params) + ', ' for n in names)}) = {tup}"
               for names, tup in ((params, "params"), (inputs, "inp")) if names]
     lines = []
+    kept = [i for i, t in enumerate(own) if t is not None]
     if symmetric:
         lines.append(f"ta, tb, tg = pair(a, b, r2, {d}{data})")
-        lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
-        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
+        lines += [f"ta{i} += ta[{i}]" for i in kept]
+        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other) if t is not None]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     else:
         lines.append(f"ta, tg = pair(a, b, r2, {d}{data})")
-        lines += [f"ta{i} += ta[{i}]" for i in range(len(own))]
+        lines += [f"ta{i} += ta[{i}]" for i in kept]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
         lines.append(f"tb, tg = pair(b, a, r2, {minus_d}{data})")
-        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other)]
+        lines += [f"{t} += tb[{i}]" for i, t in enumerate(other) if t is not None]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     pad_a = "\n" + " " * 8
     pad_t = "\n" + " " * 4
@@ -266,11 +281,11 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
         store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
         store_global_early=("\n" + " " * 12).join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
-        load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(dim)),
-        zero_own=pad_a.join(f"ta{i} = 0.0" for i in range(len(own))) or "pass",
-        store_own=pad_a.join(f"{t} += ta{i}" for i, t in enumerate(own)) or "pass",
-        diff=pad.join(f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(dim)),
-        norm2=" + ".join(f"d{c} * d{c}" for c in range(dim)),
+        load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(read)),
+        zero_own=pad_a.join(f"ta{i} = 0.0" for i in kept) or "pass",
+        store_own=pad_a.join(f"{own[i]} += ta{i}" for i in kept) or "pass",
+        diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)] + [f"d{c} = 0.0" for c in range(read, dim)]),
+        norm2=" + ".join(f"d{c} * d{c}" for c in range(read)),
         body=pad.join(lines),
     )
 
@@ -331,15 +346,16 @@ def _specialise(pair, constants, kernel):
     return numba.njit(cache=True, inline="always")(specialised), arguments
 
 
-def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=()):
+def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=(), planar=False):
     global _CORE_STAMP
     if _CORE_STAMP is None:
         _CORE_STAMP = _core_stamp()
     base = pair.py_func.__name__
     # the declared order of params/inputs is part of the loop's bytecode; the stamp keeps the name unique
-    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{dim}d_{_CORE_STAMP}__{base}"
+    space = "planar" if planar else f"{dim}d"
+    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
-    source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments)
+    source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar)
     namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
@@ -484,25 +500,27 @@ class PairInteraction:
             self._pairs[key] = _specialise(self.pair, self.constants, kernel)
         return self._pairs[key]
 
-    def loop(self, kind, kernel=None):
+    def loop(self, kind, kernel=None, planar=False):
         """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
         (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
         the Verlet list of a pending build, see :meth:`NeighborList.fused_build`), for ``kernel``
-        when the pair function calls a kernel placeholder."""
+        when the pair function calls a kernel placeholder; ``planar``: for points in the plane z = 0
+        (see :meth:`compute`)."""
         kernel = self._kernel(kernel)
-        key = (kind, None if kernel is None else kernel.key)
+        planar = bool(planar) and self.dim == 3
+        key = (kind, None if kernel is None else kernel.key, planar)
         if key not in self._loops:
             template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
             pair, arguments = self.specialised(kernel)
             self._loops[key] = _compile(pair, template, kind, list(self.outputs.values()), self.dim, self.symmetric,
-                                        self.params, self.inputs, arguments)
+                                        self.params, self.inputs, arguments, planar)
         return self._loops[key][0]
 
-    def source(self, kind="list", kernel=None):
+    def source(self, kind="list", kernel=None, planar=False):
         """Python source of a generated loop (for reading and debugging)."""
-        self.loop(kind, kernel)
+        self.loop(kind, kernel, planar)
         kernel = self._kernel(kernel)
-        return self._loops[(kind, None if kernel is None else kernel.key)][1]
+        return self._loops[(kind, None if kernel is None else kernel.key, bool(planar) and self.dim == 3)][1]
 
     def _thread_buffers(self, nthreads, n_ext, forward):
         """Per-thread accumulators ``buffers[t][k]``: views of one scratch array per thread that every
@@ -526,7 +544,8 @@ class PairInteraction:
         self._stacked = _carve(_scratch("stacked", sum(int(np.prod(sh)) for sh in shapes)), shapes)
         return [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
 
-    def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None, consume_inputs=False):
+    def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None, consume_inputs=False,
+                planar=False):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
 
         Parameters
@@ -547,6 +566,11 @@ class PairInteraction:
         consume_inputs : bool
             True: ``inputs`` is emptied once its arrays are gathered (arrays made for the call, referenced by the
             dict only, are freed before the pair loop's buffers are made).
+        planar : bool
+            True when every position has z = 0 (a 2D system, :func:`ase_sphrelax.checks.resolve_dim`): the loops
+            read x and y only and leave the z components of :attr:`Output.spatial` outputs at zero. The pair
+            function must give a zero z component for them when ``d[2] = 0`` (its spatial inputs, if any, lie in
+            the plane too).
 
         Returns
         -------
@@ -587,14 +611,14 @@ class PairInteraction:
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
         if getattr(neighbors, "build_pending", False):
             # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
-            loop = self.loop("build", kernel)
+            loop = self.loop("build", kernel, planar)
             pre = (x_sc, *neighbors.build_arrays())
             post = (reach * reach, tuple(params), inp)
             neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
                 *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            run_chunks(self.loop(kind, kernel), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
+            run_chunks(self.loop(kind, kernel, planar), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
                        per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call

@@ -133,3 +133,21 @@ def test_higher_derivatives_match_finite_differences(name, dim):
         if abs(q - 0.5) > 2 * e:
             assert fourth == pytest.approx((up[3] - down[3]) / (2 * e), rel=1e-6, abs=1e-5)
     assert derivatives(1.0) == (0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("name", BUILT_IN)
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_slope_over_q_is_the_slope_divided_by_q_and_its_limit_at_zero(name, dim):
+    """kernel_slope_over_q (the pair forces' f'(q)/q, no division in the loops): equal to f'(q)/q away from
+    0, to f''(0) at q = 0 (f'(0) = 0 for these smooth profiles), zero beyond the support."""
+    k = get_kernel(name, dim)
+    over_q = k.closed_forms()["kernel_slope_over_q"]
+    derivatives = k.closed_forms()["kernel_derivatives"]
+    for q in np.linspace(0.01, 1.2, 239):
+        value, slope = k.closed_forms()["kernel_profile"](q)
+        v, ratio = over_q(q)
+        assert v == pytest.approx(value, rel=1e-13, abs=1e-14)
+        assert ratio == pytest.approx(slope / q, rel=1e-11, abs=1e-12)
+    assert over_q(0.0)[1] == pytest.approx(derivatives(0.0)[2], rel=1e-12)
+    assert over_q(1e-9)[1] == pytest.approx(derivatives(0.0)[2], rel=1e-6)
+    assert over_q(1.0) == (0.0, 0.0) and over_q(3.0) == (0.0, 0.0)

@@ -300,3 +300,38 @@ def test_kernel_placeholders_need_a_kernel_and_constants_give_variants():
     np.testing.assert_array_equal(results[0].forces, results[2].forces)  # the virial flag changes nothing else
     assert np.abs(results[0].forces - results[1].forces).max() > 1e-3  # each kernel its own loop
     assert "virial" in results[2] and "virial" not in results[0]
+
+
+@numba.njit(cache=True, inline="always")
+def planar_probe(a, b, r2, d):
+    """A spatial force g d and a non-spatial 3-vector (1, r2, d2 + 1) per pair."""
+    g = 1.0 - r2
+    return (g * d[0], g * d[1], g * d[2], 1.0, r2, d[2] + 1.0), (-g * d[0], -g * d[1], -g * d[2], 1.0, r2,
+                                                                 d[2] + 1.0), ()
+
+
+PLANAR_PROBE = PairInteraction(planar_probe, dict(force=Output((3,), spatial=True), other=Output((3,))))
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_planar_loops_equal_the_3d_loops_for_points_at_z_zero(periodic):
+    """compute(..., planar=True) reads x, y only and skips the z term of spatial outputs: for points at z = 0
+    its sums equal the 3D loop's (list walk and fused build), a non-spatial vector keeps all its components."""
+    rng = np.random.default_rng(4)
+    r_pc = np.zeros((300, 3))
+    r_pc[:, :2] = rng.uniform(0, 4, (300, 2))
+    r_pc[1] = r_pc[0]  # a coincident pair
+    cell, pbc = np.diag([4.0, 4.0, 1.0]), [periodic, periodic, False]
+    for store in (False, True):
+        outs = []
+        for planar in (False, True):
+            nlist = NeighborList(0.7, skin=0.1)
+            nlist.update(r_pc, cell, pbc, store=store)
+            outs.append(PLANAR_PROBE.compute(nlist, r_pc, reach=0.7, planar=planar))
+            if store:  # the stored list walked (the first sum fused the build)
+                outs[-1] = PLANAR_PROBE.compute(nlist, r_pc, reach=0.7, planar=planar)
+        full, flat = outs
+        np.testing.assert_allclose(flat.force, full.force, rtol=1e-13, atol=1e-15)
+        assert not flat.force[:, 2].any()
+        np.testing.assert_allclose(flat.other, full.other, rtol=1e-13)
+        assert flat.other[:, 2].min() >= 1.0  # d[2] + 1 summed over each point's pairs: accumulated

@@ -101,7 +101,7 @@ class Quality:
         pbc[self.dim:] = False
         nlist = NeighborList(self.h)
         nlist.update(r_pc, atoms.cell.array, pbc)
-        sums = kernel_sums(nlist, r_pc, self.h, self.kernel)
+        sums = kernel_sums(nlist, r_pc, self.h, self.kernel, planar=self.dim < 3)
         self.v0 = v0
         self.dp = v0 ** (1.0 / self.dim)
         self.volume_p = 1.0 / sums.w_p

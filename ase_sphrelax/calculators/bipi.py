@@ -180,7 +180,7 @@ class BIPICalculator(SPHCalculator):
         out = dict(gamma=gamma_p, grad_gamma=grad_gamma_pc, wall_gradient=terms.near_pc)
         if set(properties) <= {"gamma", "grad_gamma", "wall_gradient"}:
             return out
-        sums = kernel_sums(state.nlist, state.r_pc, model.h, model.kernel)
+        sums = kernel_sums(state.nlist, state.r_pc, model.h, model.kernel, planar=state.dim < 3)
         # the energy and forces only when asked for (BIPIPacker asks for grad C alone: 32 B per particle less)
         energetic = not set(properties) <= {"gamma", "grad_gamma", "wall_gradient", "concentration",
                                             "concentration_gradient"}

@@ -111,7 +111,8 @@ class FanCalculator(SPHCalculator):
         n = len(r_pc)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(state.nlist, r_pc, model.h, model.pair_prefactor(vols.v0),
-                                                     model.kernel, want_virial=want_stress)
+                                                     model.kernel, want_virial=want_stress,
+                                                     planar=state.dim < 3)
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
         energies_p += model.self_energy(n, vols.v0, vols.volume) / n
         if model.domain is not None:
