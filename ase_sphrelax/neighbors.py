@@ -770,6 +770,12 @@ def _max_displacement2(r_pc, r0_pc):
     return best
 
 
+# the adaptive skin (NeighborList's max_skin): lists rebuilt after fewer evaluations than this grow the next skin
+# (Fan's FIRE at 1e5 in 2D rebuilt every 3-4 evaluations with 0.1 h, every 10 with 0.3 h: calculators.fan's
+# MAX_SKIN_FACTOR), lists that last longer than SKIN_SHRINK_ABOVE shrink it (the walk of a wider list costs more)
+SKIN_GROW_BELOW = 8
+SKIN_SHRINK_ABOVE = 24
+
 # bins of edge reach / m, by the number of axes the points spread along (measured in
 # benchmarks/profile_fan.py: m = 2 in 3D checks 0.58x the candidates of m = 1)
 BIN_DIVISIONS = {1: 1, 2: 2, 3: 2}
@@ -997,6 +1003,12 @@ class NeighborList:
         larger of the two). It may be changed at every :meth:`update`.
     skin : float
         Extra radius of the stored list.
+    max_skin : float or None
+        With ``max_skin > skin`` the skin adapts to how the points move: a list rebuilt after
+        fewer than :data:`SKIN_GROW_BELOW` evaluations gives the next build a skin twice as large
+        (up to ``max_skin``), one that lasted more than :data:`SKIN_SHRINK_ABOVE` a skin half as
+        large (down to ``skin``). Which pairs are listed changes, not which interact: sums
+        differ by rounding only. None (default): the skin stays ``skin``.
 
     The stored list is reused as long as ``2 max|displacement| + max(cutoff - cutoff_build, 0)
     <= skin`` since the build (and the cell, pbc and particle number are unchanged): then
@@ -1013,6 +1025,8 @@ class NeighborList:
         one-shot state.
     builds : int
         How many times the stored list was (re)built.
+    skin : float
+        The skin of the current list (of the next build before any).
     forward_pairs : bool
         True: the pairs of a chunk of points lie at or after :meth:`partner_starts` (the chunk's
         first point unless wide points reach back; see :class:`BinnedPoints`).
@@ -1020,9 +1034,11 @@ class NeighborList:
 
     forward_pairs = True
 
-    def __init__(self, cutoff, skin=0.0):
+    def __init__(self, cutoff, skin=0.0, max_skin=None):
         self.cutoff = _check_cutoff(cutoff)
-        self.skin = check_skin(skin)
+        self.skin = self.min_skin = check_skin(skin)
+        self.max_skin = self.skin if max_skin is None else max(check_skin(max_skin, "max_skin"), self.skin)
+        self._reuses = 0  # evaluations the current list served after its build
         self.builds = 0
         self.points = None
         self._pair_start = None
@@ -1088,12 +1104,26 @@ class NeighborList:
             raise ValueError(f"cutoff has {self.cutoff.shape[0]} entries but there are {r_pc.shape[0]} particles")
         key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes())
         if key == self._key and (self.stored or not store) and self._still_valid(r_pc):
+            self._reuses += 1
             return False
         _check_positions(r_pc)
+        if store and self.stored and key == self._key:
+            self._adapt_skin()
         self._build(r_pc, cell, pbc, store)
         self._key = key
         self._r0_pc = r_pc.copy()
         return True
+
+    def _adapt_skin(self):
+        """The next build's skin from how many evaluations the current list lasted (``max_skin``)."""
+        lasted = self._reuses + 1
+        self._reuses = 0
+        if self.max_skin <= self.min_skin:
+            return
+        if lasted < SKIN_GROW_BELOW:
+            self.skin = min(2.0 * self.skin, self.max_skin)
+        elif lasted > SKIN_SHRINK_ABOVE:
+            self.skin = max(0.5 * self.skin, self.min_skin)
 
     def _still_valid(self, r_pc):
         if self.cutoff.ndim == 0 and self._cut_build_uniform is not None:

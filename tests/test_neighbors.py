@@ -74,6 +74,33 @@ def test_verlet_skin_reuses_the_list_until_half_skin_is_exceeded():
     assert nlist.builds == 2
 
 
+def test_adaptive_skin_grows_for_lists_rebuilt_often_and_shrinks_for_lists_that_last():
+    """max_skin: a list rebuilt after each few moves gets a wider skin (2x per build, up to max_skin), one that
+    lasts many evaluations a narrower one (down to skin); every pair within the cut-off is listed throughout."""
+    from ase_sphrelax.neighbors import SKIN_SHRINK_ABOVE
+
+    rng = np.random.default_rng(5)
+    r_pc = rng.uniform(0, 5, (200, 3))
+    cell, pbc = np.diag([5.0] * 3), [True] * 3
+    nlist = NeighborList(1.0, skin=0.1, max_skin=0.3)
+    skins = []
+    for step in range(40):
+        r_pc = r_pc + rng.uniform(-0.03, 0.03, r_pc.shape)  # about one build per two moves at skin 0.1
+        nlist.update(r_pc, cell, pbc)
+        skins.append(nlist.skin)
+        assert listed_pairs(nlist, r_pc, cell, pbc, 1.0) == set(brute_force_pairs(r_pc, cell, pbc, 1.0))
+    assert skins[0] == 0.1 and max(skins) == pytest.approx(0.3) and skins == sorted(skins)
+    for _ in range(SKIN_SHRINK_ABOVE + 1):  # still: the list lasts
+        nlist.update(r_pc, cell, pbc)
+    r_pc = r_pc + 0.2  # a rigid shift beyond half the skin: a rebuild, after a list that lasted
+    nlist.update(r_pc, cell, pbc)
+    assert nlist.skin == pytest.approx(0.15)
+    fixed = NeighborList(1.0, skin=0.1)
+    assert fixed.max_skin == 0.1
+    with pytest.raises(ValueError, match="max_skin"):
+        NeighborList(1.0, skin=0.1, max_skin=-1.0)
+
+
 def test_neighbour_count_is_linear_in_n():
     """O(N): pairs per particle stay constant as the system grows (jittered lattice)."""
     counts = []

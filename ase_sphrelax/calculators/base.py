@@ -292,6 +292,10 @@ class SPHCalculator(Calculator):
         at every evaluation, trading a bin scan per evaluation for the list's memory)."""
         return True
 
+    def max_skin(self, skin, dim):
+        """The largest skin of an adaptive list (``NeighborList``'s ``max_skin``), or None: a fixed ``skin``."""
+        return None
+
     def prepare(self, atoms, cutoff, skin, dim=None):
         """Validate ``atoms`` and update ``self.nlist``; return in-plane positions r_pc and the effective pbc.
 
@@ -313,8 +317,9 @@ class SPHCalculator(Calculator):
         pbc = np.array(atoms.pbc, dtype=bool)
         pbc[dim:] = False
         if cutoff is not None:
-            if self.nlist is None or self.nlist.skin != skin:
-                self.nlist = NeighborList(cutoff, skin=skin)
+            max_skin = self.max_skin(skin, dim)
+            if self.nlist is None or (self.nlist.min_skin, self.nlist.max_skin) != (skin, max_skin or skin):
+                self.nlist = NeighborList(cutoff, skin=skin, max_skin=max_skin)
             self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff,
                               store=self._evaluations > 0 and self.stores_list())
         self._evaluations += 1
