@@ -86,6 +86,35 @@ def test_boundary_force_is_minus_the_gradient_of_the_boundary_energy(domain):
     assert model.boundary(r_pc, v0, want_forces=False)[1] is None
 
 
+@pytest.mark.parametrize("domain,term", [(Sphere((0.0, 0.0, 0.0), 1.0), "level_set"),
+                                         (Box((0.0, 0.0), (1.0, 1.0)), "gamma")], ids=["sphere", "box-gamma"])
+def test_boundary_added_into_given_arrays_in_chunks_is_the_same_term(monkeypatch, domain, term):
+    """``out=``: the term is added in place (the calculator's energies and forces), bit for bit the
+    sum of the fresh arrays; the level set taken in chunks of 7 particles changes no bit."""
+    import ase_sphrelax.models.fan as fan
+
+    dim = domain.dim
+    lo, hi = domain.bounds
+    model = FanModel(0.15 * (hi - lo).min(), 0.1, domain, dim, boundary_term=term)
+    rng = np.random.default_rng(5)
+    r_pc = np.zeros((50, 3))
+    r_pc[:, :dim] = rng.uniform(lo - 0.2, hi + 0.2, (50, dim))
+    e_p, f_pc = model.boundary(r_pc, 0.01)
+    assert np.count_nonzero(e_p) > 10 and np.count_nonzero(e_p) < 50  # near and far particles
+    base_e, base_f = rng.normal(size=50), rng.normal(size=(50, 3))
+    out_e, out_f = base_e.copy(), base_f.copy()
+    assert all(x is y for x, y in zip(model.boundary(r_pc, 0.01, out=(out_e, out_f)), (out_e, out_f)))
+    np.testing.assert_array_equal(out_e, base_e + e_p)
+    np.testing.assert_array_equal(out_f, base_f + f_pc)
+    monkeypatch.setattr(fan, "_BOUNDARY_CHUNK", 7)
+    chunked_e, chunked_f = model.boundary(r_pc, 0.01)
+    np.testing.assert_array_equal(chunked_e, e_p)
+    np.testing.assert_array_equal(chunked_f, f_pc)
+    out_e = base_e.copy()
+    assert model.boundary(r_pc, 0.01, want_forces=False, out=(out_e, None))[1] is None
+    np.testing.assert_array_equal(out_e, base_e + e_p)
+
+
 def test_no_domain_gives_no_boundary_term():
     e_p, f_pc = FanModel(1.0, 1.0).boundary(np.zeros((4, 3)), 1.0)
     assert np.all(e_p == 0.0) and np.all(f_pc == 0.0) and f_pc.shape == (4, 3)

@@ -131,9 +131,7 @@ class FanCalculator(SPHCalculator):
         if model.domain is not None:
             # the boundary elements are found on the bins of the neighbour list (not periodic images)
             nlist = None if any(state.atoms.pbc) else state.nlist
-            boundary_e_p, boundary_f_pc = model.boundary(r_pc, vols.v0, nlist=nlist)
-            energies_p += boundary_e_p
-            f_pc += boundary_f_pc
+            model.boundary(r_pc, vols.v0, nlist=nlist, out=(energies_p, f_pc))  # added in place
             if state.first:  # the first evaluation of these atoms: say so if some are far outside
                 model.warn_far_outside(r_pc, type(self).__name__)
         energy = float(energies_p.sum())

@@ -77,6 +77,7 @@ BOUNDARY_TERMS = ("auto", "gamma", "level_set")  # FanModel(boundary_term=...)
 WALL_WEIGHT = 1.0  # kappa of the "gamma" boundary term (module docstring)
 CORE_DISTANCE = 0.4  # d0 / dp of the "gamma" term's contact core
 CORE_STIFFNESS = 2.0  # B of the contact core (at the wall: B times the scale 2 vt / h of the continuum's force)
+_BOUNDARY_CHUNK = 1 << 16  # particles per level-set call of the "level_set" term (FanModel.boundary)
 
 
 class ParticlesOutsideWarning(SphrelaxWarning):
@@ -249,7 +250,7 @@ class FanModel:
         """``N v0 vt W(0, h) - V``: the ``i = j`` terms of Eq. 3.8 and its ``-V``."""
         return float(n * v0 * v0 * self.kernel.w0(self.h) - volume)
 
-    def boundary(self, r_pc, v0, want_forces=True, nlist=None):
+    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None):
         """Boundary term of Eq. 3.8 per particle and its force (:attr:`boundary_term`).
 
         Parameters
@@ -261,6 +262,12 @@ class FanModel:
         nlist : NeighborList or None
             ``"gamma"``: the neighbour list of ``r_pc`` (N, 3), whose bins find the boundary
             elements within ``h``; None bins the particles once.
+        out : (ndarray (N,), ndarray (N, 3) or None) or None
+            Arrays to which the term and its force are added in place and which are returned
+            (the calculator's energies and forces): ``"level_set"`` then holds no array of N
+            (the level set runs on :data:`_BOUNDARY_CHUNK` particles at a time; at 1e6 in 3D the
+            full-N level set, mask, energies and forces held 48 bytes per particle). None:
+            fresh arrays.
 
         Returns
         -------
@@ -275,23 +282,30 @@ class FanModel:
         """
         r_pc = np.asarray(r_pc, dtype=float)
         n = len(r_pc)
+        if out is None:
+            e_p, f_pc = np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
+        else:
+            e_p, f_pc = out
+            f_pc = f_pc if want_forces else None
         if self.domain is None:
-            return np.zeros(n), (np.zeros((n, 3)) if want_forces else None)
+            return e_p, f_pc
         if self.boundary_term == "gamma":
-            return self._gamma_boundary(r_pc, v0, want_forces, nlist)
+            return self._gamma_boundary(r_pc, v0, want_forces, nlist, e_p, f_pc)
         # Fan's term vanishes at and beyond h from the wall (I(s >= h) = 0, W1(s >= h) = 0): the level set
         # of every particle picks the few within h, whose normals and tail integrals are computed alone
-        near = np.flatnonzero(self._phi(r_pc) > -self.h)
-        e_p = np.zeros(n)
-        f_pc = np.zeros((n, 3)) if want_forces else None
-        if len(near):
-            phi_o, n_oc = self._phi_and_normal(r_pc[near])
+        for first in range(0, n, _BOUNDARY_CHUNK):
+            r_kc = r_pc[first:first + _BOUNDARY_CHUNK]
+            near = np.flatnonzero(self._phi(r_kc) > -self.h)
+            if not len(near):
+                continue
+            phi_o, n_oc = self._phi_and_normal(r_kc[near])
             s_o = -phi_o
-            e_p[near] = 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
+            near += first
+            e_p[near] += 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
             if want_forces:
                 g_o = self.kernel.w1(np.maximum(s_o, 0.0), self.h)
                 g_o *= -2.0 * v0
-                f_pc[near] = g_o[:, None] * n_oc
+                f_pc[near] += g_o[:, None] * n_oc
         return e_p, f_pc
 
     def _domain_points(self, r_pc):
@@ -317,8 +331,9 @@ class FanModel:
             n_pc = normal_pc
         return np.asarray(phi_p, dtype=float).reshape(n), n_pc
 
-    def _gamma_boundary(self, r_pc, v0, want_forces, nlist):
-        """``2 vt (1 - gamma)`` (+ the outside slope) and its negative gradient (:meth:`boundary`)."""
+    def _gamma_boundary(self, r_pc, v0, want_forces, nlist, out_e_p, out_f_pc):
+        """``2 vt (1 - gamma)`` (+ the outside slope) and its negative gradient (:meth:`boundary`),
+        added to ``out_e_p`` and ``out_f_pc``."""
         from ..neighbors import NeighborList
 
         n = len(r_pc)
@@ -343,7 +358,10 @@ class FanModel:
             if want_forces:
                 g_o = slope * (phi_o > 0.0) + 2.0 * core * x_o
                 f_pc[near] -= g_o[:, None] * n_oc
-        return e_p, f_pc
+        out_e_p += e_p
+        if want_forces:
+            out_f_pc += f_pc
+        return out_e_p, out_f_pc
 
     def warn_far_outside(self, r_pc, who="FanModel"):
         """Warn (:class:`ParticlesOutsideWarning`) when particles lie more than ``h`` outside the domain.
