@@ -75,6 +75,34 @@ def test_keep_in_domain_cuts_a_step_that_leaves_and_returns_a_particle_outside()
     assert constraint.n_returned == 2  # steps inside are untouched
 
 
+def test_keep_in_domain_tests_the_level_set_in_chunks_with_the_same_result(monkeypatch):
+    """The first inside test runs on _CHUNK particles at a time: chunks of 5 find the same particles
+    outside and make the same positions as one chunk of all."""
+    import ase_sphrelax.drivers.keep_inside as keep_inside
+    from ase import Atoms
+
+    domain = Circle((0.0, 0.0), 1.0)
+    rng = np.random.default_rng(2)
+    old = np.zeros((23, 3))
+    old[:, :2] = rng.uniform(-0.95, 0.95, (23, 2)) / np.sqrt(2)
+    new = old.copy()
+    new[:, :2] += rng.uniform(-1.0, 1.0, (23, 2))
+    atoms = Atoms(f"X{len(old)}", positions=old)
+    outside = np.flatnonzero(~(domain.phi(new) < 0.0))
+    assert 3 < len(outside) < 20
+    results = []
+    for chunk in (1 << 16, 5):
+        monkeypatch.setattr(keep_inside, "_CHUNK", chunk)
+        constraint = KeepInDomain(domain)
+        np.testing.assert_array_equal(constraint._outside(new), outside)
+        moved = new.copy()
+        constraint.adjust_positions(atoms, moved)
+        results.append((moved, constraint.n_returned))
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    assert results[0][1] == results[1][1] == len(outside) and domain.phi(results[1][0]).max() < 0.0
+    assert len(KeepInDomain(domain)._outside(np.zeros((0, 3)))) == 0
+
+
 # Difference and Union domains with thin features and sharp corners; LBFGS from make_optimizer left 2-3
 # particles outside the first two (measured before KeepInDomain)
 # (domain, dx, dx for dense BFGS, which is O(n^3) per step: fewer particles, at least 3 across a thin part)
