@@ -84,6 +84,18 @@ def test_2d_never_moves_z_and_keeps_dim_times_n_buffers(name):
     assert opt3.dim == 3 and (opt3._s if name == "lbfgs" else opt3.vel).shape[-1] == 3
 
 
+def test_lbfgs_holds_its_pairs_only_and_forms_the_step_in_the_oldest_slot():
+    """2 memory vectors of dim N floats, no work vector: a history of 2 over 6 steps (the slots wrap,
+    the step formed in the pair that leaves) stays on ASE's trajectory (with history 2)."""
+    opt, atoms, _, frames = trajectory("lbfgs", "sph", 3, steps=6, memory=2)
+    held = [v.nbytes for v in vars(opt).values() if isinstance(v, np.ndarray) and v.size >= len(atoms)]
+    assert sorted(held) == [2 * len(atoms) * 3 * 8] * 2
+    _, _, _, reference = trajectory("lbfgs", "ase", 3, steps=6, memory=2)
+    for (r, e), (r_ase, e_ase) in zip(frames, reference):
+        np.testing.assert_allclose(r, r_ase, rtol=0, atol=1e-9 / 16)
+        assert e == pytest.approx(e_ase, rel=1e-9)
+
+
 @pytest.mark.parametrize("name", ["fire", "fire2", "lbfgs"])
 def test_fixed_particles_stay_and_the_rest_follows_ase(name):
     def fix_first(atoms):

@@ -13,7 +13,8 @@ loop asks for the forces three times per step. At 1e6 particles that made an LBF
 * buffers allocated once and reused between steps (fresh pages cost about 6x reused memory
   on these VMs); one force request per step (the calculator's cache serves the others);
 * LBFGS: ``memory`` pairs ``(s, y)`` in float64, the pair of the next step kept in the slot of
-  the pair that leaves the history, so ``memory`` pairs plus one work vector are all it holds;
+  the pair that leaves the history, so ``memory`` pairs are all it holds (the step is formed in
+  that slot too, which it leaves);
   three passes over them per step (the two-loop recursion on their dot products);
   ``s = x_{k+1} - x_k`` is taken from the positions the atoms have (constraints such as
   :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain` and observers included), as in ASE.
@@ -95,41 +96,46 @@ def _lbfgs_pair_dots(s_mpc, y_mpc, slot, x_pc, f_pc, d, out, first, last):
 
 
 @numba.njit(**_NOGIL)
-def _lbfgs_combine(z_pc, f_pc, s_mpc, y_mpc, cs, cy, cg, d, out, first, last):
-    """z = cg g + sum_j cs_j s_j + cy_j y_j (g = -F); out[0] = max |z_p|^2."""
+def _lbfgs_combine(f_pc, s_mpc, y_mpc, slot, cs, cy, cg, d, out, first, last):
+    """z = cg g + sum_j cs_j s_j + cy_j y_j (g = -F) into s_slot, the oldest pair (read here for the
+    last time: each block of z is formed aside, then written over its block of s_slot; an empty slot
+    before the history is full); out[0] = max |z_p|^2."""
     m = s_mpc.shape[0]
     sf = s_mpc.reshape((m, -1))
     yf = y_mpc.reshape((m, -1))
-    zf = z_pc.reshape(-1)
+    z = np.empty(_BLOCK * d)
     best = out[0]
     for b0 in range(first, last, _BLOCK):
         b1 = min(b0 + _BLOCK, last)
+        e0 = b0 * d
         for p in range(b0, b1):
             for c in range(d):
-                zf[p * d + c] = cg * -f_pc[p, c]
+                z[p * d + c - e0] = cg * -f_pc[p, c]
         for j in range(m):
             a = cs[j]
             b = cy[j]
             if a == 0.0 and b == 0.0:
                 continue
-            for e in range(b0 * d, b1 * d):
-                zf[e] += a * sf[j, e] + b * yf[j, e]
+            for e in range(e0, b1 * d):
+                z[e - e0] += a * sf[j, e] + b * yf[j, e]
+        for e in range(e0, b1 * d):
+            sf[slot, e] = z[e - e0]
         for p in range(b0, b1):
             z2 = 0.0
             for c in range(d):
-                z2 += zf[p * d + c] * zf[p * d + c]
+                z2 += z[p * d + c - e0] * z[p * d + c - e0]
             if not z2 <= best:
                 best = z2
     out[0] = best
 
 
 @numba.njit(**_NOGIL)
-def _lbfgs_finish(x_pc, f_pc, z_pc, s_pc, y_pc, factor, scaled, damping, d, first, last):
-    """The step dr = -z (times factor when scaled) times damping; the next pending pair
-    (s = -x_k, y = F_k) into its slot; the new positions x_k + dr into f_pc."""
+def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, first, last):
+    """The step dr = -z (z in s_pc, :func:`_lbfgs_combine`; times factor when scaled) times damping;
+    the next pending pair (s = -x_k over z, y = F_k) into its slot; the new positions x_k + dr into f_pc."""
     for p in range(first, last):
         for c in range(d):
-            t = -z_pc[p, c]
+            t = -s_pc[p, c]
             if scaled:
                 t = t * factor
             t = t * damping
@@ -531,7 +537,8 @@ class SPHLBFGS(_SPHOptimizer):
     Chen et al. (NeurIPS 2014): one pass completes the newest pair and takes its dot products
     (and g's) with every stored pair, one pass forms the step, one moves the particles, where
     ASE's recursion makes ``2 memory + 1`` passes. The same arithmetic up to round-off.
-    Memory: ``2 memory + 1`` vectors of ``dim * N`` floats.
+    Memory: ``2 memory`` vectors of ``dim * N`` floats (the step is formed in the slot of the
+    pair that leaves the history).
 
     Parameters
     ----------
@@ -562,17 +569,16 @@ class SPHLBFGS(_SPHOptimizer):
 
     def initialize(self):
         self.iteration = 0  # steps taken (ASE: state.iteration)
-        self._s = self._y = self._q = None
+        self._s = self._y = None
         self._rho = np.zeros(self.memory)
 
     def _buffers(self, n, d):
         if self._s is None:
             self._s = np.zeros((self.memory, n, d))
             self._y = np.zeros((self.memory, n, d))
-            self._q = np.zeros((n, d))
             self._ss, self._sy, self._yy = (np.zeros((self.memory, self.memory)) for _ in range(3))
-        elif self._q.shape[0] != n:
-            raise ValueError(f"atoms: the number of particles changed from {self._q.shape[0]} to {n}")
+        elif self._s.shape[1] != n:
+            raise ValueError(f"atoms: the number of particles changed from {self._s.shape[1]} to {n}")
 
     def _step(self, f_pc=None):
         f_pc = self._forces() if f_pc is None else f_pc
@@ -580,7 +586,7 @@ class SPHLBFGS(_SPHOptimizer):
         d = self._setup_dim()
         n, m, k = len(f_pc), self.memory, self.iteration
         self._buffers(n, d)
-        s, y, q, rho = self._s, self._y, self._q, self._rho
+        s, y, rho = self._s, self._y, self._rho
         h0 = 1.0 / self.alpha
         count = min(m, k)
         cs, cy = np.zeros(m), np.zeros(m)
@@ -613,12 +619,12 @@ class SPHLBFGS(_SPHOptimizer):
                 j = slots[i]
                 b = rho[j] * (cs @ sy[:, j] + cy @ yy[j] + cg * gy[j])  # rho_i y_i . z
                 cs[j] += a[i] - b
-        outs = _chunks(_lbfgs_combine, n, (q, f_pc, s, y, cs, cy, cg, d), 1)
+        slot = k % m  # the oldest pair (its last use is in z) holds z, then the pending pair of this step
+        outs = _chunks(_lbfgs_combine, n, (f_pc, s, y, slot, cs, cy, cg, d), 1)
         longest = float(np.sqrt(_max(outs, 0)))  # ASE: the largest per-particle norm of the step
         scaled = longest >= self.maxstep
         factor = self.maxstep / longest if scaled else 1.0
-        slot = k % m  # the pending pair of this step replaces the oldest pair (used above for the last time)
-        run_chunks(_lbfgs_finish, n, (x_pc, f_pc, q, s[slot], y[slot], factor, scaled, self.damping, d))
+        run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d))
         self.iteration += 1
         self._set_positions(f_pc)
 
