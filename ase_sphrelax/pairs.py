@@ -284,7 +284,8 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         load_a="; ".join(f"xa{c} = x_sc[a, {c}]" for c in range(read)),
         zero_own=pad_a.join(f"ta{i} = 0.0" for i in kept) or "pass",
         store_own=pad_a.join(f"{own[i]} += ta{i}" for i in kept) or "pass",
-        diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)] + [f"d{c} = 0.0" for c in range(read, dim)]),
+        diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
+                      + [f"d{c} = 0.0" for c in range(read, dim)]),
         norm2=" + ".join(f"d{c} * d{c}" for c in range(read)),
         body=pad.join(lines),
     )

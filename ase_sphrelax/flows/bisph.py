@@ -87,7 +87,7 @@ import numpy as np
 
 from ..boundary import BoundaryIntegrals, as_boundary
 from ..checks import check_positive
-from ..kernels import get_kernel, kernel_profile, profile_value_and_slope
+from ..kernels import get_kernel, kernel_profile, kernel_slope_over_q, profile_value_and_slope
 from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 
@@ -118,7 +118,7 @@ def _continuity_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, vol_s, rho_s,
     if r2 == 0.0:
         return (0.0, 0.0), (0.0, 0.0), ()
     r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r  # grad_a W = gw (x_a - x_b) = -gw d; gw <= 0
+    gw = grad_scale * inv_h * kernel_slope_over_q(r * inv_h)[1]  # grad_a W = gw (x_a - x_b) = -gw d; gw <= 0
     dv_g = -gw * ((v_sc[b, 0] - v_sc[a, 0]) * d[0] + (v_sc[b, 1] - v_sc[a, 1]) * d[1])  # the same for b
     k = 2.0 * gw * r2 / (r2 + eta2)  # 2 (x_ab . grad_a W)/(r^2 + eta^2) <= 0, the same for b
     drho = rho_s[b] - rho_s[a] - (hx * d[0] + hy * d[1])  # rho_ba minus its hydrostatic part
@@ -135,7 +135,7 @@ def _momentum_diffusion_pair(a, b, r2, d, inv_h, grad_scale, eta2, hx, hy, q_sc)
     if r2 == 0.0:
         return (0.0, 0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0, 0.0), ()
     r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r
+    gw = grad_scale * inv_h * kernel_slope_over_q(r * inv_h)[1]
     gax = -gw * d[0]
     gay = -gw * d[1]
     pp = q_sc[a, 1] + q_sc[b, 1]
@@ -156,7 +156,7 @@ def _divergence_pair(a, b, r2, d, inv_h, grad_scale, q_sc):
     if r2 == 0.0:
         return (0.0,), (0.0,), ()
     r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r
+    gw = grad_scale * inv_h * kernel_slope_over_q(r * inv_h)[1]
     dv_g = -gw * ((q_sc[b, 1] - q_sc[a, 1]) * d[0] + (q_sc[b, 2] - q_sc[a, 2]) * d[1])
     return (q_sc[b, 0] * dv_g,), (q_sc[a, 0] * dv_g,), ()
 
@@ -170,7 +170,7 @@ def _consistent_pair(a, b, r2, d, inv_h, grad_scale, vol_s, f_sc):
         z = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         return z, z, ()
     r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r
+    gw = grad_scale * inv_h * kernel_slope_over_q(r * inv_h)[1]
     gx = -gw * d[0]
     gy = -gw * d[1]
     f0 = f_sc[b, 0] - f_sc[a, 0]
@@ -198,7 +198,7 @@ def _midpoint_divergence_pair(a, b, r2, d, inv_h, grad_scale, q_sc):
         z = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         return z, z, ()
     r = math.sqrt(r2)
-    gw = grad_scale * kernel_profile(r * inv_h)[1] / r
+    gw = grad_scale * inv_h * kernel_slope_over_q(r * inv_h)[1]
     gx = -gw * d[0]  # grad_a W; grad_b W = -grad_a W
     gy = -gw * d[1]
     ex = d[0] / r
@@ -597,6 +597,7 @@ class BISPH:
         n = len(r)
         self.r = np.zeros((n, 3))
         self.r[:, : r.shape[1]] = r
+        self._planar = not self.r[:, 2].any()  # the pair loops read x and y only (PairInteraction planar)
         self.v = np.zeros((n, 3))
         if velocities is not None:
             self.v[:, :2] = np.asarray(velocities, dtype=float).reshape(n, 2)
@@ -699,7 +700,8 @@ class BISPH:
         f_sc = np.zeros((n, 4))
         f_sc[:, :ncol] = f_pc
         out = CONSISTENT.compute(self.nlist, self.r, dict(inv_h=1.0 / self.h, grad_scale=self.kernel.sigma / self.h**3),
-                                 dict(vol_s=self.mass / self.rho, f_sc=f_sc), reach=self.h, kernel=self.kernel)
+                                 dict(vol_s=self.mass / self.rho, f_sc=f_sc), reach=self.h, kernel=self.kernel,
+                                 planar=self._planar)
         lmat, nsum = out.lmat, out.nsum
         if walls and bt.pairs.n_pairs:
             pairs = bt.pairs
@@ -754,7 +756,8 @@ class BISPH:
         q_pc[:, 3:] = grad_v.reshape(-1, 4)
         nsum = MIDPOINT_DIVERGENCE.compute(self.nlist, self.r, dict(inv_h=1.0 / self.h,
                                                                     grad_scale=self.kernel.sigma / self.h**3),
-                                           dict(q_sc=q_pc), reach=self.h, kernel=self.kernel).nsum
+                                           dict(q_sc=q_pc), reach=self.h, kernel=self.kernel,
+                                           planar=self._planar).nsum
         if pairs.n_pairs:
             _wall_midpoint(pairs.start_p, pairs.element_k, pairs.point_k, pairs.x_sc, pairs.distance_k, bt.grad_k,
                            self._seg, feet, np.ascontiguousarray(vs), v_pc, np.ascontiguousarray(q_pc[:, 3:]),
@@ -782,7 +785,7 @@ class BISPH:
         q_pc[:, 2] = self.rho
         q_pc[:, 3:] = self.v[:, :2]
         terms = MOMENTUM_DIFFUSION.compute(self.nlist, self.r, params, dict(q_sc=q_pc), reach=self.h,
-                                           kernel=self.kernel).terms
+                                           kernel=self.kernel, planar=self._planar).terms
         div_w, gp_w, lap_w = self._wall_sums(bt, self.v, self.rho, p)
         acc = np.zeros_like(self.v)
         if self.viscosity == "pcg":
@@ -803,7 +806,8 @@ class BISPH:
         hx, hy = (self.rho0 * self.force[:2] / self.c0**2) if self.hydrostatic else (0.0, 0.0)
         params = dict(self._kernel_params(), hx=float(hx), hy=float(hy))
         out = CONTINUITY.compute(self.nlist, self.r, params, dict(vol_s=self.mass / self.rho, rho_s=self.rho,
-                                                                  v_sc=v_pc), reach=self.h, kernel=self.kernel)
+                                                                  v_sc=v_pc), reach=self.h, kernel=self.kernel,
+                                planar=self._planar)
         div_w, _, _ = self._wall_sums(bt, v_pc, self.rho, self.pressure(), wall_velocity)
         rate = -self.rho / gamma * (out.div + div_w)
         if diffusion and self.delta > 0:
@@ -865,7 +869,7 @@ class BISPH:
         q_pc[:, 0] = self.mass / self.rho
         q_pc[:, 1:] = self.v[:, :2]
         out = DIVERGENCE.compute(self.nlist, self.r, dict(inv_h=1.0 / self.h, grad_scale=self.kernel.sigma / self.h**3),
-                                 dict(q_sc=q_pc), reach=self.h, kernel=self.kernel)
+                                 dict(q_sc=q_pc), reach=self.h, kernel=self.kernel, planar=self._planar)
         div_w, _, _ = self._wall_sums(bt, self.v, self.rho, p)
         rate = -self.rho / gamma * (out.div + div_w)
         if self.delta > 0:
