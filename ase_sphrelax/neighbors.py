@@ -1111,7 +1111,10 @@ class NeighborList:
             self._adapt_skin()
         self._build(r_pc, cell, pbc, store)
         self._key = key
-        self._r0_pc = r_pc.copy()
+        if self._r0_pc is not None and self._r0_pc.shape == r_pc.shape and self._r0_pc is not r_pc:
+            np.copyto(self._r0_pc, r_pc)  # in place: not a second copy of the positions at a rebuild's peak
+        else:
+            self._r0_pc = r_pc.copy()
         return True
 
     def _adapt_skin(self):

@@ -221,7 +221,7 @@ def main(argv=None):
                              "its time per step from a timed run of --lammps-rate-steps here (an estimate)")
     parser.add_argument("--lammps-rate-steps", type=int, default=50, help="the estimate's timed steps (default 50)")
     parser.add_argument("--reuse-lammps", action="store_true",
-                        help="timed phase: keep LAMMPS's timed run stored in --out (time ours only)")
+                        help="timed phase: keep LAMMPS's timed run or estimate stored in --out (time ours only)")
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--figure", action="store_true", help="draw the figure from --out and stop")
     args = parser.parse_args(argv)
@@ -270,6 +270,11 @@ def main(argv=None):
                     print(f"{key}: LAMMPS {rate['per_step']:.2f} s per step at N = {ours['n']}, {star} steps at "
                           f"N = {small['n']}: about {estimate['wall_time']:.0f} s; ours / LAMMPS about "
                           f"{rec['ratio_ours_over_lammps_estimate']:.2f}")
+            elif args.reuse_lammps and rec.get("lammps_estimate", {}).get("wall_time"):
+                # our code changed, LAMMPS did not: keep its stored estimate (rate run and step count)
+                rec["ratio_ours_over_lammps_estimate"] = ours["wall_time"] / rec["lammps_estimate"]["wall_time"]
+                print(f"{key}: LAMMPS's stored estimate {rec['lammps_estimate']['wall_time']:.0f} s; ours / LAMMPS "
+                      f"about {rec['ratio_ours_over_lammps_estimate']:.2f}")
             elif args.reuse_lammps and "lammps" in rec:
                 # our code changed, LAMMPS did not: keep its timed run (its own version and load are in runs)
                 ratio = ours["wall_time"] / rec["lammps"]["wall_time"]
