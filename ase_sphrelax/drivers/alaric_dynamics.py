@@ -164,20 +164,25 @@ class ALARICDynamics(MolecularDynamics):
 
     def _sync_masses(self):
         self.atoms.set_masses(np.full(len(self.atoms), self.calc.mass))
-        self.masses = self.atoms.get_masses().reshape(-1, 1)
+        # ASE's (N, 1) masses as a read-only view of the one mass: no second array per particle, the same products
+        self.masses = np.broadcast_to(np.float64(self.calc.mass), (len(self.atoms), 1))
 
     # -- physics ------------------------------------------------------------------------------
     def _accelerations(self, v_pc):
         atoms = self.atoms
-        f_pc = atoms.get_forces()  # ASE's copy: ours to change
+        self.div_p = None  # the last step's: not held through the evaluation
+        f_pc = atoms.get_forces()
+        if not atoms.constraints:  # the calculator's own forces (read only): no copy of them through the viscous sum
+            f_pc = None
+            f_pc = self.calc.results["forces"]
         m = self.calc.mass
         if self.viscosity:
             v_sig = max(self.cs, float(np.sqrt((v_pc**2).sum(axis=1)).max()))
-            f_visc, div_p = self.calc.viscous_forces(v_pc, self.alpha_p, v_sig)
-            f_pc += f_visc
-            self.div_p = div_p
-            del f_visc
-        a_pc = f_pc  # in place: no third (N, 3) array at the end of an evaluation
+            a_pc, self.div_p = self.calc.viscous_forces(v_pc, self.alpha_p, v_sig)  # a new array: ours to change
+            a_pc += f_pc  # F + F_visc (a sum commutes: the same bits as F += F_visc)
+        else:
+            a_pc = f_pc if atoms.constraints else f_pc.copy()
+        f_pc = None
         a_pc /= m
         if self.friction > 0:
             a_pc -= self.friction * v_pc
@@ -217,9 +222,15 @@ class ALARICDynamics(MolecularDynamics):
         if not np.all(np.isfinite(atoms.positions)):
             raise TimeStepError(f"step {self.nsteps}: positions became non-finite (dt = {dt:.4g})")
         self.force_calls += 1
-        # the last accelerations go before the evaluation (its peak of memory) makes the new ones
+        # the last accelerations and the Atoms' momenta (v holds the state; set again below) go before the
+        # evaluation (its peak of memory) makes the new ones
         self._accel = None
-        self._accel = self._accelerations(v)  # dissipative terms with the half-step velocity
+        atoms.arrays.pop("momenta", None)
+        try:
+            self._accel = self._accelerations(v)  # dissipative terms with the half-step velocity
+        except BaseException:
+            atoms.set_velocities(v)
+            raise
         v += 0.5 * dt * self._accel
         if self.viscosity:
             self.alpha_p = sph.update_alpha(self.alpha_p, self.div_p, self.cs, self.calc.results["smoothing_lengths"],
@@ -246,19 +257,21 @@ class ALARICDynamics(MolecularDynamics):
     def _interval_end(self, ek):
         atoms = self.atoms
         self.since_stop = 0.0
-        if self.velocity_stop:
-            atoms.set_velocities(np.zeros((len(atoms), 3)))
+        if self.velocity_stop:  # at rest: ASE's Atoms without momenta (none held through the evaluation below)
+            atoms.arrays.pop("momenta", None)
             self.ek_prev = 0.0
         res = self.calc.results
         if self.mass_reset:
             from ..models.alaric import reset_mass
 
             self.calc.set_mass(reset_mass(res["target"], res["number_density"]))  # Eq. 44
+            res = None  # the last evaluation's results and accelerations: not held through the next evaluation
             self._sync_masses()
-            self._accel = None  # not held through the evaluation
-            atoms.get_forces()
+            self._accel = None
             self._accel = self._accelerations(atoms.get_velocities())
             res = self.calc.results
+        if self.velocity_stop:
+            atoms.set_velocities(np.zeros((len(atoms), 3)))
         eps = float(res["epsilon"])
         eps_dot = None
         if self._last_check is not None:
