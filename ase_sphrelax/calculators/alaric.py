@@ -334,11 +334,11 @@ class ALARICCalculator(SPHCalculator):
                                         res["density"], alpha_p, v_sig, self.kernel)
         # with mirror ghosts: a ghost moves as J v of its owner; its share goes back through J^T
         # the pairs see the first d components (the rest are zeros): d velocity and force columns per point, not 3
-        owner_g, jac_gdd, y_pc, h_q = self._ghosts
+        owner_g, y_pc, h_q = self._ghosts
         d, n = self.dim, len(v_pc)
         v_qd = np.empty((len(y_pc), d))
         v_qd[:n] = np.asarray(v_pc)[:, :d]
-        v_qd[n:] = np.einsum("gij,gj->gi", jac_gdd, v_qd[owner_g])
+        v_qd[n:] = np.einsum("gij,gj->gi", self._ghost_jacobians(), v_qd[owner_g])
         rho_q = np.concatenate([res["density"], res["density"][owner_g]])
         alpha_q = np.concatenate([np.asarray(alpha_p, dtype=float), np.asarray(alpha_p, dtype=float)[owner_g]])
         f_qd, div_q = sph.viscosity_forces(self.nlist, y_pc, v_qd, self.mass, h_q, rho_q, alpha_q, v_sig, self.kernel,
@@ -349,12 +349,19 @@ class ALARICCalculator(SPHCalculator):
     def _fold_ghosts(self, f_qd, n, columns=None):
         """Real particles' forces from those on the real and ghost points: ``F_a + sum_g J_g^T F_g``, with
         ``columns`` columns (default those of ``f_qd``; the first ``dim`` are summed, the rest zeros)."""
-        owner_g, jac_gdd = self._ghosts[:2]
+        owner_g = self._ghosts[0]
         d = self.dim
         out = np.zeros((n, f_qd.shape[1] if columns is None else columns))
         out[:, :f_qd.shape[1]] = f_qd[:n]
-        np.add.at(out[:, :d], owner_g, np.einsum("gji,gj->gi", jac_gdd, f_qd[n:, :d]))
+        np.add.at(out[:, :d], owner_g, np.einsum("gji,gj->gi", self._ghost_jacobians(), f_qd[n:, :d]))
         return out
+
+    def _ghost_jacobians(self):
+        """The mirror's Jacobians ``J = dg/dx`` (G, d, d) of the ghosts of the last evaluation, computed again from
+        their owners' positions (the same values as in :meth:`_solve_with_ghosts`; not stored: 72 bytes per ghost in
+        3D)."""
+        x_gd = self.points(self.atoms.positions[self._ghosts[0]], self.atoms)
+        return model.mirror_images(self.parameters.domain, x_gd)[1]
 
     # -- the contract's hooks ---------------------------------------------------------------------------
     def check_atoms(self, atoms, dim, properties):
@@ -378,44 +385,54 @@ class ALARICCalculator(SPHCalculator):
             return None  # its own list over the particles and their mirror ghosts (_solve_with_ghosts)
         return self.h_p, self._skin
 
-    def _solve_with_ghosts(self, st, x_pd):
+    def _solve_with_ghosts(self, st):
         """The smoothing lengths with mirror ghosts.
 
         The energy sees every ghost within reach of a real particle (:func:`needed_ghosts`: its owner is outside the
         domain, or deep by less than the reach of the particles at the edge); the stored ghost set adds those
         within ``self._band`` (the ghost skin) of that, and is kept while it holds every needed ghost, so the
         neighbour list over particles and ghosts is rebuilt only when the Verlet skin is used up. Ghosts farther
-        than every support add exactly nothing to the densities and forces. A ghost's H is its owner's (not solved).
+        than every support add exactly nothing to the densities and forces. A ghost's H is its owner's (not solved):
+        the returned state's H holds the ghosts' rows as well (their owners' new H).
         """
         p = self.parameters
         n, d = len(st.r_pc), st.dim
         if np.any(st.pbc[:d]):
             raise ValueError("boundary='mirror' is for open systems (no periodic axis), got pbc="
                              f"{st.atoms.pbc.tolist()}")
-        phi_p = np.asarray(p.domain.phi(x_pd), dtype=float)
         if self._band is None:
             self._band = GHOST_SKIN * float(np.mean(self.h_p))
         h_p = self.h_p
         while True:
+            # x and phi (N, d + 1 numbers) are not held through the solve; the same values again after it
+            x_pd = self.points(st.atoms.positions, st.atoms)
+            phi_p = np.asarray(p.domain.phi(x_pd), dtype=float)
             cache = self._ghost_set
             need_p = needed_ghosts(phi_p, h_p)
             if cache is None or cache[1] != self._band or len(cache[0]) != n or np.any(need_p & ~cache[0]):
                 self._ghost_set = cache = (self._ghost_owners(x_pd, phi_p, h_p, need_p), self._band)
+            need_p = None
             owner_g = np.nonzero(cache[0])[0]
-            g_gd, jac_gdd = model.mirror_images(p.domain, x_pd[owner_g])
+            g_gd = model.mirror_images(p.domain, x_pd[owner_g])[0]  # the Jacobians when needed (_ghost_jacobians)
+            x_pd = None
             y_pc = np.zeros((n + len(owner_g), 3))
             y_pc[:n] = st.r_pc
             y_pc[n:, :d] = g_gd - self.origin
+            g_gd = phi_p = None
             h0_q = np.concatenate([h_p, h_p[owner_g]])
+            self.h_p = h_p = h0_q[:n]  # the same values: the last solve's H (particles and ghosts) is not held
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
                                                 h0=h0_q, tol=p.h_tol, store=self._evaluations > 1, solve=n, dims=d)
+            h0_q = None
             h_p = state.h_p[:n]
+            phi_p = np.asarray(p.domain.phi(self.points(st.atoms.positions, st.atoms)), dtype=float)
             if not np.any(needed_ghosts(phi_p, h_p) & ~cache[0]):  # H grew beyond the stored set: again
                 break
-        h_q = np.concatenate([h_p, h_p[owner_g]])
-        self._ghosts = (owner_g, jac_gdd, y_pc, h_q)
+        h_q = state.h_p  # the solve's own copy: its ghosts' rows become their owners' new H
+        h_q[n:] = h_q[owner_g]
+        self._ghosts = (owner_g, y_pc, h_q)
         return state
 
     def _ghost_owners(self, x_pd, phi_p, h_p, need_p):
@@ -457,20 +474,24 @@ class ALARICCalculator(SPHCalculator):
             if top <= 0.0:
                 raise ValueError("target_density is zero at every particle")
             self._floor = FLOOR * top
+        x_pd = None  # not held through the H solve: the same values again after it
         if p.boundary == "mirror":
-            full = self._solve_with_ghosts(st, x_pd)
-            state = sph.DensitySums(full.h_p[:n], full.rho_p[:n], full.n_p[:n], full.omega_p[:n],
-                                    full.neighbours_p[:n], full.iterations)
+            full = self._solve_with_ghosts(st)  # the particles' rows, then the ghosts'
         else:
-            full = state = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel,
-                                                       eta=self.eta, h0=self.h_p, tol=p.h_tol,
-                                                       store=self._evaluations > 1, dims=d)
-        self.h_p = state.h_p
-        n_p = state.n_p  # unit masses: rho = n
+            full = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
+                                               h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1, dims=d)
+        # the solve's unit-mass densities (the number densities again) are not kept: rho = m n below
+        h_p, n_p, omega_p, count_p, iterations = (full.h_p[:n], full.n_p[:n], full.omega_p[:n],
+                                                  full.neighbours_p[:n], full.iterations)
+        full = None
+        x_pd = self.points(atoms.positions, atoms)
+        self.h_p = h_p
         if self.mass is None:
             self.mass = model.reset_mass(target_p, n_p)
         m = self.mass
         rho_p = m * n_p
+        state = sph.DensitySums(h_p, rho_p, n_p, omega_p, count_p, iterations)
+        h_p = omega_p = count_p = None
         cs2 = p.cs2
         if p.form == "squares":
             if self._rho_ref is None:
@@ -479,22 +500,27 @@ class ALARICCalculator(SPHCalculator):
             if p.background > 0.0:
                 energies_p += p.background * m * cs2 * np.log(rho_p)
         else:
-            log_target = np.log(np.maximum(target_p, self._floor))
-            energies_p = m * cs2 * (np.log(rho_p) - log_target)
+            energies_p = m * cs2 * (np.log(rho_p) - np.log(np.maximum(target_p, self._floor)))
         wall_p = None
         if p.domain is not None:
             if self._wall is None and p.wall_form == "linear":
                 self._wall = 0.1 * (float(p.domain.volume) / n) ** (1.0 / d)
             phi_p, normal_pc = p.domain.phi_and_normal(x_pd)
             phi_p = np.asarray(phi_p, dtype=float)
+            outside = phi_p > 0.0
+            # the wall's force acts on the particles outside only: their normals, not an (N, d) array
+            normal_od = np.asarray(normal_pc, dtype=float)[outside, :d]
+            normal_pc = None
             if p.wall_form == "linear":
                 energies_p += m * cs2 * np.maximum(phi_p, 0.0) / self._wall
-                wall_p = (phi_p, np.asarray(normal_pc, dtype=float), None)
+                wall_p = (outside, normal_od, None)
             else:  # quadratic: U = m c_s^2 phi_+^2 / (2 L^2), dU/dphi = m c_s^2 phi_+ / L^2 (0 at phi = 0)
                 stiffness = m * cs2 / self.quadratic_wall_length(n, d) ** 2
                 depth_p = np.maximum(phi_p, 0.0)
                 energies_p += 0.5 * stiffness * depth_p**2
-                wall_p = (phi_p, np.asarray(normal_pc, dtype=float), stiffness * depth_p)
+                wall_p = (outside, normal_od, (stiffness * depth_p)[outside])
+                depth_p = None
+            phi_p = None
         out = dict(density=rho_p, number_density=n_p, smoothing_lengths=state.h_p, omega=state.omega_p,
                    target=target_p, epsilon=model.epsilon(rho_p, target_p, n_p))
         if self.conservative:
@@ -503,7 +529,7 @@ class ALARICCalculator(SPHCalculator):
             out["monitor"] = float(energies_p.sum())  # the log potential, a monitor of the paper's form
         self.state = state
         if "forces" in properties or want_stress:
-            f_pc, f_ext_pc, virial = self._forces(st.r_pc, x_pd, state, target_p, wall_p, want_stress, full)
+            f_pc, f_ext_pc, virial = self._forces(st.r_pc, x_pd, state, target_p, wall_p, want_stress)
             out["forces"] = f_pc
             if want_stress:
                 # dU/d(strain): the pair virial plus -sum F_ext (x) x for the position-dependent terms, with x
@@ -518,11 +544,12 @@ class ALARICCalculator(SPHCalculator):
 
     def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False, full=None):
         """(forces (N, 3), the position-dependent (target and wall) part of them (N, 3; the forces themselves
-        unless ``want_virial``), pair virial); ``full`` the SPH state of the particles and their mirror ghosts
-        (boundary="mirror")."""
+        unless ``want_virial``), pair virial); ``state.rho_p`` the densities ``m n``; ``wall_p`` None or (which
+        particles are outside, their outward normals, None (linear) or their ``dU/dphi`` (quadratic)); ``full``
+        unused (kept for subclasses' calls)."""
         p = self.parameters
         m, cs2 = self.mass, p.cs2
-        rho_p = m * state.n_p
+        rho_p = state.rho_p
         # the exact Omega, never floored: a floor here made the force differ from -grad U by 35x at a pair
         # 1e-4 H apart (Omega 1e-3); the stiff force is the dynamics' to resolve (its force time step)
         omega_p = state.omega_p
@@ -542,9 +569,11 @@ class ALARICCalculator(SPHCalculator):
         d = self.dim
         # the pairs see the first d coordinates (the rest are zeros): forces (N, d), fewer terms per pair
         if p.boundary == "mirror":  # ghosts carry no energy: pr = 0; their share folds back through J^T
-            y_pc, h_q = self._ghosts[2], self._ghosts[3]
+            y_pc, h_q = self._ghosts[1], self._ghosts[2]
             pr_q = np.concatenate([pr_p, np.zeros(len(y_pc) - len(r_pc))])
+            pr_p = None
             f_qd, virial = sph.pressure_forces(self.nlist, y_pc, m, h_q, pr_q, self.kernel, dims=d)
+            pr_q = None
             f_pd = self._fold_ghosts(f_qd, len(r_pc))
         else:
             f_pd, virial = sph.pressure_forces(self.nlist, r_pc, m, state.h_p, pr_p, self.kernel,
@@ -560,12 +589,11 @@ class ALARICCalculator(SPHCalculator):
             grad_pd = self.target.gradients(x_pd)
             f_ext_pd += (m * cs2 * (rho_p - target_p) / self._rho_ref)[:, None] * grad_pd
         if wall_p is not None:
-            phi_p, normal_pc, slope_p = wall_p
-            outside = phi_p > 0.0
-            if slope_p is None:  # linear: dU/dphi = m c_s^2 / L outside
-                f_ext_pd[outside] -= (m * cs2 / self._wall) * normal_pc[outside, :d]
+            outside, normal_od, slope_o = wall_p
+            if slope_o is None:  # linear: dU/dphi = m c_s^2 / L outside
+                f_ext_pd[outside] -= (m * cs2 / self._wall) * normal_od
             else:  # quadratic: dU/dphi = m c_s^2 phi_+ / L^2
-                f_ext_pd[outside] -= slope_p[outside, None] * normal_pc[outside, :d]
+                f_ext_pd[outside] -= slope_o[:, None] * normal_od
         f_pc = np.zeros((len(r_pc), 3))
         f_pc[:, :d] = f_pd
         if f_ext_pd is not f_pd:
