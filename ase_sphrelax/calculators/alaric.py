@@ -389,6 +389,8 @@ class ALARICCalculator(SPHCalculator):
             self._skin = p.skin if p.skin is not None else SKIN_FACTOR * float(np.mean(self.h_p))
 
     def stores_list(self):
+        """``store_list``: True (default) walks a stored Verlet list after the first evaluation, False scans
+        one-shot bins at every sum."""
         return bool(self.parameters.store_list)
 
     def cutoff(self, atoms, dim):
