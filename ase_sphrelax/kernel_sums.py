@@ -18,21 +18,24 @@ import numpy as np
 from .kernels import kernel_slope_over_q
 from .pairs import Output, PairInteraction
 
-__all__ = ["pair_potential_sums", "kernel_sums", "KernelSums", "PAIR_POTENTIAL", "PAIR_POTENTIAL_VIRIAL", "KERNEL_SUMS"]
+__all__ = ["pair_potential_sums", "kernel_sums", "KernelSums", "PAIR_POTENTIAL", "PAIR_POTENTIAL_VIRIAL", "PAIR_FORCES",
+           "KERNEL_SUMS"]
 
 
 # Written flat (no nested helper for the shared terms): Fan's hot path, where a nested inline helper was
-# measured 2.5x slower. The virial variant is the same source with ``with_virial`` bound (PairInteraction
-# constants): the branch is pruned at compile time.
+# measured 2.5x slower. The virial and forces-only variants are the same source with ``with_virial`` /
+# ``with_energy`` bound (PairInteraction constants): the branches are pruned at compile time.
 @numba.njit(cache=True, inline="always")
-def _radial_potential(a, b, r2, d, inv_h, scale, with_virial):
-    """phi = scale f(r/h): half the pair energy to each partner, the force +g d on a, and (``with_virial``)
-    the virial phi'(r) d d^T / r (Voigt order xx yy zz yz xz xy)."""
+def _radial_potential(a, b, r2, d, inv_h, scale, with_virial, with_energy):
+    """phi = scale f(r/h): half the pair energy to each partner (``with_energy``), the force +g d on a, and
+    (``with_virial``) the virial phi'(r) d d^T / r (Voigt order xx yy zz yz xz xy)."""
     # g = scale f'(q) / (h r) = scale (f'(q) / q) / h^2: no division (coincident points: d = 0, no force)
     value, slope_over_q = kernel_slope_over_q(math.sqrt(r2) * inv_h)
     g = scale * slope_over_q * inv_h * inv_h
-    half = 0.5 * scale * value
     f0, f1, f2 = g * d[0], g * d[1], g * d[2]
+    if not with_energy:
+        return (f0, f1, f2), (-f0, -f1, -f2), ()
+    half = 0.5 * scale * value
     if with_virial:
         return (half, f0, f1, f2), (half, -f0, -f1, -f2), (f0 * d[0], f1 * d[1], f2 * d[2], f1 * d[2], f0 * d[2],
                                                             f0 * d[1])
@@ -41,12 +44,15 @@ def _radial_potential(a, b, r2, d, inv_h, scale, with_virial):
 
 _PER_POINT = dict(energies=Output(()), forces=Output((3,), spatial=True))
 _POTENTIAL_DATA = dict(params=("inv_h", "scale"))
-PAIR_POTENTIAL = PairInteraction(_radial_potential, _PER_POINT, constants=dict(with_virial=False), **_POTENTIAL_DATA)
+PAIR_POTENTIAL = PairInteraction(_radial_potential, _PER_POINT, constants=dict(with_virial=False, with_energy=True),
+                                 **_POTENTIAL_DATA)
 PAIR_POTENTIAL_VIRIAL = PairInteraction(_radial_potential, dict(_PER_POINT, virial=Output((6,), per_point=False)),
-                                        constants=dict(with_virial=True), **_POTENTIAL_DATA)
+                                        constants=dict(with_virial=True, with_energy=True), **_POTENTIAL_DATA)
+PAIR_FORCES = PairInteraction(_radial_potential, dict(forces=_PER_POINT["forces"]),
+                              constants=dict(with_virial=False, with_energy=False), **_POTENTIAL_DATA)
 
 
-def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False):
+def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False, want_energy=True):
     """Energy, forces and virial of ``phi(r) = scale * f(r / h)`` summed over pairs.
 
     Parameters
@@ -64,10 +70,12 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
         Also the virial (periodic stress).
     planar : bool
         Every ``r_pc`` has z = 0 (1D/2D): the loops read x and y only (:meth:`PairInteraction.compute`).
+    want_energy : bool
+        False (and no virial): forces only, ``energies_p`` None (a step of an optimiser that reads forces).
 
     Returns
     -------
-    energies_p : ndarray (N,)
+    energies_p : ndarray (N,) or None
         Pair energy, half of each pair to each partner.
     f_pc : ndarray (N, 3)
         ``-dE/dx``.
@@ -76,6 +84,8 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
     """
     h = float(h)
     params = dict(inv_h=1.0 / h, scale=float(scale))
+    if not want_virial and not want_energy:
+        return None, PAIR_FORCES.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar).forces, None
     if not want_virial:
         out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar)
         return out.energies, out.forces, np.zeros((3, 3))

@@ -218,3 +218,25 @@ def test_one_shot_scan_and_verlet_list_agree(side):
 def test_non_numbers_are_rejected_as_type_errors(value):
     with pytest.raises(TypeError, match="h must be a positive finite number"):
         FanCalculator(h=value)
+
+
+@pytest.mark.parametrize("domain", [Circle((0.5, 0.5), 0.2), Box((0.0, 0.0), (0.3, 0.2)),
+                                    Sphere((0.5, 0.5, 0.5), 0.1)], ids=["circle", "box2d", "sphere"])
+def test_forces_alone_skip_the_energy_and_equal_the_full_evaluation(domain):
+    """An optimiser's get_forces() asks for forces only: no energy terms are computed (no 'energy' in the
+    results), the forces are those of an energy-and-forces evaluation bit for bit, and the energy asked for
+    afterwards is computed then."""
+    rng = np.random.default_rng(3)
+    dx = 0.03 if domain.dim == 2 else 0.04
+    atoms = bounded_atoms(domain, 60, rng)
+    full = atoms.copy()
+    for a in (atoms, full):
+        a.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain)
+    for _ in range(2):  # one-shot scan, then the stored list
+        f_only = atoms.get_forces()
+        assert "energy" not in atoms.calc.results and "energies" not in atoms.calc.results
+        full.calc.calculate(full, ["energy", "forces"], [])
+        assert np.array_equal(f_only, full.calc.results["forces"])
+        assert atoms.get_potential_energy() == full.calc.results["energy"]
+        atoms.positions[:, : domain.dim] += 0.01 * dx
+        full.positions[:, : domain.dim] += 0.01 * dx

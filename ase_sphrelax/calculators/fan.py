@@ -121,19 +121,24 @@ class FanCalculator(SPHCalculator):
         model, r_pc = self.model, state.r_pc
         vols = model.volumes(len(r_pc), periodic_measure(state.cell, state.atoms.pbc, state.dim))
         want_stress = "stress" in properties
+        # forces alone (an optimiser's step): no energy terms computed; E is computed when asked for
+        want_energy = want_stress or not set(properties) <= {"forces"}
         n = len(r_pc)
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(state.nlist, r_pc, model.h, model.pair_prefactor(vols.v0),
                                                      model.kernel, want_virial=want_stress,
-                                                     planar=state.dim < 3)
+                                                     planar=state.dim < 3, want_energy=want_energy)
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
-        energies_p += model.self_energy(n, vols.v0, vols.volume) / n
+        if want_energy:
+            energies_p += model.self_energy(n, vols.v0, vols.volume) / n
         if model.domain is not None:
             # the boundary elements are found on the bins of the neighbour list (not periodic images)
             nlist = None if any(state.atoms.pbc) else state.nlist
             model.boundary(r_pc, vols.v0, nlist=nlist, out=(energies_p, f_pc))  # added in place
             if state.first:  # the first evaluation of these atoms: say so if some are far outside
                 model.warn_far_outside(r_pc, type(self).__name__)
+        if not want_energy:
+            return dict(forces=f_pc)
         energy = float(energies_p.sum())
         out = dict(energy=energy, energies=energies_p, forces=f_pc)
         if want_stress:

@@ -267,7 +267,7 @@ class FanModel:
             (the calculator's energies and forces): ``"level_set"`` then holds no array of N
             (the level set runs on :data:`_BOUNDARY_CHUNK` particles at a time; at 1e6 in 3D the
             full-N level set, mask, energies and forces held 48 bytes per particle). None:
-            fresh arrays.
+            fresh arrays. The energies None: forces only (the energy terms are not computed).
 
         Returns
         -------
@@ -301,7 +301,8 @@ class FanModel:
             phi_o, n_oc = self._phi_and_normal(r_kc[near])
             s_o = -phi_o
             near += first
-            e_p[near] += 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
+            if e_p is not None:
+                e_p[near] += 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
             if want_forces:
                 g_o = self.kernel.w1(np.maximum(s_o, 0.0), self.h)
                 g_o *= -2.0 * v0
@@ -344,7 +345,7 @@ class FanModel:
             nlist.update(r3_pc, np.zeros((3, 3)), np.zeros(3, dtype=bool), store=False)
         terms = self._integrals.compute(nlist, r3_pc)
         weight = 2.0 * v0 * self.wall_weight
-        e_p = weight * (1.0 - terms.gamma_p)
+        e_p = weight * (1.0 - terms.gamma_p) if out_e_p is not None else None
         f_pc = weight * terms.grad_gamma_pc if want_forces else None
         # the contact core (within d0 of the wall, outside included) and the outside slope (phi > 0)
         d0 = CORE_DISTANCE * v0 ** (1.0 / self.dim)
@@ -354,11 +355,13 @@ class FanModel:
             slope = weight * float(self.kernel.w1(0.0, self.h))
             core = weight * self.core_stiffness / (2.0 * d0 * self.h)
             x_o = np.maximum(d0 + phi_o, 0.0)
-            e_p[near] += slope * np.maximum(phi_o, 0.0) + core * x_o * x_o
+            if e_p is not None:
+                e_p[near] += slope * np.maximum(phi_o, 0.0) + core * x_o * x_o
             if want_forces:
                 g_o = slope * (phi_o > 0.0) + 2.0 * core * x_o
                 f_pc[near] -= g_o[:, None] * n_oc
-        out_e_p += e_p
+        if out_e_p is not None:
+            out_e_p += e_p
         if want_forces:
             out_f_pc += f_pc
         return out_e_p, out_f_pc
