@@ -240,3 +240,25 @@ def test_forces_alone_skip_the_energy_and_equal_the_full_evaluation(domain):
         assert atoms.get_potential_energy() == full.calc.results["energy"]
         atoms.positions[:, : domain.dim] += 0.01 * dx
         full.positions[:, : domain.dim] += 0.01 * dx
+
+
+@pytest.mark.parametrize("domain", [Circle((0.5, 0.5), 0.2), Sphere((0.5, 0.5, 0.5), 0.1)], ids=["circle", "sphere"])
+def test_level_set_term_on_the_particles_near_the_wall_at_the_build_changes_nothing(domain, monkeypatch):
+    """The level-set boundary term evaluated on the particles within h + skin of the wall at the list's build
+    only (FanCalculator._near_wall) gives the trajectory of the term on every particle, bit for bit."""
+    from ase_sphrelax import make_optimizer
+    from ase_sphrelax.build import fill
+
+    dx = 0.01 if domain.dim == 2 else 0.02
+    runs = []
+    for restrict in (True, False):
+        atoms = fill(domain, dx, jitter=0.3, seed=1)
+        atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=domain)
+        if not restrict:
+            monkeypatch.setattr(atoms.calc, "_near_wall", lambda state: None)
+        make_optimizer("fire", atoms).run(fmax=0.0, steps=40)
+        assert atoms.calc.nlist.builds >= 3
+        if restrict:
+            assert 0 < len(atoms.calc._near) < len(atoms)
+        runs.append(atoms.positions.copy())
+    assert np.array_equal(runs[0], runs[1])

@@ -21,6 +21,7 @@ exact strain derivative of ``E`` divided by the cell volume, including the
 """
 from __future__ import annotations
 
+from ..domains import Domain
 from ..kernel_sums import pair_potential_sums
 from ..models.fan import FanModel, verlet_skin
 from .base import SPHCalculator, periodic_measure
@@ -117,6 +118,19 @@ class FanCalculator(SPHCalculator):
         moves rebuild a 0.1 h list every 3-4 steps; a given ``skin`` stays fixed."""
         return None if self.parameters.skin is not None else MAX_SKIN_FACTOR[dim] * skin
 
+    def _near_wall(self, state):
+        """The particles that can be within h of the wall: those within h + skin at the list's build (they have
+        moved less than skin / 2 since), found again at each build; None (all) without a stored list."""
+        nlist = state.nlist
+        if nlist is None or not nlist.stored or self.model.boundary_term != "level_set" \
+                or not isinstance(self.model.domain, Domain):  # a Domain's phi is a signed distance (1-Lipschitz)
+            return None
+        key = (id(nlist), nlist.builds, id(self.model))
+        if getattr(self, "_near_key", None) != key:
+            self._near = self.model.near_wall(nlist._r0_pc, self.model.h + nlist.skin)
+            self._near_key = key
+        return self._near
+
     def evaluate(self, state, properties):
         model, r_pc = self.model, state.r_pc
         vols = model.volumes(len(r_pc), periodic_measure(state.cell, state.atoms.pbc, state.dim))
@@ -134,7 +148,8 @@ class FanCalculator(SPHCalculator):
         if model.domain is not None:
             # the boundary elements are found on the bins of the neighbour list (not periodic images)
             nlist = None if any(state.atoms.pbc) else state.nlist
-            model.boundary(r_pc, vols.v0, nlist=nlist, out=(energies_p, f_pc))  # added in place
+            model.boundary(r_pc, vols.v0, nlist=nlist, out=(energies_p, f_pc),  # added in place
+                           candidates=self._near_wall(state))
             if state.first:  # the first evaluation of these atoms: say so if some are far outside
                 model.warn_far_outside(r_pc, type(self).__name__)
         if not want_energy:

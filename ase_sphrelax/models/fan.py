@@ -250,7 +250,7 @@ class FanModel:
         """``N v0 vt W(0, h) - V``: the ``i = j`` terms of Eq. 3.8 and its ``-V``."""
         return float(n * v0 * v0 * self.kernel.w0(self.h) - volume)
 
-    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None):
+    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None, candidates=None):
         """Boundary term of Eq. 3.8 per particle and its force (:attr:`boundary_term`).
 
         Parameters
@@ -268,6 +268,9 @@ class FanModel:
             (the level set runs on :data:`_BOUNDARY_CHUNK` particles at a time; at 1e6 in 3D the
             full-N level set, mask, energies and forces held 48 bytes per particle). None:
             fresh arrays. The energies None: forces only (the energy terms are not computed).
+        candidates : ndarray of int or None
+            ``"level_set"``: the only particles that can lie within ``h`` of the wall (e.g. those within
+            ``h + skin`` at the neighbour list's build, :meth:`near_wall`); None: all.
 
         Returns
         -------
@@ -293,14 +296,19 @@ class FanModel:
             return self._gamma_boundary(r_pc, v0, want_forces, nlist, e_p, f_pc)
         # Fan's term vanishes at and beyond h from the wall (I(s >= h) = 0, W1(s >= h) = 0): the level set
         # of every particle picks the few within h, whose normals and tail integrals are computed alone
-        for first in range(0, n, _BOUNDARY_CHUNK):
-            r_kc = r_pc[first:first + _BOUNDARY_CHUNK]
+        pool = np.arange(0) if candidates is not None else None
+        for first in range(0, n if candidates is None else len(candidates), _BOUNDARY_CHUNK):
+            if candidates is None:
+                r_kc = r_pc[first:first + _BOUNDARY_CHUNK]
+            else:
+                pool = candidates[first:first + _BOUNDARY_CHUNK]
+                r_kc = r_pc[pool]
             near = np.flatnonzero(self._phi(r_kc) > -self.h)
             if not len(near):
                 continue
             phi_o, n_oc = self._phi_and_normal(r_kc[near])
             s_o = -phi_o
-            near += first
+            near = near + first if candidates is None else pool[near]
             if e_p is not None:
                 e_p[near] += 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
             if want_forces:
@@ -308,6 +316,16 @@ class FanModel:
                 g_o *= -2.0 * v0
                 f_pc[near] += g_o[:, None] * n_oc
         return e_p, f_pc
+
+    def near_wall(self, r_pc, reach):
+        """Indices of the particles within ``reach`` of the wall or outside (``phi > -reach``), ``"level_set"``
+        only (else None): with ``reach = h + skin`` at a neighbour list's build, the only ones that can come
+        within ``h`` while the list is valid (they move less than ``skin / 2``)."""
+        if self.domain is None or self.boundary_term != "level_set":
+            return None
+        parts = [np.flatnonzero(self._phi(r_pc[first:first + _BOUNDARY_CHUNK]) > -reach) + first
+                 for first in range(0, len(r_pc), _BOUNDARY_CHUNK)]
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
 
     def _domain_points(self, r_pc):
         """``r_pc`` as the domain takes it: a Domain takes ASE positions (z dropped in 2D), others ``dim`` columns."""
