@@ -87,6 +87,52 @@ def test_viscosity_uses_the_momenta_and_conserves_momentum():
         assert power < 0  # dissipative
 
 
+@pytest.mark.parametrize("viscosity", ["linear", "laplacian"])
+def test_an_evaluation_keeps_no_per_particle_copies_it_does_not_need(viscosity):
+    """Memory (issue 33): after an evaluation the neighbour list holds no gathered pair-sum inputs, the isothermal
+    sound speed is one number seen M times (a view), the padded positions are one buffer reused by the next
+    evaluation; the viscous and regularisation forces (the mass a parameter of the pair functions, the velocities
+    (M, d)) are those of the per-particle sums written out here for the linear viscosity (Eq. 6)."""
+    from ase_sphrelax.models.parvi import CountingTarget, ParVIModel
+
+    target = gaussian_target(np.zeros(2), np.eye(2))
+    rng = np.random.default_rng(3)
+    r_pc, v_pc = rng.standard_normal((300, 2)), rng.standard_normal((300, 2))
+    model = ParVIModel(CountingTarget(target.log_density, target.score, 2), 2, viscosity=viscosity,
+                       viscosity_alpha=0.3, nu=0.2, regularisation=0.05)
+    ev = model.evaluate(r_pc, v_pc)
+    assert model.nlist.points._gather_buffers == {}
+    assert ev.sound_speed_p.shape == (300,) and ev.sound_speed_p.strides == (0,)
+    np.testing.assert_array_equal(ev.sound_speed_p, np.full(300, model.c0))
+    buffer = model._x_pc
+    model.evaluate(r_pc + 0.01, v_pc)
+    assert model._x_pc is buffer
+    np.testing.assert_array_equal(buffer[:, :2], r_pc + 0.01)
+    assert np.all(buffer[:, 2] == 0.0)
+    # the viscous part alone, against the brute-force pair sum (Eq. 6 / Eq. 5b with the Brookshaw Laplacian)
+    ev = model.evaluate(r_pc, v_pc)
+    no_viscosity = model.evaluate(r_pc, None).forces  # pressure, score and regularisation only
+    k = model.kernel
+    m, h, rho = ev.mass, ev.h, ev.rho
+    brute = np.zeros((300, 2))
+    for a in range(300):
+        d_bc = r_pc - r_pc[a]  # x_b - x_a
+        dist = np.sqrt(np.einsum("bc,bc->b", d_bc, d_bc))
+        hab = 0.5 * (h[a] + h)
+        near = (dist > 0) & (dist < hab)
+        slope = k.dw(dist[near], hab[near])  # dW/dr at the mean support
+        if viscosity == "linear":
+            vr = -np.einsum("bc,bc->b", v_pc[a] - v_pc[near], d_bc[near])  # v_ab . r_ab
+            coeff = -m * m * 2.0 * 0.3 * model.c0 * hab[near] / (rho[a] + rho[near]) * vr / (
+                dist[near] ** 2 + 0.01 * hab[near] ** 2) * slope / dist[near]
+            brute[a] = np.sum(np.where(vr < 0, coeff, 0.0)[:, None] * d_bc[near], axis=0)
+        else:
+            coeff = -0.2 * m * m * 4.0 / (rho[a] + rho[near]) * slope * dist[near] / (
+                dist[near] ** 2 + 0.01 * hab[near] ** 2)
+            brute[a] = np.sum(coeff[:, None] * (v_pc[near] - v_pc[a]), axis=0)
+    np.testing.assert_allclose(ev.forces - no_viscosity, brute, rtol=1e-9, atol=1e-12 * np.abs(brute).max())
+
+
 def test_calculator_rejects_bad_atoms_and_parameters():
     target = get_target("gaussian")
     atoms = _atoms(2, 10)

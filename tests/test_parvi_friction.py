@@ -109,6 +109,11 @@ def test_damping_is_the_exact_matrix_exponential_and_never_adds_energy(d, seed, 
         np.testing.assert_allclose(out[a], scipy.linalg.expm(-0.5 * step * b_cc) @ v_pc[a], rtol=1e-10, atol=1e-12)
     assert np.all(np.linalg.norm(out, axis=1) <= np.linalg.norm(v_pc, axis=1) * (1 + 1e-12))
     np.testing.assert_allclose(damp(v_pc, dt, 0.0, None), v_pc)  # friction 0: the paper's fluid
+    for friction, rule in ((None, drag), (0.7, None)):  # out= (the sampler's in-place kicks): the same bits
+        expected = damp(v_pc, dt, friction, rule)
+        in_place = v_pc.copy()
+        assert damp(in_place, dt, friction, rule, out=in_place) is in_place
+        np.testing.assert_array_equal(in_place, expected)
 
 
 def test_sphrelax_sample_runs_a_variant(tmp_path, capsys):

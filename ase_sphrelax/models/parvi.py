@@ -116,9 +116,9 @@ def _mean_support(a, b, h_s):
 # The pair functions evaluate dW/dr <= 0 with H_ab as ``kernel_profile(r / hab)[1] sigma / hab^(kdim + 1)``
 # (zero for r >= H_ab), the kernel bound per kernel by PairInteraction.
 @numba.njit(cache=True, inline="always")
-def _linear_viscosity_pair(a, b, r2, d, sigma, kdim, coeff, eps, h_s, m_s, rho_s, v_sc):
-    """Eq. 6 for approaching pairs: F_a = m_a m_b eta_ab (v_ab . r_ab)/(r^2 + eps H^2) grad_a W,
-    eta_ab = 2 alpha_v H_ab c0 / (rho_a + rho_b) (``coeff = alpha_v c0``)."""
+def _linear_viscosity_pair(a, b, r2, d, sigma, kdim, coeff, eps, m, h_s, rho_s, v_sc):
+    """Eq. 6 for approaching pairs: F_a = m^2 eta_ab (v_ab . r_ab)/(r^2 + eps H^2) grad_a W,
+    eta_ab = 2 alpha_v H_ab c0 / (rho_a + rho_b) (``coeff = alpha_v c0``; equal masses m)."""
     vr = 0.0  # v_ab . r_ab with r_ab = x_a - x_b = -d
     for c in range(len(d)):
         vr -= (v_sc[a, c] - v_sc[b, c]) * d[c]
@@ -129,39 +129,40 @@ def _linear_viscosity_pair(a, b, r2, d, sigma, kdim, coeff, eps, h_s, m_s, rho_s
     hab = _mean_support(a, b, h_s)
     slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
     # grad_a W = slope (x_a - x_b)/r = -slope d / r
-    k = -m_s[a] * m_s[b] * 2.0 * coeff * hab / (rho_s[a] + rho_s[b]) * vr / (r2 + eps * hab * hab) * slope / r
+    k = -m * m * 2.0 * coeff * hab / (rho_s[a] + rho_s[b]) * vr / (r2 + eps * hab * hab) * slope / r
     return sph.scaled(k, d), sph.scaled(-k, d), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _laplacian_viscosity_pair(a, b, r2, d, sigma, kdim, nu, eps, h_s, m_s, rho_s, v_sc):
+def _laplacian_viscosity_pair(a, b, r2, d, sigma, kdim, nu, eps, m, h_s, rho_s, v_sc):
     """Eq. 5b with the Brookshaw/Morris Laplacian 2 W'(r) r / (r^2 + eps H^2):
-    F_a = m_a m_b nu 2/(rho_a + rho_b) (v_b - v_a) (-lap W), antisymmetric (mean density)."""
+    F_a = m^2 nu 2/(rho_a + rho_b) (v_b - v_a) (-lap W), antisymmetric (mean density; equal masses m)."""
     if r2 == 0.0:
         z = sph.scaled(0.0, d)
         return z, z, ()
     r = math.sqrt(r2)
     hab = _mean_support(a, b, h_s)
     slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
-    k = -nu * m_s[a] * m_s[b] * 2.0 / (rho_s[a] + rho_s[b]) * 2.0 * slope * r / (r2 + eps * hab * hab)  # >= 0
+    k = -nu * m * m * 2.0 / (rho_s[a] + rho_s[b]) * 2.0 * slope * r / (r2 + eps * hab * hab)  # >= 0
     fa = scaled_row_difference(k, v_sc, a, b, d)
     return fa, sph.scaled(-1.0, fa), ()
 
 
 @numba.njit(cache=True, inline="always")
-def _regularisation_pair(a, b, r2, d, sigma, kdim, c_reg, eps, h_s, m_s, rho_s):
-    """a gathers Eq. 8 with the repulsive sign: F_a = -c m_a sum_b m_b grad_a W_ab / (rho_a + eps)."""
+def _regularisation_pair(a, b, r2, d, sigma, kdim, c_reg, eps, m, h_s, rho_s):
+    """a gathers Eq. 8 with the repulsive sign: F_a = -c m sum_b m grad_a W_ab / (rho_a + eps) (equal masses m)."""
     if r2 == 0.0:
         return sph.scaled(0.0, d), ()
     r = math.sqrt(r2)
     hab = _mean_support(a, b, h_s)
     slope = kernel_profile(r / hab)[1] * sigma / hab ** (kdim + 1)
     # grad_a W = -slope d / r, so F_a = c m_a m_b slope d / (r (rho_a + eps)) (points away from b)
-    k = c_reg * m_s[a] * m_s[b] * slope / (r * (rho_s[a] + eps))
+    k = c_reg * m * m * slope / (r * (rho_s[a] + eps))
     return sph.scaled(k, d), ()
 
 
-# name: (pair function, its coefficient's name, symmetric)
+# name: (pair function, its coefficient's name, symmetric). The particles' common mass m is a parameter, not a
+# per-particle input: one gathered array fewer per pair sum (the products are the same, m_a m_b = m m).
 _PAIRS = {"linear": (_linear_viscosity_pair, "coeff", True), "laplacian": (_laplacian_viscosity_pair, "nu", True),
           "regularisation": (_regularisation_pair, "c_reg", False)}
 _INTERACTIONS: dict = {}
@@ -171,9 +172,9 @@ def _interaction(name, dim_points):
     key = (name, dim_points)
     if key not in _INTERACTIONS:
         pair, coefficient, symmetric = _PAIRS[name]
-        inputs = ("h_s", "m_s", "rho_s") + (("v_sc",) if symmetric else ())
+        inputs = ("h_s", "rho_s") + (("v_sc",) if symmetric else ())
         _INTERACTIONS[key] = PairInteraction(pair, dict(forces=Output((dim_points,))),
-                                             params=("sigma", "kdim", coefficient, "eps"), inputs=inputs,
+                                             params=("sigma", "kdim", coefficient, "eps", "m"), inputs=inputs,
                                              symmetric=symmetric, dim=dim_points)
     return _INTERACTIONS[key]
 
@@ -384,6 +385,7 @@ class ParVIModel:
         self.nlist = None
         self.h_tol = 1e-8  # relative tolerance of the adaptive H solve
         self._h_p = None
+        self._x_pc = None  # the padded positions (_positions)
         self._cell = np.zeros((3, 3))
         self._pbc = np.zeros(3, dtype=bool)
 
@@ -433,6 +435,17 @@ class ParVIModel:
         out[:, : self.dim] = r_pc
         return out
 
+    def _positions(self, r_pc):
+        """:meth:`_points` of the positions, written into one buffer kept between calls for d <= 3 (the neighbour
+        list copies what it keeps): not a fresh (M, 3) array twice per evaluation."""
+        if self.dim > 3:
+            return self._points(r_pc)
+        if self._x_pc is None or self._x_pc.shape[0] != r_pc.shape[0]:
+            self._x_pc = None
+            self._x_pc = np.zeros((r_pc.shape[0], 3))
+        self._x_pc[:, : self.dim] = r_pc
+        return self._x_pc
+
     def _neighbours(self, reach):
         if self.nlist is None:
             skin = 0.2 * reach
@@ -446,7 +459,7 @@ class ParVIModel:
     def densities(self, r_pc):
         """(rho (M,), h (M,), omega (M,)) by summation, with fixed or adaptive support."""
         m = r_pc.shape[0]
-        x = self._points(r_pc)
+        x = self._positions(r_pc)
         mass = self.particle_mass(m)
         if self.adaptive:
             if self._h_p is None or self._h_p.shape[0] != m:
@@ -542,40 +555,46 @@ class ParVIModel:
             log_p = self.target.log_density(r_pc)
         if self.formulation != "force":
             pressure = p_int + self.external_pressure(log_p)
-        x = self._points(r_pc)
-        f_pc, _ = sph.pressure_forces(self.nlist, x, mass, h_p, pressure / (omega_p * rho * rho), self.kernel)
-        f_pc = np.array(f_pc[:, : self.dim])
+        x = self._positions(r_pc)
+        # dims: the pairs see the d coordinates (the padding's zeros add nothing), and the forces come as (M, d)
+        f_pc, _ = sph.pressure_forces(self.nlist, x, mass, h_p, pressure / (omega_p * rho * rho), self.kernel,
+                                      dims=self.dim)
+        f_pc = np.ascontiguousarray(f_pc[:, : self.dim])  # a fresh array (the pair sum's output): no copy
         fallback = 0
         if self.formulation == "force":
             g_pc, fallback = self.body_score(r_pc)
             f_pc += self.alpha * mass * g_pc
         if v_pc is not None and self.viscosity != "none":
-            f_pc += self._viscosity(x, self._points(np.asarray(v_pc, dtype=float)), mass, h_p, rho)
+            f_pc += self._viscosity(x, np.ascontiguousarray(v_pc, dtype=float), mass, h_p, rho)
         if self.regularisation > 0.0:
-            out = _interaction("regularisation", x.shape[1]).compute(
-                self.nlist, x, params=self._pair_params("regularisation", self.regularisation),
-                inputs=dict(h_s=h_p, m_s=np.full(m, mass), rho_s=rho), reach=float(h_p.max()), kernel=self.kernel)
-            f_pc += out.forces[:, : self.dim]
+            out = _interaction("regularisation", self.dim).compute(
+                self.nlist, x, params=self._pair_params("regularisation", self.regularisation, mass),
+                inputs=dict(h_s=h_p, rho_s=rho), reach=float(h_p.max()), kernel=self.kernel)
+            f_pc += out.forces
+        if hasattr(self.nlist, "release_gathered"):
+            self.nlist.release_gathered()  # the pair sums' gathered inputs: not held through the next step's H solve
         energy = None
         if want_energy and self.conservative and log_p is not None:
             energy = float(mass * self.internal_energy(rho).sum() - self.alpha * mass * log_p.sum())
         accel = np.sqrt(np.einsum("pc,pc->p", f_pc, f_pc)).max() / mass
+        # isothermal: one sound speed for all, a read-only view rather than M copies
+        sound_p = np.broadcast_to(np.sqrt(cs2[:1]), cs2.shape) if self.eos == "isothermal" else np.sqrt(cs2)
         return ParVIEvaluation(forces=f_pc, rho=rho, rho_summation=rho_sum, h=h_p, pressure=pressure, log_p=log_p,
                                energy=energy, accel_max=float(accel), sound_speed=float(np.sqrt(cs2.max())),
-                               sound_speed_p=np.sqrt(cs2), fallback=fallback, mass=mass)
+                               sound_speed_p=sound_p, fallback=fallback, mass=mass)
 
-    def _pair_params(self, name, coefficient):
-        """The parameters of the pair function ``name`` (:data:`_PAIRS`) by name."""
+    def _pair_params(self, name, coefficient, mass):
+        """The parameters of the pair function ``name`` (:data:`_PAIRS`) by name; ``mass`` the particles' mass."""
         return {"sigma": float(self.kernel.sigma), "kdim": float(self.kernel.dim), _PAIRS[name][1]: float(coefficient),
-                "eps": 0.01}
+                "eps": 0.01, "m": float(mass)}
 
     def _viscosity(self, x, v, mass, h_p, rho):
-        m = x.shape[0]
+        """The viscous forces (M, d) at the padded positions ``x`` and the velocities ``v`` (M, d)."""
         coefficient = self.viscosity_alpha * self.c0 if self.viscosity == "linear" else self.nu
-        out = _interaction(self.viscosity, x.shape[1]).compute(
-            self.nlist, x, params=self._pair_params(self.viscosity, coefficient),
-            inputs=dict(h_s=h_p, m_s=np.full(m, mass), rho_s=rho, v_sc=v), reach=float(h_p.max()), kernel=self.kernel)
-        return out.forces[:, : self.dim]
+        out = _interaction(self.viscosity, self.dim).compute(
+            self.nlist, x, params=self._pair_params(self.viscosity, coefficient, mass),
+            inputs=dict(h_s=h_p, rho_s=rho, v_sc=v), reach=float(h_p.max()), kernel=self.kernel)
+        return out.forces
 
     def density_rate(self, r_pc, v_pc, rho_p):
         """drho/dt of the continuity equation with Eq. 29 diffusion (fixed h; call after :meth:`evaluate`)."""

@@ -97,10 +97,12 @@ def critical_drag(score_pc, alpha):
     return q_cc, 2.0 * np.sqrt(alpha * lam_c)
 
 
-def damp(v_pc, dt, friction, drag):
+def damp(v_pc, dt, friction, drag, out=None):
     """``exp(-B dt / 2) v`` for rows ``v_pc`` (M, d): ``B = friction I`` when ``drag`` is None, else
-    ``B = Q diag(rate) Q^T`` with ``drag = (Q, rate)``; ``dt`` a number or per-particle steps (M, 1)."""
+    ``B = Q diag(rate) Q^T`` with ``drag = (Q, rate)``; ``dt`` a number or per-particle steps (M, 1).
+    ``out``: an (M, d) array for the result (it may be ``v_pc`` itself), else a new one."""
     if drag is None:
-        return v_pc * (math.exp(-0.5 * friction * dt) if np.isscalar(dt) else np.exp(-0.5 * friction * dt))
+        return np.multiply(v_pc, math.exp(-0.5 * friction * dt) if np.isscalar(dt) else np.exp(-0.5 * friction * dt),
+                           out=out)
     q_cc, rate_c = drag
-    return (v_pc @ q_cc) * np.exp(-0.5 * dt * rate_c) @ q_cc.T
+    return np.matmul((v_pc @ q_cc) * np.exp(-0.5 * dt * rate_c), q_cc.T, out=out)

@@ -537,9 +537,9 @@ class ParVISampler:
         r[duplicate] += 1e-3 * scale * rng.standard_normal((int(duplicate.sum()), r.shape[1]))
         return r, int(duplicate.sum())
 
-    def _divergence_hint(self, r0):
-        """What to change after a divergence: the initial spread against the target's scale, then the step."""
-        spread_c = np.std(r0, axis=0)
+    def _divergence_hint(self, spread_c):
+        """What to change after a divergence: the initial spread ``spread_c`` (the initial particles' sd per axis)
+        against the target's scale, then the step."""
         hint = ""
         scale_c = self.target_scale
         if scale_c is not None and np.any(np.isfinite(scale_c)):
@@ -664,7 +664,7 @@ class ParVISampler:
             if self._friction_from_target and not isinstance(self.friction, str):
                 self.friction *= math.exp((self.map.log_det - old_log_det) / self.dim)
                 self.parameters["friction"] = self.friction
-        r0 = r.copy()
+        spread0_c = np.std(r, axis=0)  # for the divergence hint (not a copy of the particles)
         if self.h_schedule == "anneal":
             model.set_h(self._h_at(0))
         want_energy = model.conservative and self.target.has_density
@@ -702,7 +702,7 @@ class ParVISampler:
         if self.adaptive_hold:  # steps: evaluations per particle; the SPH steps stop when they are spent
             limit = (self.hold_max + 1) * self.steps  # every particle holding as long as it may
             budget = (self.steps + 1) * self.n
-            r_last, age_p = r.copy(), np.zeros(self.n, dtype=int)
+            r_last, age_p = r.copy(), np.zeros(self.n, dtype=np.min_scalar_type(self.hold_max))
             moved = 0  # evaluations triggered by a displacement (the others: the start and hold_max)
         step = 0
         verdict = None
@@ -710,10 +710,12 @@ class ParVISampler:
             step += 1
             dt_p1 = dt if np.isscalar(dt) else dt[:, None]  # (M, 1) local steps or one number
             friction, drag = self._drag_at(step)
-            v = damp(v, dt_p1, friction, drag) + (0.5 * dt_p1 / m) * ev.forces
+            # r and v are updated in place (the same operations as ``v = damp(v) + ...``, ``r = r + dt v``): their
+            # arrays stay where they are, the step's temporaries do not leave holes of their size in the heap
+            np.add(damp(v, dt_p1, friction, drag), (0.5 * dt_p1 / m) * ev.forces, out=v)
             if rho is not None:
                 rho = rho + np.ravel(dt_p1) * model.density_rate(r, v, rho)
-            r = r + dt_p1 * v
+            r += dt_p1 * v
             if self.h_schedule == "anneal":
                 model.set_h(self._h_at(step))
             if self.adaptive_hold:  # per particle (held_particles); the held ones keep the score of r_last
@@ -722,20 +724,23 @@ class ParVISampler:
                 self.target.hold = held_p
                 moved += int(np.sum(~held_p & (age_p < self.hold_max)))
                 r_last[~held_p] = r[~held_p]
-                age_p = np.where(held_p, age_p + 1, 0)
+                age_p += held_p  # in place: a held particle's age is < hold_max before, <= hold_max after
+                age_p[~held_p] = 0
             else:
                 self.target.hold = step % self.score_every != 0  # score_every: the score of the last K-th step
+            ev = None  # the last evaluation's arrays: not held through this one's H solve
             ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % (self.record_every *
                                                                                    self._record_period) == 0)
             if self.adaptive_hold and self._scores_evaluated() >= budget:
                 limit = step  # the evaluation budget is spent
-            v = damp(v + (0.5 * dt_p1 / m) * ev.forces, dt_p1, friction, drag)
+            v += (0.5 * dt_p1 / m) * ev.forces
+            damp(v, dt_p1, friction, drag, out=v)
             fallback += ev.fallback
             sim_time += float(np.median(dt))
             kinetic = 0.5 * m * float(np.einsum("pc,pc->", v, v))
             if not (np.all(np.isfinite(r)) and np.all(np.isfinite(v))) or kinetic > 1e6 * scale:
                 raise ParVIDivergence(f"SPH-ParVI diverged at step {step} (dt = {np.min(dt):.3g}, kinetic energy "
-                                      f"{kinetic:.3g}): {self._divergence_hint(r0)}")
+                                      f"{kinetic:.3g}): {self._divergence_hint(spread0_c)}")
             if rho is not None and not np.all(rho > 0):
                 raise ParVIDivergence(f"SPH-ParVI: the continuity density became <= 0 at step {step} "
                                       f"(dt = {np.min(dt):.3g}); use a smaller dt or summation densities")
@@ -743,9 +748,10 @@ class ParVISampler:
                     and step < limit:  # renew the map; the state is carried over exactly (whitening.py)
                 r, v, rho = self.map.renew(r, v, rho)
                 self.target.hold = False  # the held score is in the old coordinates
+                ev = None
                 ev = model.evaluate(r, v, rho_p=rho, want_energy=want_energy and step % self.record_every == 0)
                 if self.adaptive_hold:
-                    r_last, age_p = r.copy(), np.zeros(self.n, dtype=int)
+                    r_last, age_p = r.copy(), np.zeros_like(age_p)
                 self._renew_drag()
             elif step % self.friction_every == 0:
                 self._renew_drag()
