@@ -102,11 +102,12 @@ def test_an_evaluation_keeps_no_per_particle_copies_it_does_not_need(viscosity):
                        viscosity_alpha=0.3, nu=0.2, regularisation=0.05)
     ev = model.evaluate(r_pc, v_pc)
     assert model.nlist.points._gather_buffers == {}
+    assert not model.nlist.stored  # the first solve, from the guess: bins only, no list of the guess's pairs
     assert ev.sound_speed_p.shape == (300,) and ev.sound_speed_p.strides == (0,)
     np.testing.assert_array_equal(ev.sound_speed_p, np.full(300, model.c0))
     buffer = model._x_pc
     model.evaluate(r_pc + 0.01, v_pc)
-    assert model._x_pc is buffer
+    assert model._x_pc is buffer and model.nlist.stored  # from the last H: a Verlet list
     np.testing.assert_array_equal(buffer[:, :2], r_pc + 0.01)
     assert np.all(buffer[:, 2] == 0.0)
     # the viscous part alone, against the brute-force pair sum (Eq. 6 / Eq. 5b with the Brookshaw Laplacian)

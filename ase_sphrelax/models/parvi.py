@@ -462,7 +462,8 @@ class ParVIModel:
         x = self._positions(r_pc)
         mass = self.particle_mass(m)
         if self.adaptive:
-            if self._h_p is None or self._h_p.shape[0] != m:
+            guess = self._h_p is None or self._h_p.shape[0] != m
+            if guess:
                 spread = np.sqrt(np.mean(np.var(r_pc, axis=0))) or 1.0
                 # twice the spacing of a uniform ball of radius 2 spread: a guess from above, where the
                 # Newton steps on H are safe (below, a first particle just outside H gives dg ~ 0 and a huge step)
@@ -471,8 +472,13 @@ class ParVIModel:
             nlist = self._neighbours(float(np.median(self._h_p)))
             try:
                 eta = self._eta_for(m)
+                # from the guess (H well above the root) the sums scan the bins without a Verlet list: a list of
+                # the guess's pairs (about 3.5 times the converged one's) set the run's peak memory and was walked
+                # until the particles left its skin; the next update builds the list at the converged H. The sums
+                # are the same but taken in the bins' order: this evaluation's H, rho and forces change in the
+                # last bit (1e-15 relative), far below the H solve's own tolerance (h_tol)
                 sums = sph.solve_smoothing_lengths(nlist, x, self._cell, self._pbc, mass, self.kernel, eta=eta,
-                                                   h0=self._h_p, tol=self.h_tol)
+                                                   h0=self._h_p, tol=self.h_tol, store=not guess)
             except sph.SmoothingLengthError as exc:
                 raise ValueError(f"n_neighbours: {exc}") from None
             self._h_p = sums.h_p
