@@ -292,70 +292,57 @@ def _derivative_in_q(coef_u, order):
     return poly
 
 
-def _closed_form_source(name, breaks, pieces_u, orders):
-    """Source of ``name(q)`` -> (f, f', ..., f^(orders)) of the piecewise profile, zeros for q >= 1.
+def _piecewise_source(name, breaks, piece_terms):
+    """Source of ``name(q)`` -> the terms of its segment, zeros for q >= 1. ``piece_terms[s]``: the segment's
+    terms as ``(expression in u, lowest power of u)`` (:func:`_horner`), ``u = b_{s+1} - q``.
 
-    One segment whose every term has a factor ``u`` (Wendland C4's five derivatives, C2's value and slope)
-    is written without a branch: ``u = 0`` beyond the support gives the zeros. In the pair loops of
-    adaptive smoothing lengths the test ``q >= 1`` goes either way at random (listed pairs beyond one
-    partner's ``H``); as a select it costs no mispredicted branch (ALARIC's pressure pass 1.4x faster).
+    One segment whose every term has a factor ``u`` is written without a branch: ``u = 0`` beyond the support
+    gives the zeros. In the pair loops of adaptive smoothing lengths the test ``q >= 1`` goes either way at random
+    (listed pairs beyond one partner's ``H``); as a select it costs no mispredicted branch (ALARIC's pressure pass
+    1.4x faster).
     """
-    zeros = "(" + "0.0, " * (orders + 1) + ")"
-    if len(pieces_u) == 1 and float(breaks[1]) >= 1.0 and \
-            all(low >= 1 for _, low in (_horner(_derivative_in_q(pieces_u[0], j)) for j in range(orders + 1))):
-        lines = [f"def {name}(q):", "    u = 0.0 if q >= 1.0 else 1.0 - q  # a select: zeros beyond the support"]
-        terms = [_horner(_derivative_in_q(pieces_u[0], j)) for j in range(orders + 1)]
+    def body(pad, terms):
         top = max(low for _, low in terms)
-        lines += [f"    u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
-        lines.append(f"    return ({''.join(expr + ', ' for expr, _ in terms)})")
-        return "\n".join(lines) + "\n"
-    lines = [f"def {name}(q):", "    if q >= 1.0:", f"        return {zeros}"]
-    for s, coef_u in enumerate(pieces_u):
+        return [f"{pad}u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)] + \
+            [f"{pad}return ({''.join(expr + ', ' for expr, _ in terms)})"]
+
+    if len(piece_terms) == 1 and float(breaks[1]) >= 1.0 and all(low >= 1 for _, low in piece_terms[0]):
+        lines = [f"def {name}(q):", "    u = 0.0 if q >= 1.0 else 1.0 - q  # a select: zeros beyond the support"]
+        return "\n".join(lines + body("    ", piece_terms[0])) + "\n"
+    lines = [f"def {name}(q):", "    if q >= 1.0:", "        return (" + "0.0, " * len(piece_terms[0]) + ")"]
+    for s, terms in enumerate(piece_terms):
         right = min(float(breaks[s + 1]), 1.0)
-        last = s == len(pieces_u) - 1
+        last = s == len(piece_terms) - 1
         pad = " " * (4 if last else 8)
         if not last:
             lines.append(f"    if q < {right!r}:")
         lines.append(f"{pad}u = {right!r} - q")
-        terms = [_horner(_derivative_in_q(coef_u, j)) for j in range(orders + 1)]
-        top = max(low for _, low in terms)
-        lines += [f"{pad}u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
-        lines.append(f"{pad}return ({''.join(expr + ', ' for expr, _ in terms)})")
+        lines += body(pad, terms)
     return "\n".join(lines) + "\n"
+
+
+def _closed_form_source(name, breaks, pieces_u, orders):
+    """Source of ``name(q)`` -> (f, f', ..., f^(orders)) of the piecewise profile (:func:`_piecewise_source`)."""
+    return _piecewise_source(name, breaks, [[_horner(_derivative_in_q(coef_u, j)) for j in range(orders + 1)]
+                                            for coef_u in pieces_u])
 
 
 def _slope_over_q_source(name, breaks, pieces_q, pieces_u):
     """Source of ``name(q)`` -> (f, f'/q): on the first segment ``f'/q`` is the polynomial
     ``sum_k k c_k q^(k-2)`` (exact when ``c_1 = 0``), written in ``u`` as the profile is; on the others
-    ``f' / q``. One segment whose terms all have a factor ``u``: branchless, as :func:`_closed_form_source`."""
+    ``f' / q`` (:func:`_piecewise_source`)."""
     first = _exact(pieces_q[0])
     smooth = len(first) < 2 or first[1] == 0
-    over_q = _to_u([k * c for k, c in enumerate(first)][2:] or [0], breaks[1]) if smooth else None
-    value = [_horner(np.asarray(p, dtype=float)) for p in pieces_u]
-    slope = [_horner(_derivative_in_q(p, 1)) for p in pieces_u]
-    if smooth and len(pieces_u) == 1 and float(breaks[1]) >= 1.0 and value[0][1] >= 1 and _horner(over_q)[1] >= 1:
-        terms = [value[0], _horner(over_q)]
-        top = max(low for _, low in terms)
-        lines = [f"def {name}(q):", "    u = 0.0 if q >= 1.0 else 1.0 - q  # a select: zeros beyond the support"]
-        lines += [f"    u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
-        lines.append(f"    return ({terms[0][0]}, {terms[1][0]})")
-        return "\n".join(lines) + "\n"
-    lines = [f"def {name}(q):", "    if q >= 1.0:", "        return (0.0, 0.0)"]
-    for s in range(len(pieces_u)):
-        right = min(float(breaks[s + 1]), 1.0)
-        last = s == len(pieces_u) - 1
-        pad = " " * (4 if last else 8)
-        if not last:
-            lines.append(f"    if q < {right!r}:")
-        lines.append(f"{pad}u = {right!r} - q")
+    piece_terms = []
+    for s, coef_u in enumerate(pieces_u):
+        value = _horner(np.asarray(coef_u, dtype=float))
         if s == 0 and smooth:
-            ratio = _horner(over_q)
+            ratio = _horner(_to_u([k * c for k, c in enumerate(first)][2:] or [0], breaks[1]))
         else:
-            ratio = (f"({slope[s][0]}) / q" + (" if q > 0.0 else 0.0" if s == 0 else ""), slope[s][1])
-        top = max(value[s][1], ratio[1])
-        lines += [f"{pad}u{k} = {'u' if k == 2 else f'u{k - 1}'} * u" for k in range(2, top + 1)]
-        lines.append(f"{pad}return ({value[s][0]}, {ratio[0]})")
-    return "\n".join(lines) + "\n"
+            slope, low = _horner(_derivative_in_q(coef_u, 1))
+            ratio = (f"({slope}) / q" + (" if q > 0.0 else 0.0" if s == 0 else ""), low)
+        piece_terms.append([value, ratio])
+    return _piecewise_source(name, breaks, piece_terms)
 
 
 def _placeholder_source(kernel, placeholder, name):
