@@ -88,7 +88,8 @@ def test_adaptive_skin_grows_for_lists_rebuilt_often_and_shrinks_for_lists_that_
         r_pc = r_pc + rng.uniform(-0.03, 0.03, r_pc.shape)  # about one build per two moves at skin 0.1
         nlist.update(r_pc, cell, pbc)
         skins.append(nlist.skin)
-        assert listed_pairs(nlist, r_pc, cell, pbc, 1.0) == set(brute_force_pairs(r_pc, cell, pbc, 1.0))
+        if step % 5 == 4:  # the brute-force reference is the slow part
+            assert listed_pairs(nlist, r_pc, cell, pbc, 1.0) == set(brute_force_pairs(r_pc, cell, pbc, 1.0))
     assert skins[0] == 0.1 and max(skins) == pytest.approx(0.3) and skins == sorted(skins)
     for _ in range(SKIN_SHRINK_ABOVE + 1):  # still: the list lasts
         nlist.update(r_pc, cell, pbc)
