@@ -1110,6 +1110,7 @@ class NeighborList:
         if store and self.stored and key == self._key:
             self._adapt_skin()
         self._build(r_pc, cell, pbc, store)
+        self._reuses = 0
         self._key = key
         if self._r0_pc is not None and self._r0_pc.shape == r_pc.shape and self._r0_pc is not r_pc:
             np.copyto(self._r0_pc, r_pc)  # in place: not a second copy of the positions at a rebuild's peak
