@@ -1071,6 +1071,11 @@ class NeighborList:
         return self._pair_j
 
     @property
+    def positions_at_build(self):
+        """The positions (N, 3) the current list (or bins) was built for, read only; None before any build."""
+        return self._r0_pc
+
+    @property
     def build_pending(self):
         """True after a (re)build whose list scan waits for the next pair sum to fuse with
         (:meth:`fused_build`); reading the list or moving the points completes it first."""

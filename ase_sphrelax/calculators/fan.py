@@ -127,7 +127,7 @@ class FanCalculator(SPHCalculator):
             return None
         key = (id(nlist), nlist.builds, id(self.model))
         if getattr(self, "_near_key", None) != key:
-            self._near = self.model.near_wall(nlist._r0_pc, self.model.h + nlist.skin)
+            self._near = self.model.near_wall(nlist.positions_at_build, self.model.h + nlist.skin)
             self._near_key = key
         return self._near
 

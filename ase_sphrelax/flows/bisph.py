@@ -87,7 +87,7 @@ import numpy as np
 
 from ..boundary import BoundaryIntegrals, as_boundary
 from ..checks import check_positive
-from ..kernels import get_kernel, kernel_profile, kernel_slope_over_q, profile_value_and_slope
+from ..kernels import get_kernel, kernel_slope_over_q, profile_value_and_slope
 from ..neighbors import NeighborList
 from ..pairs import Output, PairInteraction
 

@@ -295,20 +295,19 @@ class FanModel:
         if self.boundary_term == "gamma":
             return self._gamma_boundary(r_pc, v0, want_forces, nlist, e_p, f_pc)
         # Fan's term vanishes at and beyond h from the wall (I(s >= h) = 0, W1(s >= h) = 0): the level set
-        # of every particle picks the few within h, whose normals and tail integrals are computed alone
-        pool = np.arange(0) if candidates is not None else None
-        for first in range(0, n if candidates is None else len(candidates), _BOUNDARY_CHUNK):
-            if candidates is None:
-                r_kc = r_pc[first:first + _BOUNDARY_CHUNK]
-            else:
-                pool = candidates[first:first + _BOUNDARY_CHUNK]
-                r_kc = r_pc[pool]
-            near = np.flatnonzero(self._phi(r_kc) > -self.h)
-            if not len(near):
+        # of every particle (or of the candidates) picks the few within h, whose normals and tail integrals are
+        # computed alone
+        if candidates is None:
+            candidates = self.near_wall(r_pc, self.h)
+        for first in range(0, len(candidates), _BOUNDARY_CHUNK):
+            pool = candidates[first:first + _BOUNDARY_CHUNK]
+            r_kc = r_pc[pool]
+            inside_h = np.flatnonzero(self._phi(r_kc) > -self.h)
+            if not len(inside_h):
                 continue
-            phi_o, n_oc = self._phi_and_normal(r_kc[near])
+            phi_o, n_oc = self._phi_and_normal(r_kc[inside_h])
             s_o = -phi_o
-            near = near + first if candidates is None else pool[near]
+            near = pool[inside_h]
             if e_p is not None:
                 e_p[near] += 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h)
             if want_forces:
