@@ -131,11 +131,11 @@ def _flat(values, r_pc):
     """
     if not len(values) or not np.count_nonzero(values):  # the fastest pass over a strided column
         return True
-    scale = max(1.0, float(np.abs(r_pc).max()))
-    return float(np.abs(values).max()) <= 1e-12 * scale
+    largest = max(float(values.max()), -float(values.min()))  # no temporaries of the size of the arrays
+    return largest <= 1e-12 * max(1.0, float(r_pc.max()), -float(r_pc.min()))
 
 
-def resolve_dim(atoms, dim=None, domain=None, name="dim"):
+def resolve_dim(atoms, dim=None, domain=None, name="dim", zero_axes=None):
     """The dimension of ``atoms``: one rule for calculators, analysis, build and ``lammps_io``.
 
     Parameters
@@ -148,6 +148,9 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
         Its ``dim`` must agree with ``dim``; with ``dim`` None it decides.
     name : str
         How the caller calls the parameter, for the messages (e.g. ``"FanCalculator(dim=...)"``).
+    zero_axes : (bool or None, bool or None), optional
+        What the caller already knows of ``atoms.positions``: whether every y, every z is exactly 0
+        (a calculator's one pass over them); None: looked at here.
 
     Returns
     -------
@@ -189,7 +192,10 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
     pbc = np.asarray(atoms.pbc, dtype=bool)
     n = len(r_pc)
     target = dim if dim is not None else domain_dim if domain_dim is not None else declared
-    z_flat = _flat(r_pc[:, 2], r_pc) if target != 3 or (n >= 2 and not pbc[2]) else False
+    # 3D: whether every z is 0 matters only when nothing declared the atoms 3D (the last check below)
+    y_zero, z_zero = zero_axes if zero_axes is not None else (None, None)
+    needed = target != 3 or (n >= 2 and not pbc[2] and 3 not in (declared, domain_dim))
+    z_flat = bool(z_zero or _flat(r_pc[:, 2], r_pc)) if needed else False
     if target is None:  # infer from the geometry
         z_equal = z_flat or float(np.ptp(r_pc[:, 2])) <= 1e-12 * max(1.0, float(np.abs(r_pc).max()))
         if pbc[2] or not z_equal:
@@ -198,7 +204,7 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
             raise ValueError(f"atoms: every particle has z = {r_pc[0, 2]:.6g} and the cell is not periodic in z, "
                              f"so the dimension is ambiguous: 2D particles must lie at z = 0 (shift them: "
                              f"atoms.positions[:, 2] = 0), a flat 3D set needs {name}=3")
-        if pbc[1] or not _flat(r_pc[:, 1], r_pc):
+        if pbc[1] or not (y_zero or _flat(r_pc[:, 1], r_pc)):
             return 2
         return 1
     if target < 3:
@@ -207,7 +213,7 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim"):
             raise ValueError(f"a {target}D system cannot be periodic along {unused} (atoms.pbc = {pbc.tolist()}): "
                              f"set atoms.pbc[{target}:] = False, or pass {name}=3 for 3D atoms ({DIM_RULE})")
         for k in range(target, 3):
-            if not (z_flat if k == 2 else _flat(r_pc[:, k], r_pc)):
+            if not (z_flat if k == 2 else y_zero or _flat(r_pc[:, k], r_pc)):
                 bad = np.nonzero(np.abs(r_pc[:, k]) > 1e-12 * max(1.0, float(np.abs(r_pc).max())))[0]
                 raise ValueError(f"a {target}D system needs every particle at {'xyz'[k]} = 0, but {len(bad)} have "
                                  f"{'xyz'[k]} != 0 (non-zero coordinates beyond axis {target - 1}; e.g. particle "

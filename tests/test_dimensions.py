@@ -114,3 +114,36 @@ def test_lattice_analysis_uses_the_same_rule():
     assert classify_lattice(atoms) == classify_lattice(atoms, dim=2)
     with pytest.raises(ValueError, match=r"info\['dim'\] = 2"):
         classify_lattice(atoms, dim=3)
+
+
+@pytest.mark.parametrize("z", [0.0, 1e-14, -1e-14, 1e-3])
+def test_the_calculators_one_pass_gives_the_rules_verdicts(z):
+    """SPHCalculator.resolve_dim looks at the positions once (finite, y = 0, z = 0) and hands that to
+    checks.resolve_dim: the verdicts and prepare's positions are those of the rule's own look (round-off z
+    accepted and zeroed in a copy, a real z refused), for 2D, 1D and flat 3D sets."""
+    a2 = fill(Circle((0, 0), 0.5), 0.1, jitter=0.2, seed=3)
+    a2.positions[::7, 2] = z
+    calc = FanCalculator(h=0.26, dx=0.1)
+    if z == 1e-3:
+        with pytest.raises(ValueError, match="needs every particle at z = 0"):
+            calc.resolve_dim(a2)
+        with pytest.raises(ValueError, match="needs every particle at z = 0"):
+            resolve_dim(a2)
+        return
+    assert calc.resolve_dim(a2) == resolve_dim(a2) == 2
+    r_pc, _ = calc.prepare(a2, 0.26, 0.026)
+    assert np.all(r_pc[:, 2] == 0.0) and (r_pc is a2.positions) == (z == 0.0)
+    assert a2.positions[7, 2] == z  # the caller's positions stay as they are
+    line = Atoms("X3", positions=[(0, 0, 0), (1, z, 0), (2, 0, z)], cell=[3, 0, 0], pbc=(True, False, False))
+    assert FanCalculator(h=1.3, dx=1.0).resolve_dim(line) == resolve_dim(line) == 1
+    flat = Atoms("X2", positions=[(0, 0, z), (1, 0, z)])
+    for ask in (None, 2, 3):
+        assert _verdict(lambda: FanCalculator(h=1.3, dx=1.0, dim=ask).resolve_dim(flat)) == \
+            _verdict(lambda: resolve_dim(flat, ask, name="dim"))
+
+
+def _verdict(call):
+    try:
+        return call()
+    except ValueError as error:
+        return str(error)

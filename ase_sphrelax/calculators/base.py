@@ -61,6 +61,20 @@ def _all_finite(r_pc):
     return ok
 
 
+@numba.njit(cache=True)
+def _scan_positions(r_pc):
+    """One pass over positions (P, 3): ``(every coordinate finite, every y exactly 0, every z exactly 0)``
+    (three numpy passes cost 3x as much at 1e6 particles: 2.5 ms each)."""
+    finite = True
+    y_zero = True
+    z_zero = True
+    for p in range(r_pc.shape[0]):
+        finite &= np.isfinite(r_pc[p, 0]) & np.isfinite(r_pc[p, 1]) & np.isfinite(r_pc[p, 2])
+        y_zero &= r_pc[p, 1] == 0.0
+        z_zero &= r_pc[p, 2] == 0.0
+    return finite, y_zero, z_zero
+
+
 def _equal(a, b):
     """``np.array_equal`` for the per-particle arrays of check_state: several calls per
     optimiser step, where numpy's allocation and dispatch cost more than the compare."""
@@ -273,11 +287,17 @@ class SPHCalculator(Calculator):
         """
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
-        if not _all_finite(atoms.positions):
-            bad = np.where(~np.all(np.isfinite(atoms.positions), axis=1))[0]
+        r_pc = atoms.positions
+        if r_pc.dtype == np.float64 and r_pc.ndim == 2 and r_pc.shape[1] == 3:
+            finite, y_zero, z_zero = _scan_positions(r_pc)
+        else:
+            finite, y_zero, z_zero = _all_finite(np.asarray(r_pc, dtype=float)), None, None
+        if not finite:
+            bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
+        self._zero_axes = (False, y_zero, z_zero)  # for prepare, in the same evaluation
         p = self.parameters
-        return resolve_dim(atoms, p.get("dim"), p.get("domain"))
+        return resolve_dim(atoms, p.get("dim"), p.get("domain"), zero_axes=(y_zero, z_zero))
 
     def use_dim(self, atoms):
         """Resolve the dimension of ``atoms`` and :meth:`configure` the method for it; returns it."""
@@ -311,7 +331,9 @@ class SPHCalculator(Calculator):
         """
         dim = self.resolve_dim(atoms) if dim is None else dim  # also: not empty, finite
         r_pc = atoms.positions
-        if r_pc.dtype != np.float64 or (dim < 3 and r_pc[:, dim:].any()):
+        zero = self.__dict__.pop("_zero_axes", None)  # resolve_dim's pass over these positions, if it made one
+        exact = all(zero[dim:]) if zero is not None and None not in zero[dim:] else not r_pc[:, dim:].any()
+        if r_pc.dtype != np.float64 or (dim < 3 and not exact):
             r_pc = np.array(r_pc, dtype=float)  # a copy: the caller's positions stay as they are
             r_pc[:, dim:] = 0.0  # round-off only: resolve_dim refused anything else
         pbc = np.array(atoms.pbc, dtype=bool)
