@@ -31,7 +31,7 @@ def _radial_potential(a, b, r2, d, inv_h, scale, with_virial, with_energy):
     (``with_virial``) the virial phi'(r) d d^T / r (Voigt order xx yy zz yz xz xy)."""
     # g = scale f'(q) / (h r) = scale (f'(q) / q) / h^2: no division (coincident points: d = 0, no force)
     value, slope_over_q = kernel_slope_over_q(math.sqrt(r2) * inv_h)
-    g = scale * slope_over_q * inv_h * inv_h
+    g = (scale * inv_h * inv_h) * slope_over_q  # the constant factor first: computed once per loop, not per pair
     f0, f1, f2 = g * d[0], g * d[1], g * d[2]
     if not with_energy:
         return (f0, f1, f2), (-f0, -f1, -f2), ()
