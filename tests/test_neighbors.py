@@ -292,3 +292,35 @@ def test_copy_releasing_copies_and_gives_back_the_source_pages(monkeypatch):
     nl.update(r_pc + 0.01, np.zeros((3, 3)), [False] * 3)
     nl.update(r_pc, np.zeros((3, 3)), [False] * 3)
     assert np.array_equal(nl.pair_start, start) and np.array_equal(nl.pair_j, pairs_j)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 60), periodic=st.booleans(),
+       fraction=st.floats(0.0, 1.0), approach=st.booleans())
+def test_property_a_reused_list_holds_every_pair_within_the_cutoff(seed, n, periodic, fraction, approach):
+    """Moves of at most half the skin (``fraction`` of it) keep the list (no rebuild), and it still holds every
+    pair within the cut-off (brute force); ``approach``: the worst case, two particles just beyond cut-off +
+    skin moving straight at each other by half the skin each, then 2 % of the skin further (a rebuild)."""
+    rng = np.random.default_rng(seed)
+    cutoff, skin, side = 1.0, 0.3, 4.0
+    cell, pbc = np.diag([side] * 3), [periodic] * 3
+    r_pc = rng.uniform(0, side, (n, 3))
+    if approach:
+        r_pc[1] = r_pc[0] + np.array([cutoff + skin + 1e-9, 0.0, 0.0])
+    nlist = NeighborList(cutoff, skin=skin)
+    nlist.update(r_pc, cell, pbc)
+    step_pc = rng.normal(size=(n, 3))
+    step_pc /= np.linalg.norm(step_pc, axis=1)[:, None]
+    size_p = rng.uniform(0.0, 1.0, n)
+    if approach:
+        step_pc[0], step_pc[1] = (1.0, 0.0, 0.0), (-1.0, 0.0, 0.0)
+        size_p[:2] = 1.0
+    half = 0.5 * skin * (1 - 1e-12)
+    moved = r_pc + step_pc * (size_p * fraction * half / size_p.max())[:, None]
+    assert not nlist.update(moved, cell, pbc)  # kept
+    assert listed_pairs(nlist, moved, cell, pbc, cutoff) == set(brute_force_pairs(moved, cell, pbc, cutoff))
+    if approach:
+        moved[:2] += step_pc[:2] * ((1.0 - fraction) * half + 0.01 * skin)
+        assert np.linalg.norm(moved[1] - moved[0]) < cutoff
+        assert nlist.update(moved, cell, pbc)
+        assert listed_pairs(nlist, moved, cell, pbc, cutoff) == set(brute_force_pairs(moved, cell, pbc, cutoff))
