@@ -23,7 +23,8 @@ domain), relaxed by ``make_optimizer(name, atoms)`` (``backend="sph"``: the defa
   (VmHWM) minus the RSS before the calculator was made, per particle: the calculator, its
   neighbour list, ASE's copies and the optimiser, beyond the user's Atoms. The process's
   ``ru_maxrss`` is stored too. The case ``evaluation`` makes the calculator and evaluates it
-  ``--memory-steps`` times without an optimiser.
+  ``--memory-steps`` times without an optimiser (``--cases`` picks cases). ``trace`` holds the peak
+  so far after each evaluation or step (the optimiser's observer, called after the step's evaluation).
 * ``convergence`` (small, in this process): the 2D circle at dx = 1/160 and the 3D sphere at
   dx = 1/50, ``--conv-steps`` LBFGS steps with ours at several history lengths against ASE's
   (history 20): energy and the mean kernel-gradient error (``quality_summary``) every 100 steps.
@@ -153,17 +154,22 @@ with open("/proc/self/clear_refs", "w") as f:
 base = status("VmRSS")
 atoms.calc = calculator(domain, dx, dim)
 cls = None
+trace = []  # the peak so far after each evaluation or step, bytes per particle beyond the Atoms
+def record():
+    trace.append(round((status("VmHWM") - base) / len(atoms), 1))
 if what == "evaluation":
     for k in range(steps):
         atoms.positions[:, 0] += 1e-6 * dx
         atoms.get_forces()
+        record()
 else:
     backend, name = what.split()
     opt = make_optimizer(name, atoms, backend=backend, **options(name, backend))
+    opt.attach(record, interval=1)
     opt.run(fmax=0.0, steps=steps)
     cls = type(opt).__name__
 peak = status("VmHWM")
-print(json.dumps(dict(n=len(atoms), base=base, peak=peak, cls=cls,
+print(json.dumps(dict(n=len(atoms), base=base, peak=peak, cls=cls, trace=trace,
                       ru_maxrss=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)))
 """
 
@@ -223,6 +229,8 @@ def main(argv=None):
     parser.add_argument("--memory-steps", type=int, default=8)
     parser.add_argument("--memory", type=int, default=0, help="SPHLBFGS history (0: make_optimizer's default)")
     parser.add_argument("--parts", default="timing,memory,convergence")
+    parser.add_argument("--cases", default="evaluation,sph fire,sph lbfgs,ase fire,ase lbfgs",
+                        help="the memory part's cases, comma-separated")
     parser.add_argument("--conv-steps", type=int, default=300)
     parser.add_argument("--conv-memories", default="3,5,20")
     parser.add_argument("--merge", action="store_true",
@@ -244,7 +252,7 @@ def main(argv=None):
     if "memory" in parts:
         for n in memory_sizes:
             for dim in dims:
-                for what in ("evaluation", "sph fire", "sph lbfgs", "ase fire", "ase lbfgs"):
+                for what in args.cases.split(","):
                     load = os.getloadavg()
                     row = _run(MEMORY, [n, dim, args.threads, what, args.memory_steps, args.memory], env)
                     row.update(dim=dim, case=what, load_before=load, load_after=os.getloadavg(),
