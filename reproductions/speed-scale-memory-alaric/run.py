@@ -1,10 +1,16 @@
 """ALARIC's peak memory per particle, row by row: ``benchmarks/bench_scale.py``'s step child (issue 33 item 4).
 
-Each row (``METHOD:N:LIST``, LIST ``list`` or ``scan``) runs in a fresh process with one numba thread, by the
-bench's own child procedure (``bench_scale.child_step``: warm-up, the start built, the peak-RSS counter reset,
-``--steps`` ALARICDynamics steps, peak RSS minus the baseline per particle). ``list``: the bench as it is (the
-calculator's default ``store_list=True``); ``scan``: the same with ``ALARICCalculator(store_list=False)`` (every
-sum scans one-shot bins, no Verlet list).
+Each row (``METHOD:N:KIND``, KIND ``list``, ``scan``, ``release`` or ``mmap``; METHOD any of the bench's) runs in a
+fresh process with one numba thread, by the bench's own child procedure (``bench_scale.child_step``: warm-up, the
+start built, the peak-RSS counter reset, ``--steps`` steps, peak RSS minus the baseline per particle). ``list``: the
+bench as it is (the calculator's default ``store_list=True``); ``scan``: the same with
+``ALARICCalculator(store_list=False)`` (every sum scans one-shot bins, no Verlet list). Two diagnostics of the list
+rows: ``release``, every pair sum gives its scratch pages, gathered inputs and the heap's free pages back as it does
+from ``pairs.RELEASE_MIN_POINTS`` points (the constant set to 1 in the child); ``mmap``, glibc's mmap threshold
+fixed at 64 KiB once the start is built (``mallopt``: every array above it is its own mapping, unmapped when freed,
+so the peak is the live data without the heap's kept pages; since commit a9d76d0 the H solve fixes it so, and
+``mmap`` rows are ``list`` rows). ALARIC's rows add the stored list's size at the end (its int32 buffer, and the
+points, particles and mirror ghosts, per particle).
 
     python reproductions/speed-scale-memory-alaric/run.py --rows alaric2d:1e6:list,alaric3d:1e5:list \
         --out reproductions/speed-scale-memory-alaric/results/rows.json
@@ -26,6 +32,24 @@ def child(method, n, kind, steps):
     import ase_sphrelax
     import bench_scale
 
+    if kind == "release":  # every sum releases (pairs.py reads the constant at each call)
+        import ase_sphrelax.calculators.alaric as calc_alaric
+        import ase_sphrelax.pairs as pairs
+
+        pairs.RELEASE_MIN_POINTS = calc_alaric.RELEASE_MIN_POINTS = 1
+    if kind == "mmap":  # after the warm-up (whose setup is at another size): the measured run only
+        import ctypes
+
+        setup = bench_scale.setup
+
+        def fixed_threshold_setup(method_, n_):
+            out = setup(method_, n_)
+            if n_ == float(n):
+                libc = ctypes.CDLL(None)
+                libc.mallopt(-3, 65536)  # M_MMAP_THRESHOLD (also ends glibc's dynamic threshold)
+            return out
+
+        bench_scale.setup = fixed_threshold_setup
     if kind == "scan":  # the bench's setup imports ALARICCalculator from the package when it runs
         base = ase_sphrelax.ALARICCalculator
 
@@ -33,8 +57,22 @@ def child(method, n, kind, steps):
             default_parameters = dict(base.default_parameters, store_list=False)
 
         ase_sphrelax.ALARICCalculator = ScanALARIC
+    setup, held = bench_scale.setup, {}
+
+    def holding_setup(method_, n_):  # the measured run's Atoms: the list's size after the steps
+        start, run = setup(method_, n_)
+        held["atoms"] = start
+        return start, run
+
+    bench_scale.setup = holding_setup
     row = bench_scale.child_step(method, float(n), steps)
-    return dict(row, store_list=kind == "list")
+    row = dict(row, store_list=kind != "scan", kind=kind)
+    nlist = getattr(getattr(held.get("atoms"), "calc", None), "nlist", None)
+    if nlist is not None and nlist.stored:  # ALARIC: its Verlet list (particles and mirror ghosts) at the end
+        row.update(points_per_particle=nlist.n_extended / row["n"],
+                   list_bytes_per_particle=nlist._pair_buffer.nbytes / row["n"],
+                   pairs_per_particle=nlist._pair_count / row["n"])
+    return row
 
 
 def main():
@@ -54,8 +92,8 @@ def main():
     rows = []
     for spec in args.rows.split(","):
         method, n, kind = spec.split(":")
-        if kind not in ("list", "scan"):
-            raise SystemExit(f"--rows: the third field must be list or scan, got {kind!r}")
+        if kind not in ("list", "scan", "release", "mmap"):
+            raise SystemExit(f"--rows: the third field must be list, scan, release or mmap, got {kind!r}")
         out = subprocess.run([sys.executable, __file__, "--steps", str(args.steps), "--child", method, n, kind],
                              env=env, capture_output=True, text=True)
         if out.returncode:
