@@ -724,7 +724,9 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     d = kernel.dim
     dims = _check_dims(dims, r_pc)
     eta = default_eta(kernel) if eta is None else float(eta)
-    m_p = _per_particle("masses", masses, n)
+    one_mass = np.ndim(masses) == 0
+    # one mass: read-only views of it (and of sigma / m), not two arrays per point through the solve (the same values)
+    m_p = np.broadcast_to(_per_particle("masses", masses, 1), (n,)) if one_mass else _per_particle("masses", masses, n)
     target = eta**d
     sigma = kernel.sigma
     if target <= sigma * kernel.f0:
@@ -755,7 +757,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
             arr[solve:] = np.nan
     equal = bool(np.all(m_p == m_p[0]))
     step_max = kernel.extrapolation_step * tol**0.25 if equal else 0.0
-    sigma_over_m_p = sigma / m_p
+    sigma_over_m_p = np.broadcast_to(sigma / m_p[:1], (n,)) if one_mass else sigma / m_p
     h_cap = None  # 1e3 times the larger of the extent and the first H, computed when H has grown that far
     h_first = float(h_p.max())
     for iteration in range(1, max_iter + 1):
