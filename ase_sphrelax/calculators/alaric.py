@@ -17,7 +17,7 @@ from ..kernels import get_kernel
 from ..models import alaric as model
 from ..neighbors import NeighborList, release_free_memory
 from ..pairs import RELEASE_MIN_POINTS
-from .base import SPHCalculator
+from .base import SPHCalculator, check_store_list, resolve_store_list
 
 __all__ = ["ALARICCalculator", "FLOOR", "PAPER_ETA", "PAPER_OMEGA_FLOOR", "QUADRATIC_WALL_FACTOR", "WALL_FORMS",
            "needed_ghosts"]
@@ -167,11 +167,13 @@ class ALARICCalculator(SPHCalculator):
         Relative tolerance of the smoothing-length iteration.
     skin : float or None
         Verlet skin (default ``SKIN_FACTOR = 0.1`` times the mean H at the first evaluation, as Fan's).
-    store_list : bool
-        True (default): evaluations after the first walk a stored Verlet list (4 B per pair within ``H + skin``,
-        ghosts included: about 440 B per particle in 3D with mirror ghosts at 1e5). False: every density pass,
-        pressure and viscosity sum scans one-shot bins (no list): the same values to rounding (another order of
-        the sums) for less memory and a bin scan per sum (issue 33 item 4, ``reproductions/speed-scale-memory-alaric``).
+    store_list : bool or None
+        True: evaluations after the first walk a stored Verlet list (4 B per pair within ``H + skin``, ghosts
+        included: about 440 B per particle in 3D with mirror ghosts at 1e5). False: every density pass, pressure
+        and viscosity sum scans one-shot bins (no list): the same values to rounding (another order of the sums)
+        for less memory and a bin scan per sum (1.24x the CPU time of a 3D step at 1e5). None (default): True in
+        1D and 2D, False in 3D (:func:`~ase_sphrelax.calculators.base.resolve_store_list`; issue 33 item 4, at most
+        900 B per particle in 3D; ``reproductions/speed-scale-memory-alaric``).
     fd_step : float
         Step of the target's finite-difference gradient.
     origin : sequence of dim floats or None
@@ -192,7 +194,7 @@ class ALARICCalculator(SPHCalculator):
                               background_pressure=None,
                               boundary="wall", background=0.0, wall_form="linear",
                               wall_length=None, density_floor=None, h_tol=1e-8, skin=None, fd_step=1e-6, origin=None,
-                              store_list=True)
+                              store_list=None)
 
     def __init__(self, target_density=None, dim=None, **kwargs):
         self.mass = None
@@ -253,8 +255,7 @@ class ALARICCalculator(SPHCalculator):
         if p.boundary == "mirror" and (p.domain is None or not model.mirror_supported(p.domain)):
             raise ValueError(f"boundary='mirror' needs a Ball (Circle, Sphere) or a 2D Polygon of one convex loop "
                              f"as domain, got domain={p.domain!r}")
-        if not isinstance(p.store_list, (bool, np.bool_)):
-            raise ValueError(f"store_list must be True or False, got {p.store_list!r}")
+        check_store_list(p.store_list)
         if p.skin is not None and (not np.isfinite(p.skin) or p.skin < 0):
             raise ValueError(f"skin must be a finite number >= 0 or None, got {p.skin!r}")
         if p.domain is not None:
@@ -389,9 +390,9 @@ class ALARICCalculator(SPHCalculator):
             self._skin = p.skin if p.skin is not None else SKIN_FACTOR * float(np.mean(self.h_p))
 
     def stores_list(self):
-        """``store_list``: True (default) walks a stored Verlet list after the first evaluation, False scans
-        one-shot bins at every sum."""
-        return bool(self.parameters.store_list)
+        """``store_list`` (:func:`~ase_sphrelax.calculators.base.resolve_store_list`): True walks a stored Verlet
+        list after the first evaluation, False scans one-shot bins at every sum."""
+        return resolve_store_list(self.parameters.store_list, self.dim)
 
     def cutoff(self, atoms, dim):
         if self.parameters.boundary == "mirror":
@@ -437,7 +438,7 @@ class ALARICCalculator(SPHCalculator):
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1 and p.store_list,
+                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1 and self.stores_list(),
                                                 solve=n, dims=d)
             h0_q = None
             h_p = state.h_p[:n]
@@ -493,7 +494,7 @@ class ALARICCalculator(SPHCalculator):
             full = self._solve_with_ghosts(st)  # the particles' rows, then the ghosts'
         else:
             full = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                               h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1 and p.store_list,
+                                               h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1 and self.stores_list(),
                                                dims=d)
         # the solve's unit-mass densities (the number densities again) are not kept: rho = m n below
         h_p, n_p, omega_p, count_p, iterations = (full.h_p[:n], full.n_p[:n], full.omega_p[:n],

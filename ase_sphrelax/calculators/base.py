@@ -75,6 +75,22 @@ def _scan_positions(r_pc):
     return finite, y_zero, z_zero
 
 
+def check_store_list(store_list):
+    """The ``store_list`` parameter of ALARIC's and BIPI's calculators: True, False or None; one line otherwise."""
+    if store_list is not None and not isinstance(store_list, (bool, np.bool_)):
+        raise ValueError(f"store_list must be True, False or None (a stored list in 1D and 2D, none in 3D), "
+                         f"got {store_list!r}")
+    return store_list
+
+
+def resolve_store_list(store_list, dim):
+    """Whether evaluations after the first keep a Verlet list: ``store_list`` as given, or for None (the default)
+    a list in 1D and 2D and one-shot bins in 3D, where the list alone holds 440 (ALARIC, mirror ghosts) to 630
+    (BIPI, ``h = 4 dx``) bytes per particle at 1e5 particles, and a step without it costs about 1.2x the CPU time
+    (``reproductions/speed-scale-memory-alaric``; issue 33's goal: at most 900 B per particle in 3D)."""
+    return dim < 3 if store_list is None else bool(store_list)
+
+
 def _equal(a, b):
     """``np.array_equal`` for the per-particle arrays of check_state: several calls per
     optimiser step, where numpy's allocation and dispatch cost more than the compare."""

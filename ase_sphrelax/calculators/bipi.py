@@ -25,7 +25,7 @@ from ..checks import SpacingWarning, spacing_mismatch
 from ..kernel_sums import kernel_sums
 from ..models.bipi import J_DEFAULT, BIPIModel, support_from_paper
 from ..models.fan import verlet_skin
-from .base import SPHCalculator
+from .base import SPHCalculator, check_store_list, resolve_store_list
 
 __all__ = ["BIPICalculator", "check_periodic_atoms"]
 
@@ -73,12 +73,13 @@ class BIPICalculator(SPHCalculator):
         Verlet skin (default ``0.1 h``).
     dim : int or None
         Must match the boundary (default: the boundary's).
-    store_list : bool
-        True (default): evaluations after the first walk a stored Verlet list (4 B per pair within
-        ``h + skin``: about 630 B per particle in 3D at ``h = 4 dx``). False: every evaluation scans
-        one-shot bins (no list, and no stored particle-element candidates), the same values to
-        rounding for less memory and a bin scan per evaluation (``benchmarks/bench_scale.py``'s
-        ``bipi3d``, issue 33 item 4).
+    store_list : bool or None
+        True: evaluations after the first walk a stored Verlet list (4 B per pair within ``h + skin``: about
+        630 B per particle in 3D at ``h = 4 dx``). False: every evaluation scans one-shot bins (no list, and no
+        stored particle-element candidates), the same values to rounding for less memory and a bin scan per
+        evaluation (1.2x the CPU time of a 3D step at 3e4 particles). None (default): True in 2D, False in 3D
+        (:func:`~ase_sphrelax.calculators.base.resolve_store_list`; issue 33 item 4, at most 900 B per particle in
+        3D).
     band_rule : {"ball", "normal", "centroid"}
         Which part of the boundary feels the step pressure (``wall_gradient``,
         :meth:`ase_sphrelax.boundary.BoundaryIntegrals.compute`): "ball" (default) the part within
@@ -99,10 +100,10 @@ class BIPICalculator(SPHCalculator):
     implemented_properties = ["energy", "free_energy", "energies", "forces", "gamma", "grad_gamma", "concentration",
                               "concentration_gradient", "wall_gradient"]
     default_parameters = dict(h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
-                              band_rule="ball", store_list=True)
+                              band_rule="ball", store_list=None)
 
     def __init__(self, h=None, dx=None, boundary=None, kernel="wendland_c2", J=J_DEFAULT, skin=None, dim=None,
-                 band_rule="ball", store_list=True, **kwargs):
+                 band_rule="ball", store_list=None, **kwargs):
         super().__init__(h=h, dx=dx, boundary=boundary, kernel=kernel, J=J, skin=skin, dim=dim, band_rule=band_rule,
                          store_list=store_list, **kwargs)
 
@@ -127,8 +128,7 @@ class BIPICalculator(SPHCalculator):
         self.skin = verlet_skin(p.skin, self.model.h)
         if p.band_rule not in BAND_RULES:
             raise ValueError(f"band_rule must be one of {BAND_RULES}, got {p.band_rule!r}")
-        if not isinstance(p.store_list, (bool, np.bool_)):
-            raise ValueError(f"store_list must be True or False, got {p.store_list!r}")
+        check_store_list(p.store_list)
         self.boundary = boundary
         elements = boundary
         if boundary.dim == 2 and p.band_rule != "centroid":
@@ -140,7 +140,7 @@ class BIPICalculator(SPHCalculator):
         self._spacing_checked = None
 
     def stores_list(self):
-        return bool(self.parameters.store_list)
+        return resolve_store_list(self.parameters.store_list, self.dim)
 
     def check_atoms(self, atoms, dim, properties):
         check_periodic_atoms(atoms, self.boundary, dim)

@@ -3,7 +3,8 @@
 Each row (``METHOD:N:KIND``, KIND ``list``, ``scan``, ``release`` or ``mmap``; METHOD any of the bench's) runs in a
 fresh process with one numba thread, by the bench's own child procedure (``bench_scale.child_step``: warm-up, the
 start built, the peak-RSS counter reset, ``--steps`` steps, peak RSS minus the baseline per particle). ``list``: the
-bench as it is (the calculator's default ``store_list=True``); ``scan``: the same with
+bench with ``ALARICCalculator(store_list=True)`` (the default until ``store_list=None``, a list in 2D and none in
+3D); ``scan``: the same with
 ``ALARICCalculator(store_list=False)`` (every sum scans one-shot bins, no Verlet list). Two diagnostics of the list
 rows: ``release``, every pair sum gives its scratch pages, gathered inputs and the heap's free pages back as it does
 from ``pairs.RELEASE_MIN_POINTS`` points (the constant set to 1 in the child); ``mmap``, glibc's mmap threshold
@@ -50,13 +51,14 @@ def child(method, n, kind, steps):
             return out
 
         bench_scale.setup = fixed_threshold_setup
-    if kind == "scan":  # the bench's setup imports ALARICCalculator from the package when it runs
-        base = ase_sphrelax.ALARICCalculator
+    # the bench's setup imports ALARICCalculator from the package when it runs: scan rows without a Verlet list,
+    # the others with one (True, the default until store_list=None made 3D list-free)
+    base = ase_sphrelax.ALARICCalculator
 
-        class ScanALARIC(base):
-            default_parameters = dict(base.default_parameters, store_list=False)
+    class RowALARIC(base):
+        default_parameters = dict(base.default_parameters, store_list=kind != "scan")
 
-        ase_sphrelax.ALARICCalculator = ScanALARIC
+    ase_sphrelax.ALARICCalculator = RowALARIC
     setup, held = bench_scale.setup, {}
 
     def holding_setup(method_, n_):  # the measured run's Atoms: the list's size after the steps
