@@ -111,10 +111,9 @@ def run_ours(dim, n, target, check_every, max_steps):
     for _ in opt.irun(fmax=0.0, steps=max_steps):
         if opt.nsteps % check_every:
             continue
-        r_pc = atoms.positions
-        inside = domain.phi(r_pc) <= -h
         f_pc = atoms.calc.results["forces"]  # the step's own forces (no copy)
-        measure = float(h / (2.0 * v0) * np.sqrt((f_pc[inside] ** 2).sum(axis=1)).mean())
+        norm_p = np.sqrt(np.einsum("ij,ij->i", f_pc, f_pc))  # one array of N: 18 ms at 1e6, not 58 ms
+        measure = float(h / (2.0 * v0) * norm_p[domain.phi(atoms.positions) <= -h].mean())
         trace.append([int(opt.nsteps), time.perf_counter() - t0, measure])
         if measure <= target:
             reached = True
