@@ -41,10 +41,10 @@ def child(method, n, kind, steps):
     if kind == "mmap":  # after the warm-up (whose setup is at another size): the measured run only
         import ctypes
 
-        setup = bench_scale.setup
+        plain_setup = bench_scale.setup  # its own name: ``setup`` is bound again below (a closure would recurse)
 
         def fixed_threshold_setup(method_, n_):
-            out = setup(method_, n_)
+            out = plain_setup(method_, n_)
             if n_ == float(n):
                 libc = ctypes.CDLL(None)
                 libc.mallopt(-3, 65536)  # M_MMAP_THRESHOLD (also ends glibc's dynamic threshold)
