@@ -82,8 +82,11 @@ MMAP_THRESHOLD = 64 * 1024
 :func:`solve_smoothing_lengths`; None leaves glibc's own. glibc raises the threshold to the size of each large
 block freed (up to 32 MB), after which per-particle arrays come from the heap, whose freed pages it keeps: in
 ALARIC 2D's and SPH-ParVI 2D's steps at 1e4-1e5 particles such kept pages were 60-140 bytes per particle of the
-peak resident set. Fixed, every array above it is its own mapping, given back when freed; the CPU time of an
-ALARIC 2D step did not change (interleaved A/B in one process at 1e4 and 1e5 particles)."""
+peak resident set. Fixed, every array above it is its own mapping, given back when freed, and written to fresh pages
+when made: page faults cost about 3 % of an ALARIC 2D step at 1e5 (``reproductions/speed-scale-memory-alaric``), and
+the setting stays for the rest of the process, so a Fan relaxation run after ALARIC or SPH-ParVI in the same process
+costs 1.15-1.2x the CPU time a step (2D, 1e5 particles). Set it to None before the first solve to keep glibc's rule
+(faster, about 60-140 B per particle more)."""
 _mmap_fixed = False
 
 
