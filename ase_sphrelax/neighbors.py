@@ -35,6 +35,7 @@ few points of larger reach scan their own full stencils (:class:`BinnedPoints`,
 """
 from __future__ import annotations
 
+import ctypes
 import inspect
 import itertools
 
@@ -539,43 +540,33 @@ _COPY_CHUNK = 1 << 20  # bytes copied between two releases
 _MADV_DONTNEED = 4  # Linux
 
 
-def _madvise():
-    """libc's ``madvise`` (Linux), or None."""
+def _libc_function(name, argtypes, use_errno=False):
+    """libc's function ``name`` returning int, with its ctypes argument types (Linux), or None."""
     import ctypes
     import sys
 
     if not sys.platform.startswith("linux"):
         return None
     try:
-        fn = ctypes.CDLL(None, use_errno=True).madvise
+        fn = getattr(ctypes.CDLL(None, use_errno=use_errno), name)
     except (OSError, AttributeError):
         return None
-    fn.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int)
+    fn.argtypes = argtypes
     fn.restype = ctypes.c_int
     return fn
 
 
-_MADVISE = _madvise()
+_MADVISE = _libc_function("madvise", (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int), use_errno=True)
 _PAGE = 4096
+_MALLOC_TRIM = _libc_function("malloc_trim", (ctypes.c_size_t,))  # glibc's
+_MALLOPT = _libc_function("mallopt", (ctypes.c_int, ctypes.c_int))  # glibc's
+_M_MMAP_THRESHOLD = -3
 
 
-def _malloc_trim():
-    """glibc's ``malloc_trim`` (Linux), or None."""
-    import ctypes
-    import sys
-
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        fn = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return None
-    fn.argtypes = (ctypes.c_size_t,)
-    fn.restype = ctypes.c_int
-    return fn
-
-
-_MALLOC_TRIM = _malloc_trim()
+def set_mmap_threshold(nbytes):
+    """Fix glibc's mmap threshold at ``nbytes`` (``mallopt(M_MMAP_THRESHOLD)``, process-wide; it also ends glibc's
+    dynamic threshold): True when set, False elsewhere than glibc."""
+    return _MALLOPT is not None and bool(_MALLOPT(_M_MMAP_THRESHOLD, nbytes))
 
 
 def release_free_memory():

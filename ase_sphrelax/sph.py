@@ -60,6 +60,7 @@ from numba.extending import overload
 from numpy.polynomial import polynomial as P
 
 from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
+from .neighbors import set_mmap_threshold
 from .pairs import Output, PairInteraction
 from .parallel import run_chunks, thread_count
 
@@ -92,22 +93,12 @@ _mmap_fixed = False
 
 def fix_mmap_threshold(threshold=None):
     """Fix glibc's mmap threshold at ``threshold`` bytes (default :data:`MMAP_THRESHOLD`; its dynamic growth
-    ends with it). Elsewhere than glibc, or with a threshold None, nothing. True when set."""
-    import ctypes
-    import sys
-
+    ends with it; :func:`ase_sphrelax.neighbors.set_mmap_threshold`). Elsewhere than glibc, or with a threshold
+    None, nothing. True when set."""
     threshold = MMAP_THRESHOLD if threshold is None else threshold
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, int) or threshold <= 0):
         raise ValueError(f"threshold must be a positive int (bytes) or None, got {threshold!r}")
-    if threshold is None or not sys.platform.startswith("linux"):
-        return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    mallopt.restype = ctypes.c_int
-    return bool(mallopt(-3, threshold))  # -3: M_MMAP_THRESHOLD
+    return threshold is not None and set_mmap_threshold(threshold)
 
 
 class SmoothingLengthError(ValueError):
