@@ -148,7 +148,7 @@ def resolve_dim(atoms, dim=None, domain=None, name="dim", zero_axes=None):
         Its ``dim`` must agree with ``dim``; with ``dim`` None it decides.
     name : str
         How the caller calls the parameter, for the messages (e.g. ``"FanCalculator(dim=...)"``).
-    zero_axes : (bool or None, bool or None), optional
+    zero_axes : (bool, bool), optional
         What the caller already knows of ``atoms.positions``: whether every y, every z is exactly 0
         (a calculator's one pass over them); None: looked at here.
 
