@@ -43,7 +43,7 @@ def _radial_potential(a, b, r2, d, inv_h, scale, with_virial, with_energy):
 
 
 _PER_POINT = dict(energies=Output(()), forces=Output((3,), spatial=True))
-_POTENTIAL_DATA = dict(params=("inv_h", "scale"))
+_POTENTIAL_DATA = dict(params=("inv_h", "scale"), support="inv_h")  # f(q) and f'(q)/q vanish for q >= 1
 PAIR_POTENTIAL = PairInteraction(_radial_potential, _PER_POINT, constants=dict(with_virial=False, with_energy=True),
                                  **_POTENTIAL_DATA)
 PAIR_POTENTIAL_VIRIAL = PairInteraction(_radial_potential, dict(_PER_POINT, virial=Output((6,), per_point=False)),
@@ -105,7 +105,8 @@ def _kernel_sum_pair(a, b, r2, d, inv_h):
     return (value, -g0, -g1, -g2), (value, g0, g1, g2), ()
 
 
-KERNEL_SUMS = PairInteraction(_kernel_sum_pair, dict(w=Output(()), grad=Output((3,), spatial=True)), params=("inv_h",))
+KERNEL_SUMS = PairInteraction(_kernel_sum_pair, dict(w=Output(()), grad=Output((3,), spatial=True)), params=("inv_h",),
+                              support="inv_h")
 
 
 class KernelSums:

@@ -144,8 +144,7 @@ def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, base, first, last
             b = pair_j[p]
             {diff}
             r2 = {norm2}
-            if r2 >= reach2:
-                continue
+            {reach_test}
             {body}
         {store_own}
     {store_global}
@@ -238,13 +237,15 @@ def _bound_name(name, params):
 
 
 def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=(),
-                 planar=False):
+                 planar=False, reach_test=True):
     """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
 
     ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
     declared order); the pair function is called with ``arguments`` (its data, in its signature's order).
     ``planar`` (``dim`` 3): points in the plane z = 0; the loop reads x and y, passes ``d2 = 0.0`` (a constant
     the compiler folds into the pair function) and leaves the z components of spatial outputs alone.
+    ``reach_test`` False (a list walk of an interaction whose terms vanish beyond the reach,
+    :class:`PairInteraction`'s ``support``): every listed pair is computed, without the test ``r2 < reach2``.
     """
     own = _targets(outputs, True, "a", planar)
     other = _targets(outputs, True, "b", planar)
@@ -287,6 +288,8 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
                       + [f"d{c} = 0.0" for c in range(read, dim)]),
         norm2=" + ".join(f"d{c} * d{c}" for c in range(read)),
+        reach_test=(f"if r2 >= reach2:{pad}    continue" if reach_test
+                    else "pass  # no test: every term vanishes beyond the reach (PairInteraction's support)"),
         body=pad.join(lines),
     )
 
@@ -347,16 +350,18 @@ def _specialise(pair, constants, kernel):
     return numba.njit(cache=True, inline="always")(specialised), arguments
 
 
-def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=(), planar=False):
+def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=(), planar=False,
+             reach_test=True):
     global _CORE_STAMP
     if _CORE_STAMP is None:
         _CORE_STAMP = _core_stamp()
     base = pair.py_func.__name__
     # the declared order of params/inputs is part of the loop's bytecode; the stamp keeps the name unique
     space = "planar" if planar else f"{dim}d"
-    name = f"_{kind}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
+    name = f"_{kind}{'' if reach_test else '_all'}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
     indent = 12 if kind == "list" else 16
-    source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar)
+    source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar,
+                          reach_test)
     namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
@@ -443,6 +448,12 @@ class PairInteraction:
         dimension walked over a stored list).
     constants : dict or None
         Arguments fixed at construction and compiled in (a flag gives its flat form).
+    support : str or None
+        The name of a parameter ``inv_h`` beyond whose support every term of the pair function is exactly zero:
+        ``r >= 1 / inv_h`` (the kernel placeholders at ``q = r inv_h``). When the reach of a call is at least that
+        support (``reach * inv_h >= 1``, to 1e-12), a stored list is walked without the test ``r < reach``: the
+        entries of the list's skin add zeros, and the walk has no branch that goes either way at random (Fan's
+        walk at 1e6 in 2D: 0.93x the CPU time). None (default): the test on every entry.
 
     Raises
     ------
@@ -450,13 +461,17 @@ class PairInteraction:
         When the declaration does not match the pair function's signature (the name is given).
     """
 
-    def __init__(self, pair, outputs, params=(), inputs=(), symmetric=True, dim=3, constants=None):
+    def __init__(self, pair, outputs, params=(), inputs=(), symmetric=True, dim=3, constants=None, support=None):
         if not hasattr(pair, "py_func"):
             raise TypeError(f"pair must be a numba.njit function, got {type(pair).__name__}")
         if not outputs:
             raise ValueError("outputs: an interaction needs at least one accumulator")
         self.pair = pair
         self.params = _names("params", params)
+        if support is not None and support not in self.params:
+            raise ValueError(f"support must name one of the params {self.params} (1 / the support radius), "
+                             f"got {support!r}")
+        self.support = support
         self.inputs = _names("inputs", inputs)
         self.constants = dict(constants or {})
         fname = pair.py_func.__name__
@@ -501,27 +516,39 @@ class PairInteraction:
             self._pairs[key] = _specialise(self.pair, self.constants, kernel)
         return self._pairs[key]
 
-    def loop(self, kind, kernel=None, planar=False):
+    def loop(self, kind, kernel=None, planar=False, reach_test=True):
         """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
         (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
         the Verlet list of a pending build, see :meth:`NeighborList.fused_build`), for ``kernel``
         when the pair function calls a kernel placeholder; ``planar``: for points in the plane z = 0
-        (see :meth:`compute`)."""
+        (see :meth:`compute`); ``reach_test`` False: a list walk that computes every listed pair (only for an
+        interaction with a ``support``, see the class docstring)."""
+        return self._loop_entry(kind, kernel, planar, reach_test)[0]
+
+    def _loop_entry(self, kind, kernel, planar, reach_test):
         kernel = self._kernel(kernel)
         planar = bool(planar) and self.dim == 3
-        key = (kind, None if kernel is None else kernel.key, planar)
+        reach_test = bool(reach_test) or kind != "list"
+        if not reach_test and self.support is None:
+            raise ValueError(f"reach_test=False needs an interaction with a support, {self!r} has none")
+        key = (kind, None if kernel is None else kernel.key, planar, reach_test)
         if key not in self._loops:
             template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
             pair, arguments = self.specialised(kernel)
             self._loops[key] = _compile(pair, template, kind, list(self.outputs.values()), self.dim, self.symmetric,
-                                        self.params, self.inputs, arguments, planar)
-        return self._loops[key][0]
+                                        self.params, self.inputs, arguments, planar, reach_test)
+        return self._loops[key]
 
-    def source(self, kind="list", kernel=None, planar=False):
+    def source(self, kind="list", kernel=None, planar=False, reach_test=True):
         """Python source of a generated loop (for reading and debugging)."""
-        self.loop(kind, kernel, planar)
-        kernel = self._kernel(kernel)
-        return self._loops[(kind, None if kernel is None else kernel.key, bool(planar) and self.dim == 3)][1]
+        return self._loop_entry(kind, kernel, planar, reach_test)[1]
+
+    def _reach_covers_support(self, params, reach):
+        """True when every pair beyond ``reach`` lies beyond the support too (``reach * inv_h >= 1``, to 1e-12)."""
+        if self.support is None:
+            return False
+        inv_h = params[self.params.index(self.support)]
+        return float(reach) * float(inv_h) >= 1.0 - 1e-12
 
     def _thread_buffers(self, nthreads, n_ext, forward):
         """Per-thread accumulators ``buffers[t][k]``: views of one scratch array per thread that every
@@ -619,8 +646,8 @@ class PairInteraction:
                 *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            run_chunks(self.loop(kind, kernel, planar), n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp),
-                       per_thread=per_thread)
+            loop = self.loop(kind, kernel, planar, reach_test=not self._reach_covers_support(params, reach))
+            run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:
