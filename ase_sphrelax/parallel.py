@@ -15,8 +15,10 @@ thread count follows ``numba.get_num_threads()`` (``numba.set_num_threads`` or
 from __future__ import annotations
 
 import numba
+import numpy as np
 
-__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "chunk_bounds", "run_chunks"]
+__all__ = ["PARALLEL_MIN", "thread_count", "thread_pool", "chunk_bounds", "run_chunks", "reduce_chunks",
+           "copy_rows"]
 
 PARALLEL_MIN = 20000
 
@@ -76,3 +78,30 @@ def run_chunks(loop, n, args, per_thread=None, nthreads=None):
         for job in jobs:
             job.result()
     return None
+
+
+def reduce_chunks(loop, n, args, nout, fill=0.0):
+    """Call ``loop(*args, out, first, last)`` on :func:`thread_count` static chunks of ``range(n)``, each thread
+    with its own ``out`` (``nout`` floats set to ``fill``) that the loop combines its chunk's values into (a sum,
+    a max, an and); returns the per-thread ``out`` arrays, to be combined by the caller."""
+    outs = [np.full(nout, fill) for _ in range(thread_count(n))]
+    run_chunks(loop, n, args, per_thread=[(out,) for out in outs])
+    return outs
+
+
+@numba.njit(cache=True, nogil=True)
+def _copy_rows_chunk(dst, src, first, last):
+    for p in range(first, last):
+        for c in range(dst.shape[1]):
+            dst[p, c] = src[p, c]
+
+
+def copy_rows(dst, src):
+    """``dst[:] = src`` for two float arrays of one shape (P, C), the rows in :func:`thread_count` chunks (at 1e6
+    particles numpy's single-threaded copy of positions costs 3.5 ms; in place, no new pages)."""
+    if dst.shape != src.shape or dst.ndim != 2:
+        raise ValueError(f"copy_rows: shapes must be equal (P, C), got {dst.shape} and {src.shape}")
+    if thread_count(dst.shape[0]) == 1 or dst.dtype != np.float64 or src.dtype != np.float64:
+        dst[...] = src
+        return
+    run_chunks(_copy_rows_chunk, dst.shape[0], (dst, src))
