@@ -12,15 +12,18 @@ SPH-ParVI, Fan in LAMMPS) subclass it.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numba
 import numpy as np
+from ase import Atoms
 from ase.calculators.calculator import Calculator, Parameters, PropertyNotImplementedError, all_changes
 
 from ..checks import ASE_DEFAULT_FMAX, SPHScaleWarning, check_dim, resolve_dim
 from ..kernels import KERNEL_NAMES
 from ..neighbors import NeighborList
+from ..parallel import copy_rows, reduce_chunks
 
 __all__ = ["SPHCalculator", "EvaluationState", "periodic_measure", "SPHScaleWarning", "ASE_DEFAULT_FMAX",
            "ENERGY_PROPERTIES"]
@@ -49,19 +52,26 @@ def _same_values(a, b):
     return True
 
 
-@numba.njit(cache=True)
-def _scan_positions(r_pc):
-    """One pass over positions (P, 3): ``(every coordinate finite, every y exactly 0, every z exactly 0)``
-    (three numpy passes cost 3x as much at 1e6 particles: 2.5 ms each). An and-reduction without an early exit,
-    which the compiler vectorises."""
+@numba.njit(cache=True, nogil=True)
+def _scan_positions_chunk(r_pc, out, first, last):
     finite = True
     y_zero = True
     z_zero = True
-    for p in range(r_pc.shape[0]):
+    for p in range(first, last):
         finite &= np.isfinite(r_pc[p, 0]) & np.isfinite(r_pc[p, 1]) & np.isfinite(r_pc[p, 2])
         y_zero &= r_pc[p, 1] == 0.0
         z_zero &= r_pc[p, 2] == 0.0
-    return finite, y_zero, z_zero
+    out[0] = min(out[0], 1.0 if finite else 0.0)
+    out[1] = min(out[1], 1.0 if y_zero else 0.0)
+    out[2] = min(out[2], 1.0 if z_zero else 0.0)
+
+
+def _scan_positions(r_pc):
+    """One pass over positions (P, 3): ``(every coordinate finite, every y exactly 0, every z exactly 0)``
+    (three numpy passes cost 3x as much at 1e6 particles: 2.5 ms each), in :func:`thread_count` chunks. An
+    and-reduction without an early exit, which the compiler vectorises."""
+    outs = reduce_chunks(_scan_positions_chunk, r_pc.shape[0], (r_pc,), 3, fill=1.0)
+    return tuple(all(out[k] == 1.0 for out in outs) for k in range(3))
 
 
 def check_store_list(store_list):
@@ -392,13 +402,61 @@ class SPHCalculator(Calculator):
             changes.append("momenta")
         return changes
 
+    def _take_snapshot(self, atoms, skip=()):
+        """``self.atoms = atoms.copy()`` (as ASE's ``Calculator.calculate``) without the arrays named in ``skip``,
+        each array copied into the previous copy's array of that name where shape and type agree: no new pages
+        for the positions at every evaluation (at 1e6 particles ASE's copy cost 5 ms, half of it page faults)."""
+        # the arrays of the previous copy (kept here: ASE's get_property drops self.atoms when the positions change)
+        previous = self.__dict__.pop("_snapshot_arrays", {})
+        if type(atoms) is not Atoms:  # a subclass copies itself
+            snapshot = atoms.copy()
+            for name in skip:
+                snapshot.arrays.pop(name, None)
+            self.atoms = snapshot
+            return
+        # Atoms.copy, step by step
+        snapshot = Atoms(cell=atoms.cell, pbc=atoms.pbc, info=atoms.info, celldisp=atoms.get_celldisp())
+        snapshot.arrays = {}
+        for name, values in atoms.arrays.items():
+            if name in skip:
+                continue
+            kept = previous.get(name)
+            if kept is not None and kept is not values and kept.shape == values.shape and kept.dtype == values.dtype:
+                if kept.ndim == 2:
+                    copy_rows(kept, values)
+                else:
+                    np.copyto(kept, values)
+                snapshot.arrays[name] = kept
+            else:
+                snapshot.arrays[name] = values.copy()
+        snapshot.constraints = copy.deepcopy(atoms.constraints)
+        self.atoms = snapshot
+        self._snapshot_arrays = snapshot.arrays
+
+    def forces_view(self, atoms):
+        """The forces on ``atoms`` as ``get_forces`` (ASE's cache, an evaluation when needed), without the copy:
+        a read-only view of this calculator's result, valid until its next evaluation.
+
+        For drivers that read the forces once per step and keep nothing
+        (:class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`): at 1e6 particles the copy cost 6 ms a step.
+        Constraints are not applied (``Atoms.get_forces`` would): the driver decides whether that matters.
+        """
+        system_changes = self.check_state(atoms)
+        if system_changes:
+            self.reset()
+        if "forces" not in self.results:
+            self.calculate(atoms, ["forces"], system_changes)
+        view = self.results["forces"].view()
+        view.flags.writeable = False
+        return view
+
     def calculate(self, atoms=None, properties=("energy",), system_changes=all_changes):
         """The shared steps, then :meth:`evaluate` (class docstring): checks, dimension, list, results."""
-        Calculator.calculate(self, atoms, properties, system_changes)
+        if atoms is not None:
+            # ASE's copy is compared by positions, numbers, cell and pbc only: momenta and masses are not held
+            # through the evaluation (32 bytes per particle) unless the forces depend on them
+            self._take_snapshot(atoms, skip=() if self.velocity_dependent else ("momenta", "masses"))
         atoms = self.atoms
-        if not self.velocity_dependent:  # ASE's copy is compared by positions, numbers, cell and pbc only
-            for name in ("momenta", "masses"):  # not held through the evaluation (32 bytes per particle)
-                atoms.arrays.pop(name, None)
         if not self.conservative:
             refused = [name for name in properties if name in ENERGY_PROPERTIES]
             if refused:

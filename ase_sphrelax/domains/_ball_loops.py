@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def ball_phi(r_pd, center_d, radius):
     """``|r_p - center| - radius`` per point, from the first ``len(center_d)`` columns of ``r_pd``."""
     n, dim = r_pd.shape[0], center_d.shape[0]

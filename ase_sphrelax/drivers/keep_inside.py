@@ -101,8 +101,14 @@ class KeepInDomain:
     def _outside(self, r_pc):
         """Indices of the points of ``r_pc`` not inside (``phi >= 0`` or NaN), :data:`_CHUNK` at a time
         (at 1e6 particles in 3D the level set of all of them and its masks held 10 bytes per particle)."""
-        parts = [first + np.nonzero(~(self._phi(r_pc[first:first + _CHUNK]) < 0.0))[0]
-                 for first in range(0, len(r_pc), _CHUNK)]
+        from ..parallel import thread_count, thread_pool  # numba: loaded at the first step, not on import
+
+        def part(first):
+            return first + np.nonzero(~(self._phi(r_pc[first:first + _CHUNK]) < 0.0))[0]
+
+        firsts = range(0, len(r_pc), _CHUNK)
+        nthreads = thread_count(len(r_pc))  # the chunks on the threads (a numba level set without the GIL)
+        parts = list(thread_pool(nthreads).map(part, firsts)) if nthreads > 1 else [part(f) for f in firsts]
         return np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
 
     def adjust_forces(self, atoms, forces):

@@ -30,7 +30,8 @@ from ase import Atoms
 from ase.optimize.optimize import DEFAULT_MAX_STEPS, Optimizer
 
 from ..checks import ASE_DEFAULT_FMAX
-from ..parallel import run_chunks, thread_count
+from ..parallel import copy_rows, reduce_chunks, run_chunks
+from .keep_inside import KeepInDomain
 from .step_scale import warn_if_nothing_relaxed
 
 __all__ = ["SPHFIRE", "SPHFIRE2", "SPHLBFGS"]
@@ -223,14 +224,6 @@ def _fire2_velocity(v_pc, f_pc, fresh, a, scale, dt, d, out, first, last):
     out[0] += acc
 
 
-def _chunks(loop, n, args, nout):
-    """Run ``loop(*args, out, first, last)`` on static chunks; the per-thread ``out`` arrays."""
-    nthreads = thread_count(n)
-    outs = [np.zeros(nout) for _ in range(nthreads)]
-    run_chunks(loop, n, args, per_thread=[(o,) for o in outs])
-    return outs
-
-
 def _sum(outs, k=0):
     return float(sum(o[k] for o in outs))
 
@@ -272,11 +265,27 @@ class _SPHOptimizer(Optimizer):
         raise ValueError(f"restart: {type(self).__name__} keeps no restart file")
 
     # -- coordinates ---------------------------------------------------------------------------
-    def _forces(self):
-        """Forces as a fresh writable (n, 3) array (constraints applied)."""
+    def _forces(self, writable=True):
+        """Forces (n, 3), constraints applied: a fresh writable array, or with ``writable=False`` the SPH
+        calculator's own result, read only (:meth:`~ase_sphrelax.calculators.base.SPHCalculator.forces_view`: no
+        copy of N forces per step), when the only constraints are :class:`KeepInDomain` (which leave forces alone)."""
         if self._fast:
-            return self.optimizable.atoms.get_forces()
+            atoms = self.optimizable.atoms
+            if not writable and hasattr(atoms.calc, "forces_view") \
+                    and all(isinstance(c, KeepInDomain) for c in atoms.constraints):
+                return atoms.calc.forces_view(atoms)
+            return atoms.get_forces()
         return -self.optimizable.get_gradient().reshape(-1, 3)
+
+    def _scratch_like(self, f_pc):
+        """Where a step writes the new positions: ``f_pc`` itself when it is the step's own copy (writable), else
+        an (n, 3) array of this optimiser, allocated once and kept between steps."""
+        if f_pc.flags.writeable:
+            return f_pc
+        buffer = getattr(self, "_new_pc", None)
+        if buffer is None or buffer.shape != f_pc.shape:
+            buffer = self._new_pc = np.empty(f_pc.shape)
+        return buffer
 
     def _positions(self):
         """Positions (n, 3), read only."""
@@ -290,7 +299,11 @@ class _SPHOptimizer(Optimizer):
             atoms = self.optimizable.atoms
             for constraint in atoms.constraints:  # as Atoms.set_positions, without its copy
                 constraint.adjust_positions(atoms, new_pc)
-            atoms.set_positions(new_pc, apply_constraint=False)
+            positions = atoms.arrays["positions"]
+            if positions.shape == new_pc.shape and positions.dtype == new_pc.dtype == np.float64:
+                copy_rows(positions, new_pc)  # ASE's set_positions copies in place too, on one thread
+            else:
+                atoms.set_positions(new_pc, apply_constraint=False)
         else:
             self.optimizable.set_x(new_pc.reshape(-1))
 
@@ -320,7 +333,7 @@ class _SPHOptimizer(Optimizer):
 
     def _irun(self, steps, reuse=False):
         self.max_steps = self.nsteps + steps
-        f_pc = self._forces()
+        f_pc = self._forces(writable=False)
         if self.nsteps == 0:
             self.log(-f_pc.reshape(-1) if not self._silent else None)
             if self.trajectory is None or self._traj_is_empty():
@@ -333,7 +346,7 @@ class _SPHOptimizer(Optimizer):
             self._step(step_f)
             step_f = None
             self.nsteps += 1
-            f_pc = self._forces()
+            f_pc = self._forces(writable=False)
             self.log(-f_pc.reshape(-1) if not self._silent else None)
             self.call_observers()
             is_converged = self._converged(f_pc)
@@ -342,7 +355,7 @@ class _SPHOptimizer(Optimizer):
     def _converged(self, f_pc):
         if self.fmax is None or self.fmax <= 0.0:
             return False
-        outs = _chunks(_max_norm2, len(f_pc), (f_pc, 3), 1)
+        outs = reduce_chunks(_max_norm2, len(f_pc), (f_pc, 3), 1)
         return bool(np.sqrt(_max(outs, 0)) < self.fmax)
 
     def gradient_converged(self, gradient):
@@ -389,14 +402,15 @@ class _FIREBase(_SPHOptimizer):
 
     def _start_step(self, f_pc):
         """The step's forces (asked for when not given), positions, moving dimensions and particle count."""
-        f_pc = self._forces() if f_pc is None else f_pc
+        f_pc = self._forces(writable=False) if f_pc is None else f_pc
         return f_pc, self._positions(), self._setup_dim(), len(f_pc)
 
     def _move(self, outs, x_pc, f_pc, n, d):
         normdr = float(np.sqrt(_sum(outs)))
         scaled = normdr > self.maxstep
-        run_chunks(_fire_move, n, (x_pc, self.vel, f_pc, self.dt, scaled, self.maxstep, normdr, d))
-        self._set_positions(f_pc)
+        new_pc = self._scratch_like(f_pc)
+        run_chunks(_fire_move, n, (x_pc, self.vel, new_pc, self.dt, scaled, self.maxstep, normdr, d))
+        self._set_positions(new_pc)
 
     def todict(self):
         description = Optimizer.todict(self)
@@ -436,7 +450,7 @@ class SPHFIRE(_FIREBase):
         else:
             if self.vel.shape[0] != n:
                 raise ValueError(f"atoms: the number of particles changed from {self.vel.shape[0]} to {n}")
-            outs = _chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
+            outs = reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
             vf, ff, vv = _sum(outs, 0), _sum(outs, 1), _sum(outs, 2)
             sqrt_ff, sqrt_vv = float(np.sqrt(ff)), float(np.sqrt(vv))
             mode = 1 if vf > 0.0 else 2
@@ -450,7 +464,7 @@ class SPHFIRE(_FIREBase):
             self.a = self.astart
             self.dt *= self.fdec
             self.Nsteps = 0
-        outs = _chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
+        outs = reduce_chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
         self._move(outs, x_pc, f_pc, n, d)
 
 
@@ -498,11 +512,11 @@ class SPHFIRE2(_FIREBase):
         if fresh:
             self.vel = np.zeros((n, d))
             vf = vv = 0.0
-            ff = _sum(_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
+            ff = _sum(reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
         else:
             if self.vel.shape[0] != n:
                 raise ValueError(f"atoms: the number of particles changed from {self.vel.shape[0]} to {n}")
-            outs = _chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
+            outs = reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
             vf, ff, vv = _sum(outs, 0), _sum(outs, 1), _sum(outs, 2)
             if vf > 0.0:
                 self.Nsteps += 1
@@ -513,16 +527,17 @@ class SPHFIRE2(_FIREBase):
                 self.Nsteps = 0
                 self.dt = max(self.dt * self.fdec, self.dtmin)
                 self.a = self.astart
-                # back half the step that went uphill (f_pc is ours to overwrite), then the forces there
-                run_chunks(_fire2_back, n, (x_pc, self.vel, -0.5 * self.dt, d, f_pc))
-                self._set_positions(f_pc)
-                f_pc, x_pc = self._forces(), self._positions()
+                # back half the step that went uphill, then the forces there
+                back_pc = self._scratch_like(f_pc)
+                run_chunks(_fire2_back, n, (x_pc, self.vel, -0.5 * self.dt, d, back_pc))
+                self._set_positions(back_pc)
+                f_pc, x_pc = self._forces(writable=False), self._positions()
                 fresh, vf, vv = True, 0.0, 0.0  # v = 0
-                ff = _sum(_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
+                ff = _sum(reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3), 1)
         # |v + dt F| from the sums, then the mixing's coefficient of F
         norm_v = float(np.sqrt(max(vv + 2.0 * self.dt * vf + self.dt * self.dt * ff, 0.0)))
         scale = self.a * norm_v / np.sqrt(ff) if ff > 0.0 else 0.0
-        outs = _chunks(_fire2_velocity, n, (self.vel, f_pc, fresh, self.a, scale, self.dt, d), 1)
+        outs = reduce_chunks(_fire2_velocity, n, (self.vel, f_pc, fresh, self.a, scale, self.dt, d), 1)
         self._move(outs, x_pc, f_pc, n, d)
 
 
@@ -581,7 +596,7 @@ class SPHLBFGS(_SPHOptimizer):
             raise ValueError(f"atoms: the number of particles changed from {self._s.shape[1]} to {n}")
 
     def _step(self, f_pc=None):
-        f_pc = self._forces() if f_pc is None else f_pc
+        f_pc = self._forces() if f_pc is None or not f_pc.flags.writeable else f_pc  # written over below
         x_pc = self._positions()
         d = self._setup_dim()
         n, m, k = len(f_pc), self.memory, self.iteration
@@ -596,7 +611,7 @@ class SPHLBFGS(_SPHOptimizer):
             # the pair of the last step, from the positions and forces the atoms have now, and every
             # dot product the two-loop recursion needs, in one pass (g = -F changes every step)
             p = (k - 1) % m
-            dots = np.sum(_chunks(_lbfgs_pair_dots, n, (s, y, p, x_pc, f_pc, d), 6 * m), axis=0).reshape(m, 6)
+            dots = np.sum(reduce_chunks(_lbfgs_pair_dots, n, (s, y, p, x_pc, f_pc, d), 6 * m), axis=0).reshape(m, 6)
             ss, sy, yy = self._ss, self._sy, self._yy
             ss[p, :] = ss[:, p] = dots[:, 0]
             sy[p, :] = dots[:, 1]  # s_p . y_j
@@ -620,7 +635,7 @@ class SPHLBFGS(_SPHOptimizer):
                 b = rho[j] * (cs @ sy[:, j] + cy @ yy[j] + cg * gy[j])  # rho_i y_i . z
                 cs[j] += a[i] - b
         slot = k % m  # the oldest pair (its last use is in z) holds z, then the pending pair of this step
-        outs = _chunks(_lbfgs_combine, n, (f_pc, s, y, slot, cs, cy, cg, d), 1)
+        outs = reduce_chunks(_lbfgs_combine, n, (f_pc, s, y, slot, cs, cy, cg, d), 1)
         longest = float(np.sqrt(_max(outs, 0)))  # ASE: the largest per-particle norm of the step
         scaled = longest >= self.maxstep
         factor = self.maxstep / longest if scaled else 1.0
