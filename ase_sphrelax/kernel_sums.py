@@ -52,7 +52,8 @@ PAIR_FORCES = PairInteraction(_radial_potential, dict(forces=_PER_POINT["forces"
                               constants=dict(with_virial=False, with_energy=False), **_POTENTIAL_DATA)
 
 
-def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False, want_energy=True):
+def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False, want_energy=True,
+                        keep_scratch=False):
     """Energy, forces and virial of ``phi(r) = scale * f(r / h)`` summed over pairs.
 
     Parameters
@@ -72,6 +73,8 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
         Every ``r_pc`` has z = 0 (1D/2D): the loops read x and y only (:meth:`PairInteraction.compute`).
     want_energy : bool
         False (and no virial): forces only, ``energies_p`` None (a step of an optimiser that reads forces).
+    keep_scratch : bool
+        As :meth:`~ase_sphrelax.pairs.PairInteraction.compute`'s.
 
     Returns
     -------
@@ -85,11 +88,14 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
     h = float(h)
     params = dict(inv_h=1.0 / h, scale=float(scale))
     if not want_virial and not want_energy:
-        return None, PAIR_FORCES.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar).forces, None
+        return None, PAIR_FORCES.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
+                                           keep_scratch=keep_scratch).forces, None
     if not want_virial:
-        out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar)
+        out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
+                                     keep_scratch=keep_scratch)
         return out.energies, out.forces, np.zeros((3, 3))
-    out = PAIR_POTENTIAL_VIRIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar)
+    out = PAIR_POTENTIAL_VIRIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
+                                        keep_scratch=keep_scratch)
     v = out.virial
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
     return out.energies, out.forces, virial

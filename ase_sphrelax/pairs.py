@@ -573,7 +573,7 @@ class PairInteraction:
         return [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
 
     def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None, consume_inputs=False,
-                planar=False):
+                planar=False, keep_scratch=False):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
 
         Parameters
@@ -599,6 +599,11 @@ class PairInteraction:
             read x and y only and leave the z components of :attr:`Output.spatial` outputs at zero. The pair
             function must give a zero z component for them when ``d[2] = 0`` (its spatial inputs, if any, lie in
             the plane too).
+        keep_scratch : bool
+            True: the threads' accumulators keep their pages after a large sum (:data:`RELEASE_MIN_POINTS`), for a
+            method whose peak memory lies inside its pair sums, where they are in use anyway (Fan: the same peak, and
+            0.97x the CPU time of a relaxation step that faults them in again). False (default): given back, so
+            that a later peak outside the sums (ALARIC's H solve) does not hold them.
 
         Returns
         -------
@@ -651,7 +656,7 @@ class PairInteraction:
         result = self._fold(neighbors, buffers, bases, forward)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:
-            for buf in _SCRATCH.values():  # its pages: not held through the next sum's peak (the H solve's update)
+            for buf in () if keep_scratch else _SCRATCH.values():  # not held through the next sum's peak (H solve)
                 release_pages(buf)
             if hasattr(neighbors, "release_gathered"):  # the gathered inputs: not held through the next sum's peak
                 neighbors.release_gathered()

@@ -281,3 +281,21 @@ def test_bin_sort_in_chunks_is_a_stable_counting_sort(n, groups, seed):
     want = np.argsort(key, kind="stable")
     assert np.array_equal(order, want) and np.array_equal(bin_s, bin_e[want])
     assert np.array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(key, minlength=groups * nbins))]))
+
+
+def test_fan_keeps_its_scratch_pages_and_other_sums_give_them_back(monkeypatch):
+    """Above RELEASE_MIN_POINTS a pair sum gives its accumulators' pages back, unless asked to keep them (Fan,
+    whose peak lies inside the sum: keep_scratch=True); lowered here so that a small system counts as large."""
+    import ase_sphrelax.pairs as pairs
+    from ase_sphrelax.kernel_sums import kernel_sums
+
+    released = []
+    monkeypatch.setattr(pairs, "RELEASE_MIN_POINTS", 100)
+    monkeypatch.setattr(pairs, "release_pages", lambda buf: released.append(buf.size))
+    atoms, _ = _circle(0.01)
+    atoms.get_forces()
+    atoms.positions[:, :2] += 1e-6
+    atoms.get_forces()  # the stored list's walk
+    assert released == []
+    kernel_sums(atoms.calc.nlist, atoms.positions, atoms.calc.model.h, atoms.calc.model.kernel, planar=True)
+    assert released and all(size > 0 for size in released)

@@ -141,7 +141,8 @@ class FanCalculator(SPHCalculator):
         # interior: sum_{i != j} = 2 sum_pairs, plus N self terms
         pair_e_p, f_pc, virial = pair_potential_sums(state.nlist, r_pc, model.h, model.pair_prefactor(vols.v0),
                                                      model.kernel, want_virial=want_stress,
-                                                     planar=state.dim < 3, want_energy=want_energy)
+                                                     planar=state.dim < 3, want_energy=want_energy,
+                                                     keep_scratch=True)  # Fan's peak is inside its pair sum
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
         if want_energy:
             energies_p += model.self_energy(n, vols.v0, vols.volume) / n
