@@ -95,6 +95,30 @@ def warm_up(dim):
     score(atoms, domain, dx)
 
 
+def _norm_sum_chunk(f_pc, phi_p, below, out, first, last):
+    for p in range(first, last):
+        if phi_p[p] <= below:
+            out[0] += np.sqrt(f_pc[p, 0] * f_pc[p, 0] + f_pc[p, 1] * f_pc[p, 1] + f_pc[p, 2] * f_pc[p, 2])
+            out[1] += 1.0
+
+
+def interior_mean_norm(f_pc, phi_p, below):
+    """Mean of ``|f_p|`` over the points with ``phi_p <= below``, in one pass on the package's threads (numpy's
+    norms, mask and mean of 1e6 points took 15 ms on one thread, the check 31 times in a 2D run)."""
+    import numba
+
+    from ase_sphrelax.parallel import reduce_chunks
+
+    global _NORM_SUM
+    if _NORM_SUM is None:
+        _NORM_SUM = numba.njit(nogil=True, cache=True)(_norm_sum_chunk)
+    outs = reduce_chunks(_NORM_SUM, len(f_pc), (f_pc, np.asarray(phi_p, dtype=float), float(below)), 2)
+    return float(sum(o[0] for o in outs) / sum(o[1] for o in outs))
+
+
+_NORM_SUM = None
+
+
 def run_ours(dim, n, target, check_every, max_steps):
     """Ours end to end until the measure reaches ``target``: a dict of times, steps and the trace."""
     from ase_sphrelax import FanCalculator, make_optimizer
@@ -112,8 +136,7 @@ def run_ours(dim, n, target, check_every, max_steps):
         if opt.nsteps % check_every:
             continue
         f_pc = atoms.calc.results["forces"]  # the step's own forces (no copy)
-        norm_p = np.sqrt(np.einsum("ij,ij->i", f_pc, f_pc))  # one array of N: 18 ms at 1e6, not 58 ms
-        measure = float(h / (2.0 * v0) * norm_p[domain.phi(atoms.positions) <= -h].mean())
+        measure = h / (2.0 * v0) * interior_mean_norm(f_pc, domain.phi(atoms.positions), -h)
         trace.append([int(opt.nsteps), time.perf_counter() - t0, measure])
         if measure <= target:
             reached = True
