@@ -60,14 +60,29 @@ from numba.extending import overload
 from numpy.polynomial import polynomial as P
 
 from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
-from .neighbors import set_mmap_threshold
-from .pairs import Output, PairInteraction
+from .neighbors import release_pages, set_mmap_threshold
+from .pairs import _SCRATCH, Output, PairInteraction
 from .parallel import run_chunks, thread_count
 
 __all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
            "SmoothingLengthError", "initial_smoothing_length", "pressure_forces", "viscosity_forces",
            "velocity_divergence", "continuity_rate", "update_alpha", "isothermal_pressure", "tait_pressure",
-           "scaled"]
+           "scaled", "fix_mmap_threshold", "fix_mmap_threshold_once", "release_pair_buffers"]
+
+def release_pair_buffers(nlist):
+    """Give back the pair sums' kept buffers at the end of a method's evaluation (ALARIC: and of its viscous sum):
+    the pages of the loops' scratch (:func:`ase_sphrelax.neighbors.release_pages`; they read as zeros and are
+    written again by the next sum) and ``nlist``'s gathered inputs (None: the scratch only). The driver's own arrays
+    (time step, velocity update) are then made without them resident: ALARIC 2D at 1e4 particles held about 130 B
+    per particle (the H solve's 8 power sums per point and the viscous sum's inputs, particles and mirror ghosts)
+    through its dynamics' step, the peak of memory there (issue 33 item 4, ``reproductions/speed-scale-memory-2d``).
+    Once per evaluation, not per sum: below :data:`ase_sphrelax.pairs.RELEASE_MIN_POINTS` the sums of one
+    evaluation share them."""
+    for buf in _SCRATCH.values():
+        release_pages(buf)
+    if nlist is not None:
+        nlist.release_gathered()
+
 
 def default_eta(kernel):
     """``eta`` for support radius ``H``: ``rho H^d = m eta^d`` (the kernel's registered value: Phantom's value
@@ -80,10 +95,11 @@ def default_eta(kernel):
 
 MMAP_THRESHOLD = 64 * 1024
 """glibc's mmap threshold in bytes, fixed (``mallopt(M_MMAP_THRESHOLD)``, process-wide) at the first
-:func:`solve_smoothing_lengths`; None leaves glibc's own. glibc raises the threshold to the size of each large
+:func:`solve_smoothing_lengths` or :class:`~ase_sphrelax.BIPICalculator` evaluation (:func:`fix_mmap_threshold_once`);
+None leaves glibc's own. glibc raises the threshold to the size of each large
 block freed (up to 32 MB), after which per-particle arrays come from the heap, whose freed pages it keeps: in
 ALARIC 2D's and SPH-ParVI 2D's steps at 1e4-1e5 particles such kept pages were 60-140 bytes per particle of the
-peak resident set. Fixed, every array above it is its own mapping, given back when freed, and written to fresh pages
+peak resident set, in BIPI 2D's at 1e4 about 60 (``reproductions/speed-scale-memory-2d``). Fixed, every array above it is its own mapping, given back when freed, and written to fresh pages
 when made: page faults cost about 3 % of an ALARIC 2D step at 1e5 (``reproductions/speed-scale-memory-alaric``), and
 the setting stays for the rest of the process, so a Fan relaxation run after ALARIC or SPH-ParVI in the same process
 costs 1.15-1.2x the CPU time a step (2D, 1e5 particles). Set it to None before the first solve to keep glibc's rule
@@ -99,6 +115,16 @@ def fix_mmap_threshold(threshold=None):
     if threshold is not None and (isinstance(threshold, bool) or not isinstance(threshold, int) or threshold <= 0):
         raise ValueError(f"threshold must be a positive int (bytes) or None, got {threshold!r}")
     return threshold is not None and set_mmap_threshold(threshold)
+
+
+def fix_mmap_threshold_once():
+    """:func:`fix_mmap_threshold` at :data:`MMAP_THRESHOLD` on the first call of a process (a method's first
+    evaluation: the H solve, BIPI's calculator); later calls do nothing. True when this call set it."""
+    global _mmap_fixed
+    if _mmap_fixed:
+        return False
+    _mmap_fixed = True
+    return fix_mmap_threshold()
 
 
 class SmoothingLengthError(ValueError):
@@ -709,10 +735,7 @@ def solve_smoothing_lengths(nlist, r_pc, cell, pbc, masses, kernel, eta=None, h0
     -----
     The first call in a process fixes glibc's mmap threshold (:data:`MMAP_THRESHOLD`, :func:`fix_mmap_threshold`).
     """
-    global _mmap_fixed
-    if not _mmap_fixed:  # once per process: freed per-particle arrays are not kept by the heap (MMAP_THRESHOLD)
-        _mmap_fixed = True
-        fix_mmap_threshold()
+    fix_mmap_threshold_once()  # freed per-particle arrays are not kept by the heap (MMAP_THRESHOLD)
     r_pc = np.asarray(r_pc, dtype=float)
     n = r_pc.shape[0]
     d = kernel.dim
@@ -999,9 +1022,12 @@ def viscosity_forces(nlist, r_pc, v_pc, masses, h, rho, alpha, v_sig, kernel, be
     if np.all(m_p == m_p[0]):  # equal masses: m a parameter (the same forces bit for bit)
         params["m"], name = float(m_p[0]), "viscosity_equal"
         del inputs["m_s"]
-    m_p = None
-    out = _interaction(name, dims).compute(nlist, r_pc, params=params, inputs=inputs, reach=float(h_p.max()),
-                                           kernel=kernel, consume_inputs=True)
+    reach = float(h_p.max())
+    # the arrays live in the inputs dict only: those made for this call (by the caller in its arguments, or here)
+    # are freed once gathered, not held through the pair loop
+    m_p = h_p = rho_p = alpha_p = v_pc = rho = alpha = h = masses = None
+    out = _interaction(name, dims).compute(nlist, r_pc, params=params, inputs=inputs, reach=reach, kernel=kernel,
+                                           consume_inputs=True)
     return out.forces, out.div_v
 
 

@@ -339,21 +339,32 @@ class ALARICCalculator(SPHCalculator):
         if "smoothing_lengths" not in res:
             raise RuntimeError("viscous_forces: evaluate the forces first (atoms.get_forces())")
         if self._ghosts is None:
-            return sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
-                                        res["density"], alpha_p, v_sig, self.kernel)
+            out = sph.viscosity_forces(self.nlist, self.atoms.positions, v_pc, self.mass, res["smoothing_lengths"],
+                                       res["density"], alpha_p, v_sig, self.kernel)
+            sph.release_pair_buffers(self.nlist)
+            return out
         # with mirror ghosts: a ghost moves as J v of its owner; its share goes back through J^T
         # the pairs see the first d components (the rest are zeros): d velocity and force columns per point, not 3
         owner_g, y_pc, h_q = self._ghosts
         d, n = self.dim, len(v_pc)
-        v_qd = np.empty((len(y_pc), d))
+        alpha_p = np.asarray(alpha_p, dtype=float)
+        # the points' velocities, densities and switches made in the call's arguments: held by the call only, which
+        # drops them once gathered (not through the pair loop: 32 B per point in 2D)
+        f_qd, div_q = sph.viscosity_forces(self.nlist, y_pc, self._ghost_velocities(v_pc, owner_g, d), self.mass, h_q,
+                                           np.concatenate([res["density"], res["density"][owner_g]]),
+                                           np.concatenate([alpha_p, alpha_p[owner_g]]), v_sig, self.kernel, dims=d)
+        out = self._fold_ghosts(f_qd, n, columns=3), div_q[:n]
+        f_qd = div_q = None
+        sph.release_pair_buffers(self.nlist)
+        return out
+
+    def _ghost_velocities(self, v_pc, owner_g, d):
+        """(Q, d) velocities of the particles and their mirror ghosts (a ghost moves as ``J v`` of its owner)."""
+        n = len(v_pc)
+        v_qd = np.empty((n + len(owner_g), d))
         v_qd[:n] = np.asarray(v_pc)[:, :d]
         v_qd[n:] = np.einsum("gij,gj->gi", self._ghost_jacobians(), v_qd[owner_g])
-        rho_q = np.concatenate([res["density"], res["density"][owner_g]])
-        alpha_q = np.concatenate([np.asarray(alpha_p, dtype=float), np.asarray(alpha_p, dtype=float)[owner_g]])
-        f_qd, div_q = sph.viscosity_forces(self.nlist, y_pc, v_qd, self.mass, h_q, rho_q, alpha_q, v_sig, self.kernel,
-                                           dims=d)
-        v_qd = rho_q = alpha_q = None
-        return self._fold_ghosts(f_qd, n, columns=3), div_q[:n]
+        return v_qd
 
     def _fold_ghosts(self, f_qd, n, columns=None):
         """Real particles' forces from those on the real and ghost points: ``F_a + sum_g J_g^T F_g``, with
@@ -556,6 +567,7 @@ class ALARICCalculator(SPHCalculator):
                 d_e = 0.5 * (d_e + d_e.T)
                 stress_cc = d_e / atoms.get_volume()
                 out["stress"] = stress_cc.flat[[0, 4, 8, 5, 2, 1]]
+        sph.release_pair_buffers(self.nlist)
         return out
 
     def _forces(self, r_pc, x_pd, state, target_p, wall_p, want_virial=False, full=None):

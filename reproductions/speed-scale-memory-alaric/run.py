@@ -10,8 +10,9 @@ rows: ``release``, every pair sum gives its scratch pages, gathered inputs and t
 from ``pairs.RELEASE_MIN_POINTS`` points (the constant set to 1 in the child); ``mmap``, glibc's mmap threshold
 fixed at 64 KiB once the start is built (``mallopt``: every array above it is its own mapping, unmapped when freed,
 so the peak is the live data without the heap's kept pages; since commit a9d76d0 the H solve fixes it so, and
-``mmap`` rows are ``list`` rows). ALARIC's rows add the stored list's size at the end (its int32 buffer, and the
-points, particles and mirror ghosts, per particle).
+``mmap`` rows are ``list`` rows; set after the start is built, the start's freed temporaries stay in the heap, inside
+the baseline, for the steps to reuse: lower rows than a threshold fixed from the warm-up on). ALARIC's rows add the
+stored list's size at the end (its int32 buffer, and the points, particles and mirror ghosts, per particle).
 
     python reproductions/speed-scale-memory-alaric/run.py --rows alaric2d:1e6:list,alaric3d:1e5:list \
         --out reproductions/speed-scale-memory-alaric/results/rows.json
@@ -102,7 +103,8 @@ def main():
             raise SystemExit(f"{spec}: {out.stderr.strip().splitlines()[-1]}")
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
         print(f"{spec}: {rows[-1]['bytes_per_particle']:.0f} B per particle", flush=True)
-    result = dict(version=git_version(), load=os.getloadavg(), steps=args.steps, rows=rows)
+    result = dict(version=git_version(), command=" ".join(["python", *sys.argv]), load=os.getloadavg(),
+                  steps=args.steps, rows=rows)
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
