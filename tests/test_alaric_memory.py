@@ -75,3 +75,29 @@ def test_a_failed_evaluation_leaves_the_half_step_velocities_as_momenta():
         dyn.step()
     assert atoms.has("momenta")
     np.testing.assert_allclose(atoms.get_velocities(), v0 + 0.5 * dt * a0, rtol=1e-12, atol=1e-15)
+
+
+def _released(calc):
+    """The pair sums' scratch reads as zeros on its whole pages and the list holds no gathered inputs."""
+    from ase_sphrelax import pairs
+    from ase_sphrelax.neighbors import _PAGE
+
+    checked = 0
+    for buf in pairs._SCRATCH.values():
+        lo = -(-buf.ctypes.data // _PAGE) * _PAGE - buf.ctypes.data
+        hi = (buf.ctypes.data + buf.nbytes) // _PAGE * _PAGE - buf.ctypes.data
+        if hi - lo >= _PAGE:
+            checked += 1
+            if np.any(buf.view(np.uint8)[lo:hi]):
+                return False
+    return checked > 0 and not calc.nlist.points._gather_buffers
+
+
+def test_the_pair_buffers_are_given_back_after_an_evaluation_and_the_viscous_sum():
+    """``sph.release_pair_buffers``: ALARIC 2D at 1e4 particles held the H solve's scratch and the sums' gathered
+    inputs (about 130 B per particle) through its dynamics' step, the peak of memory there (issue 33 item 4)."""
+    atoms, dyn = _run(2, "mirror", True, steps=2)  # a step ends with the viscous sum
+    assert _released(atoms.calc)
+    atoms.calc.reset()
+    atoms.get_forces()  # an evaluation alone
+    assert _released(atoms.calc)

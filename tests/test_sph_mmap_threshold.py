@@ -1,5 +1,5 @@
-"""The H solve fixes glibc's mmap threshold (``sph.MMAP_THRESHOLD``, issue 33 item 4): after the first
-:func:`ase_sphrelax.sph.solve_smoothing_lengths` of a process, a freed 1 MB array is given back to the system at
+"""The H solve and BIPI's calculator fix glibc's mmap threshold (``sph.MMAP_THRESHOLD``, issue 33 item 4): after the
+first :func:`ase_sphrelax.sph.solve_smoothing_lengths` or BIPI evaluation of a process, a freed 1 MB array is given back to the system at
 once, where glibc's own rule (after a larger block was freed) keeps it in the heap. Each case runs in a fresh
 process: the setting is process-wide."""
 import subprocess
@@ -36,11 +36,21 @@ PROBE = textwrap.dedent("""
     out = [mapped_for_1mb()]
     if sys.argv[1] == "off":
         sph.MMAP_THRESHOLD = None
-    rng = np.random.default_rng(0)
-    r = np.zeros((400, 3))
-    r[:, :2] = rng.random((400, 2)) * 20.0
-    cell, pbc = np.diag([20.0, 20.0, 1.0]), (True, True, False)
-    sph.solve_smoothing_lengths(NeighborList(1.0), r, cell, pbc, 1.0, get_kernel("wendland_c4", 2))
+    if sys.argv[1] == "bipi":  # a BIPI evaluation (no H solve) in a unit square
+        from ase_sphrelax import BIPICalculator
+        from ase_sphrelax.build import fill
+        from ase_sphrelax.domains import Polygon
+
+        square = Polygon([np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])])
+        atoms = fill(square, 0.05, jitter=0.1, seed=0)
+        atoms.calc = BIPICalculator(h=0.2, dx=0.05, boundary=square)
+        atoms.get_forces()
+    else:
+        rng = np.random.default_rng(0)
+        r = np.zeros((400, 3))
+        r[:, :2] = rng.random((400, 2)) * 20.0
+        cell, pbc = np.diag([20.0, 20.0, 1.0]), (True, True, False)
+        sph.solve_smoothing_lengths(NeighborList(1.0), r, cell, pbc, 1.0, get_kernel("wendland_c4", 2))
     big = np.ones(2**21)
     del big
     out.append(mapped_for_1mb())
@@ -59,6 +69,15 @@ def test_the_first_solve_fixes_the_mmap_threshold():
     if before >= 2**20:
         pytest.skip("this malloc maps a 1 MB block even after a larger one was freed (not glibc's dynamic rule)")
     assert after >= 2**20  # the 1 MB array is a mapping of its own: given back when freed
+
+
+@glibc
+def test_the_first_bipi_evaluation_fixes_the_mmap_threshold():
+    """BIPI solves no H: its calculator fixes the threshold itself (BIPI 2D's small-N memory, issue 33 item 4)."""
+    before, after = _probe("bipi")
+    if before >= 2**20:
+        pytest.skip("this malloc maps a 1 MB block even after a larger one was freed (not glibc's dynamic rule)")
+    assert after >= 2**20
 
 
 @glibc
