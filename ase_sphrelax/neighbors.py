@@ -636,10 +636,13 @@ def _copy_releasing(dst, src):
     """``dst[:] = src`` for 1D contiguous arrays, chunk by chunk, giving the whole pages of ``src`` already copied
     back to the system (``madvise(MADV_DONTNEED)``; they read as zeros afterwards): for a source that is dropped
     after the copy, the peak holds one copy and a chunk, not two. Elsewhere than Linux, a plain copy."""
-    if _MADVISE is None or src.nbytes < 4 * _COPY_CHUNK or not src.flags.c_contiguous:
+    # a small source (a list of 1-4 MB at 1e4-3e4 particles) in sixteenths: whole, both copies were resident at once
+    # (BIPI 2D at 3e4: about 117 B per particle more at each build, reproductions/speed-scale-memory-2d)
+    chunk = min(_COPY_CHUNK, max(src.nbytes // 16, 16 * _PAGE))
+    if _MADVISE is None or src.nbytes < 4 * chunk or not src.flags.c_contiguous:
         dst[:] = src
         return
-    step = _COPY_CHUNK // src.itemsize
+    step = chunk // src.itemsize
     base = src.ctypes.data
     released = -(-base // _PAGE) * _PAGE  # the first whole page of src
     for lo in range(0, src.shape[0], step):

@@ -381,6 +381,14 @@ ALARIC 2D near 600 bytes per particle. Below it they are kept: re-faulting the p
 at 1e6 (ALARIC 2D) about 7 %."""
 
 
+def release_scratch():
+    """Give the pages of the pair loops' scratch back to the system (:func:`~ase_sphrelax.neighbors.release_pages`;
+    they read as zeros and are written again by the next sum): for a method whose peak memory lies outside its
+    pair sums."""
+    for buf in _SCRATCH.values():
+        release_pages(buf)
+
+
 def _scratch(key, size):
     """A float64 array of ``size`` elements from the scratch of ``key``, grown (never shrunk) on demand;
     only the interaction being computed uses it."""
@@ -656,8 +664,8 @@ class PairInteraction:
         result = self._fold(neighbors, buffers, bases, forward)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:
-            for buf in () if keep_scratch else _SCRATCH.values():  # not held through the next sum's peak (H solve)
-                release_pages(buf)
+            if not keep_scratch:  # not held through the next sum's peak (the H solve's update)
+                release_scratch()
             if hasattr(neighbors, "release_gathered"):  # the gathered inputs: not held through the next sum's peak
                 neighbors.release_gathered()
             release_free_memory()

@@ -60,8 +60,8 @@ from numba.extending import overload
 from numpy.polynomial import polynomial as P
 
 from .kernels import _derivative_in_q, get_kernel, kernel_derivatives, kernel_profile
-from .neighbors import release_pages, set_mmap_threshold
-from .pairs import _SCRATCH, Output, PairInteraction
+from .neighbors import set_mmap_threshold
+from .pairs import Output, PairInteraction, release_scratch
 from .parallel import run_chunks, thread_count
 
 __all__ = ["default_eta", "DensitySums", "density_sums", "solve_smoothing_lengths",
@@ -78,8 +78,7 @@ def release_pair_buffers(nlist):
     through its dynamics' step, the peak of memory there (issue 33 item 4, ``reproductions/speed-scale-memory-2d``).
     Once per evaluation, not per sum: below :data:`ase_sphrelax.pairs.RELEASE_MIN_POINTS` the sums of one
     evaluation share them."""
-    for buf in _SCRATCH.values():
-        release_pages(buf)
+    release_scratch()
     if nlist is not None:
         nlist.release_gathered()
 
