@@ -775,24 +775,19 @@ def _fold_part_originals(parts, bases, src_s, is_ghost_s, outs, first, last):
                     stop = min(stop, hi)
                     held[m] = t
                     m += 1
-            if m == 1:
+            if m == 1 or m == 2:  # the test of m is the same for the whole segment (taken out of the loop)
                 pa = part_i[held[0]]
+                pb = part_i[held[m - 1]]
                 la = bases[held[0]]
+                lb = bases[held[m - 1]]
                 for q in range(s, stop):
                     if not is_ghost_s[q]:
                         p = src_s[q]
                         for k in range(k_max):
-                            out_pk[p, k] = 0.0 + pa[q - la, k]
-            elif m == 2:
-                pa = part_i[held[0]]
-                pb = part_i[held[1]]
-                la = bases[held[0]]
-                lb = bases[held[1]]
-                for q in range(s, stop):
-                    if not is_ghost_s[q]:
-                        p = src_s[q]
-                        for k in range(k_max):
-                            out_pk[p, k] = (0.0 + pa[q - la, k]) + pb[q - lb, k]
+                            value = 0.0 + pa[q - la, k]
+                            if m == 2:
+                                value += pb[q - lb, k]
+                            out_pk[p, k] = value
             else:
                 for q in range(s, stop):
                     if not is_ghost_s[q]:
