@@ -148,6 +148,18 @@ def _alaric_domain(dim, n):
     return Circle((0.0, 0.0), radius) if dim == 2 else Sphere((0.0, 0.0, 0.0), radius)
 
 
+def alaric_dynamics(atoms, dim, domain):
+    """The bench's ALARIC: a uniform target in ``domain`` (the boundary its "auto" choice), its calculator attached
+    to ``atoms``, and the dynamics without its stops."""
+    from ase_sphrelax import ALARICCalculator
+    from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
+    from ase_sphrelax.models.alaric import resolve_boundary
+
+    atoms.calc = ALARICCalculator(target_density=_uniform, target_gradient=_no_gradient, dim=dim, domain=domain,
+                                  boundary=resolve_boundary("auto", domain))
+    return ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0)
+
+
 def setup(method, n):
     """(start, run(steps) -> (wall, cpu, steps)) for ``method`` at about ``n`` particles. ``start`` is the system
     that counts in the baseline (Atoms, or positions for ParVI)."""
@@ -182,18 +194,13 @@ def setup(method, n):
             return clock.per_step()
         return atoms, run
     if method.startswith("alaric"):
-        from ase_sphrelax import ALARICCalculator
         from ase_sphrelax.build import fill
-        from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
-        from ase_sphrelax.models.alaric import resolve_boundary
 
         domain = _alaric_domain(dim, n)
         atoms = fill(domain, 1.0, jitter=0.1, seed=0)
 
         def run(steps):
-            atoms.calc = ALARICCalculator(target_density=_uniform, target_gradient=_no_gradient, dim=dim,
-                                          domain=domain, boundary=resolve_boundary("auto", domain))
-            dyn = ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0)
+            dyn = alaric_dynamics(atoms, dim, domain)
             clock = _Clock()
             dyn.attach(clock, interval=1)
             dyn.run(steps)

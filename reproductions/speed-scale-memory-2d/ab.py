@@ -44,17 +44,11 @@ def main(method, n, rounds, block, what):
     settings = dict(A=dict(threshold=32 * 2**20, release=keep), B=dict(threshold=64 * 1024, release=released))
     dim = B.DIM[method]
     if method.startswith("alaric"):
-        from ase_sphrelax import ALARICCalculator
-        from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
-        from ase_sphrelax.models.alaric import resolve_boundary
-
         from ase_sphrelax.build import fill
 
         domain = B._alaric_domain(dim, n)
         atoms = fill(domain, 1.0, jitter=0.1, seed=0)
-        atoms.calc = ALARICCalculator(target_density=B._uniform, target_gradient=B._no_gradient, dim=dim,
-                                      domain=domain, boundary=resolve_boundary("auto", domain))
-        dyn = ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0)
+        dyn = B.alaric_dynamics(atoms, dim, domain)
         dyn.run(3)
 
         def work():

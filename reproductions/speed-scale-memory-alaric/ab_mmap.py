@@ -40,15 +40,8 @@ def main(method, n, rounds, block):
     threshold = dict(A=32 * 2**20, B=64 * 1024)
     if method.startswith("alaric"):
         atoms, run = B.setup(method, n)
-        from ase_sphrelax import ALARICCalculator
-        from ase_sphrelax.drivers.alaric_dynamics import ALARICDynamics
-        from ase_sphrelax.models.alaric import resolve_boundary
-
         dim = B.DIM[method]
-        domain = B._alaric_domain(dim, n)
-        atoms.calc = ALARICCalculator(target_density=B._uniform, target_gradient=B._no_gradient, dim=dim,
-                                      domain=domain, boundary=resolve_boundary("auto", domain))
-        dyn = ALARICDynamics(atoms, eps_min=0.0, eps_dot_min=0.0)
+        dyn = B.alaric_dynamics(atoms, dim, B._alaric_domain(dim, n))
         dyn.run(3)
 
         def work():
