@@ -1,7 +1,8 @@
 """The rows of ``results/rows_*.json`` (``speed-scale-memory-alaric/run.py``) per method and size: every run, the
 max and the min, for each code state (``before``: c5d123d; ``after``: this entry's commit; ``copy_chunk``: the
 same with the list copy of ``neighbors._copy_releasing`` chunked for small lists, not committed;
-``copy_chunk_glibc``: that with ``sph.MMAP_THRESHOLD = None``, BIPI rows only). Writes
+``copy_chunk_glibc``: that with ``sph.MMAP_THRESHOLD = None``, BIPI rows only; ``final``: the lead's commit that
+took the chunked copy, with the session's other changes). Writes
 ``results/summary.json``.
 
     python reproductions/speed-scale-memory-2d/summarise.py
@@ -10,7 +11,7 @@ import json
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-STATES = ("before", "after", "copy_chunk", "copy_chunk_glibc")
+STATES = ("before", "after", "copy_chunk", "copy_chunk_glibc", "final")
 
 
 def main():
