@@ -107,7 +107,9 @@ class KeepInDomain:
             return first + np.nonzero(~(self._phi(r_pc[first:first + _CHUNK]) < 0.0))[0]
 
         firsts = range(0, len(r_pc), _CHUNK)
-        nthreads = thread_count(len(r_pc))  # the chunks on the threads (a numba level set without the GIL)
+        # the chunks on the threads for the package's domains (numba level sets; Ball's without the GIL), a user's
+        # level set on the calling thread alone
+        nthreads = thread_count(len(r_pc)) if self._takes_positions else 1
         parts = list(thread_pool(nthreads).map(part, firsts)) if nthreads > 1 else [part(f) for f in firsts]
         return np.concatenate(parts) if parts else np.zeros(0, dtype=np.intp)
 
