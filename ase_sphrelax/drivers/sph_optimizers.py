@@ -246,10 +246,13 @@ def _resolve_dim(atoms, dim):
 class _SPHOptimizer(Optimizer):
     """Shared run loop and coordinate access of :class:`SPHFIRE` and :class:`SPHLBFGS`.
 
-    With an :class:`ase.Atoms` the step reads ``atoms.positions`` in place and writes the new
-    positions through the constraints (``adjust_positions``, as ``Atoms.set_positions`` does)
-    into ASE's fresh force array, which it no longer needs; any other optimizable (a Filter)
-    goes through ASE's ``get_x`` / ``get_gradient`` / ``set_x`` on all 3 coordinates.
+    With an :class:`ase.Atoms` the step reads ``atoms.positions`` in place; FIRE and FIRE2 read the forces
+    in place too (the SPH calculator's ``forces_view``, when the only constraints are
+    :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain`) and form the new positions in a buffer of
+    their own, LBFGS in ASE's fresh force array, which it no longer needs; the new positions go
+    through the constraints (``adjust_positions``, as ``Atoms.set_positions`` does) and are copied
+    into ``atoms.positions`` in place. Any other optimizable (a Filter) goes through ASE's
+    ``get_x`` / ``get_gradient`` / ``set_x`` on all 3 coordinates.
     """
 
     def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dim=None, **kwargs):
