@@ -38,6 +38,7 @@ from __future__ import annotations
 import ctypes
 import inspect
 import itertools
+import sys
 
 import numba
 import numpy as np
@@ -115,7 +116,7 @@ def _extended_points(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c):
         return _extended_points_general(r_pc, cell_cc, inv_cc, pbc_c, pad_c, layers_c)
     n = r_pc.shape[0]
     outs = reduce_chunks(_bounds_chunk, n, (r_pc,), 6, fill=np.inf)
-    low = np.min([out for out in outs], axis=0)
+    low = np.min(outs, axis=0)
     return np.arange(n, dtype=np.int32), np.zeros((n, 3), dtype=np.int32), low[:3].copy(), -low[3:]
 
 
@@ -597,9 +598,6 @@ _MADV_DONTNEED = 4  # Linux
 
 def _libc_function(name, argtypes, use_errno=False):
     """libc's function ``name`` returning int, with its ctypes argument types (Linux), or None."""
-    import ctypes
-    import sys
-
     if not sys.platform.startswith("linux"):
         return None
     try:

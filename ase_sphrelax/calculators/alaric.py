@@ -449,8 +449,8 @@ class ALARICCalculator(SPHCalculator):
             if self.nlist is None:
                 self.nlist = NeighborList(h0_q, skin=self._skin)
             state = sph.solve_smoothing_lengths(self.nlist, y_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                                h0=h0_q, tol=p.h_tol, store=self._evaluations > 1 and self.stores_list(),
-                                                solve=n, dims=d)
+                                                h0=h0_q, tol=p.h_tol, solve=n, dims=d,
+                                                store=self._evaluations > 1 and self.stores_list())
             h0_q = None
             h_p = state.h_p[:n]
             phi_p = np.asarray(p.domain.phi(self.points(st.atoms.positions, st.atoms)), dtype=float)
@@ -505,8 +505,8 @@ class ALARICCalculator(SPHCalculator):
             full = self._solve_with_ghosts(st)  # the particles' rows, then the ghosts'
         else:
             full = sph.solve_smoothing_lengths(st.nlist, st.r_pc, st.cell, st.pbc, 1.0, self.kernel, eta=self.eta,
-                                               h0=self.h_p, tol=p.h_tol, store=self._evaluations > 1 and self.stores_list(),
-                                               dims=d)
+                                               h0=self.h_p, tol=p.h_tol, dims=d,
+                                               store=self._evaluations > 1 and self.stores_list())
         # the solve's unit-mass densities (the number densities again) are not kept: rho = m n below
         h_p, n_p, omega_p, count_p, iterations = (full.h_p[:n], full.n_p[:n], full.omega_p[:n],
                                                   full.neighbours_p[:n], full.iterations)
