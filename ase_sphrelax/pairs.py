@@ -460,8 +460,9 @@ class PairInteraction:
         The name of a parameter ``inv_h`` beyond whose support every term of the pair function is exactly zero:
         ``r >= 1 / inv_h`` (the kernel placeholders at ``q = r inv_h``). When the reach of a call is at least that
         support (``reach * inv_h >= 1``, to 1e-12), a stored list is walked without the test ``r < reach``: the
-        entries of the list's skin add zeros, and the walk has no branch that goes either way at random (Fan's
-        walk at 1e6 in 2D: 0.93x the CPU time). None (default): the test on every entry.
+        entries of the list's skin add zeros (a pair at r = h whose r rounds just below the support adds less than
+        1e-40 of the scale), and the walk has no branch that goes either way at random (Fan's walk at 1e6 in 2D:
+        0.93x the CPU time). None (default): the test on every entry.
 
     Raises
     ------

@@ -299,3 +299,35 @@ def test_fan_keeps_its_scratch_pages_and_other_sums_give_them_back(monkeypatch):
     assert released == []
     kernel_sums(atoms.calc.nlist, atoms.positions, atoms.calc.model.h, atoms.calc.model.kernel, planar=True)
     assert released and all(size > 0 for size in released)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31), st.sampled_from([2, 3]), st.integers(2, 40))
+def test_walk_without_the_reach_test_on_degenerate_pairs(seed, dim, n):
+    """The walk without the reach test against the walk with it, on random points with the degenerate cases added:
+    coincident and near-coincident pairs, and pairs at exactly h (along an axis, where r may round to either side of
+    the support). Terms beyond the support are exact zeros and at r = h they are below 1e-40 of the scale, so the
+    forces agree to that (bit for bit in every case but a particle whose only partners sit at exactly h)."""
+    rng = np.random.default_rng(seed)
+    h = 0.1
+    r_pc = np.zeros((n, 3))
+    r_pc[:, :dim] = rng.random((n, dim)) * 0.3
+    r_pc[1] = r_pc[0]  # coincident
+    r_pc[n - 1] = r_pc[0] + 1e-12
+    k = n // 2
+    r_pc[k] = r_pc[k - 1]
+    r_pc[k, 0] += h  # at exactly h along x (as the floats give it)
+    nlist = NeighborList(h, skin=0.5 * h)
+    for _ in range(2):
+        nlist.update(r_pc, np.eye(3), [False] * 3)
+    kernel = get_kernel("wendland_c2", dim)
+    params = dict(inv_h=1.0 / h, scale=1.0)
+    without = PAIR_POTENTIAL.compute(nlist, r_pc, params, reach=h, kernel=kernel, planar=dim == 2)
+    PAIR_POTENTIAL.support, support = None, PAIR_POTENTIAL.support
+    try:
+        with_test = PAIR_POTENTIAL.compute(nlist, r_pc, params, reach=h, kernel=kernel, planar=dim == 2)
+    finally:
+        PAIR_POTENTIAL.support = support
+    for name in ("forces", "energies"):
+        np.testing.assert_allclose(without[name], with_test[name], rtol=0, atol=1e-40)
+        assert np.isfinite(without[name]).all()
