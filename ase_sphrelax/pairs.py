@@ -192,25 +192,36 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
         {zero_own}
         ca = cut_s[a]
         start = pos
+        rc2 = (ca + skin) * (ca + skin)
+        # a's partners within max(cut-offs) + skin, appended without a branch on the test (each candidate is
+        # written, and kept by moving on): whether a candidate is in reach is not predictable
         for k in range(-1, stencil_rows(a, kx, ky, kz, nbin_c, stencil)):
             lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
             for b in range(lo, hi):
-                {diff}
-                r2 = {norm2}
-                rc = max(ca, cut_s[b]) + skin
-                if r2 >= rc * rc or not is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \
-                        or not finds_pair(a, b, stencil):
-                    continue
+                {scan_diff}
                 pair_j[pos] = b
-                pos += 1
-                if r2 >= reach2:
-                    continue
-                {body}
+                {keep}
         count_s[a + 1] = pos - start
+        # then their terms, as a walk of the stored list computes them: the same pairs in the same order
+        for p in range(start, pos):
+            b = pair_j[p]
+            {diff}
+            r2 = {norm2}
+            {reach_test}
+            {body}
         {store_own}
     {store_global}
     return last, pos
 """
+
+
+# The build's test of a candidate b of point a: in general within max(cut_a, cut_b) + skin, the canonical
+# orientation of an original-ghost pair, found once by a wide point's stencil; "plain" (every point an original
+# with the same cut-off, no wide points: :meth:`PairInteraction.compute` checks) within cut_a + skin alone.
+_KEEP_GENERAL = """rc = max(ca, cut_s[b]) + skin
+                pos += ({norm2} < rc * rc) & is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \\
+                    & finds_pair(a, b, stencil)"""
+_KEEP_PLAIN = "pos += {norm2} < rc2"
 
 
 def _targets(outputs, per_point, point, planar=False):
@@ -237,7 +248,7 @@ def _bound_name(name, params):
 
 
 def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=(),
-                 planar=False, reach_test=True):
+                 planar=False, reach_test=True, plain=False):
     """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
 
     ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
@@ -246,8 +257,10 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
     the compiler folds into the pair function) and leaves the z components of spatial outputs alone.
     ``reach_test`` False (a list walk of an interaction whose terms vanish beyond the reach,
     :class:`PairInteraction`'s ``support``): every listed pair is computed, without the test ``r2 < reach2``.
+    ``plain`` (a build): the candidates' test of a set without ghosts, wide points or differing cut-offs.
     """
     own = _targets(outputs, True, "a", planar)
+    scan_norm2 = " + ".join(f"e{c} * e{c}" for c in range(2 if planar else dim))
     other = _targets(outputs, True, "b", planar)
     glob_t = _targets(outputs, False, None)
     pad = "\n" + " " * indent
@@ -287,6 +300,8 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         store_own=pad_a.join(f"{own[i]} += ta{i}" for i in kept) or "pass",
         diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
                       + [f"d{c} = 0.0" for c in range(read, dim)]),
+        scan_diff=("\n" + " " * 16).join(f"e{c} = x_sc[b, {c}] - xa{c}" for c in range(read)),
+        keep=_KEEP_PLAIN.format(norm2=scan_norm2) if plain else _KEEP_GENERAL.format(norm2=scan_norm2),
         norm2=" + ".join(f"d{c} * d{c}" for c in range(read)),
         reach_test=(f"if r2 >= reach2:{pad}    continue" if reach_test
                     else "pass  # no test: every term vanishes beyond the reach (PairInteraction's support)"),
@@ -301,7 +316,7 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + SCAN_SOURCE
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _KEEP_GENERAL + _KEEP_PLAIN + SCAN_SOURCE
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
@@ -359,9 +374,9 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     # the declared order of params/inputs is part of the loop's bytecode; the stamp keeps the name unique
     space = "planar" if planar else f"{dim}d"
     name = f"_{kind}{'' if reach_test else '_all'}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
-    indent = 12 if kind == "list" else 16
+    indent = 16 if kind == "scan" else 12
     source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar,
-                          reach_test)
+                          reach_test, plain=kind == "build_plain")
     namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
@@ -528,7 +543,8 @@ class PairInteraction:
     def loop(self, kind, kernel=None, planar=False, reach_test=True):
         """The generated loop over one chunk of points, compiled on first use: ``kind`` "list"
         (walk a stored list), "scan" (one-shot bin scan) or "build" (bin scan that also writes
-        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`), for ``kernel``
+        the Verlet list of a pending build, see :meth:`NeighborList.fused_build`; "build_plain" for points that
+        are all originals with one cut-off and no wide points, see :meth:`NeighborList.plain`), for ``kernel``
         when the pair function calls a kernel placeholder; ``planar``: for points in the plane z = 0
         (see :meth:`compute`); ``reach_test`` False: a list walk that computes every listed pair (only for an
         interaction with a ``support``, see the class docstring)."""
@@ -537,12 +553,13 @@ class PairInteraction:
     def _loop_entry(self, kind, kernel, planar, reach_test):
         kernel = self._kernel(kernel)
         planar = bool(planar) and self.dim == 3
-        reach_test = bool(reach_test) or kind != "list"
+        reach_test = bool(reach_test) or kind == "scan"
         if not reach_test and self.support is None:
             raise ValueError(f"reach_test=False needs an interaction with a support, {self!r} has none")
         key = (kind, None if kernel is None else kernel.key, planar, reach_test)
         if key not in self._loops:
-            template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE}[kind]
+            template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE,
+                        "build_plain": _BUILD_TEMPLATE}[kind]
             pair, arguments = self.specialised(kernel)
             self._loops[key] = _compile(pair, template, kind, list(self.outputs.values()), self.dim, self.symmetric,
                                         self.params, self.inputs, arguments, planar, reach_test)
@@ -651,16 +668,18 @@ class PairInteraction:
             buffers = [tuple(buf[: ends[t] - bases[t]] if o.per_point else buf
                              for buf, o in zip(buffers[t], self.outputs.values())) for t in range(nthreads)]
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
+        reach_test = not self._reach_covers_support(params, reach)
         if getattr(neighbors, "build_pending", False):
             # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
-            loop = self.loop("build", kernel, planar)
+            plain = bool(getattr(neighbors, "plain", False))
+            loop = self.loop("build_plain" if plain else "build", kernel, planar, reach_test=reach_test)
             pre = (x_sc, *neighbors.build_arrays())
             post = (reach * reach, tuple(params), inp)
             neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
                 *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            loop = self.loop(kind, kernel, planar, reach_test=not self._reach_covers_support(params, reach))
+            loop = self.loop(kind, kernel, planar, reach_test=reach_test)
             run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call

@@ -4,6 +4,8 @@ import weakref
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import ase_sphrelax.neighbors as neighbors
 import ase_sphrelax.pairs as pairs
@@ -198,3 +200,64 @@ def test_partner_ends_bound_every_pair_of_a_chunk(name, n_chunks):
         assert last <= end <= nlist.n_extended
         if start[last] > start[first]:
             assert partner[start[first]:start[last]].max() == end - 1 or end == last
+
+
+def _bounded_scene(seed, n=300, box=4.0, flat=False):
+    r_pc, cell, _ = scene(seed, n, box, flat)
+    return r_pc, cell, np.zeros(3, dtype=bool)
+
+
+@pytest.mark.parametrize("flat", [False, True], ids=["3D", "2D"])
+def test_plain_build_of_a_bounded_set_gives_the_general_builds_list_and_sums(chunks, tiny_buffer, flat, monkeypatch):
+    """A set without periodic images and of one cut-off is built by the "build_plain" loop (distance test alone):
+    the same list, in the same order, and the same sums bit for bit as the general loop, and the pairs of brute
+    force."""
+    r_pc, cell, pbc = _bounded_scene(6, flat=flat)
+    h, skin = 0.9, 0.15
+    runs = {}
+    for plain in (True, False):
+        if not plain:
+            monkeypatch.setattr(NeighborList, "plain", property(lambda self: False))
+        nlist = NeighborList(h, skin=skin)
+        nlist.update(r_pc, cell, pbc)
+        assert nlist.plain is plain
+        e, f, _ = pair_potential_sums(nlist, r_pc, h, 1.0, KERNEL)
+        runs[plain] = (nlist.pair_start.copy(), nlist.pair_j.copy(), e, f)
+        assert listed(nlist, r_pc, cell, pbc, h + skin) == set(brute_force_pairs(r_pc, cell, pbc, h + skin))
+    for got, want in zip(runs[True], runs[False]):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_plain_applies_to_bounded_sets_of_one_cutoff_only():
+    r_pc, cell, pbc = scene(7)
+    periodic = NeighborList(0.9, skin=0.1)
+    periodic.update(r_pc, cell, pbc)
+    bounded = NeighborList(0.9, skin=0.1)
+    bounded.update(r_pc, cell, np.zeros(3, dtype=bool))
+    per_point = NeighborList(np.full(len(r_pc), 0.9), skin=0.1)
+    per_point.update(r_pc, cell, np.zeros(3, dtype=bool))
+    assert (periodic.plain, bounded.plain, per_point.plain, NeighborList(0.9).plain) == (False, True, False, False)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10_000), st.integers(2, 40), st.booleans())
+def test_plain_build_on_grid_points_with_coincident_pairs_and_pairs_at_the_reach(seed, n, flat):
+    """Points on a grid of spacing 0.25 (pairs at exactly h + skin = 1.0 and 0.75, beyond and within) with
+    coincident copies: the plain build lists what brute force lists (distance < h + skin) and its forces are
+    the one-shot scan's."""
+    rng = np.random.default_rng(seed)
+    r_pc = rng.integers(0, 8, (n, 3)) * 0.25
+    r_pc = np.concatenate([r_pc, r_pc[: n // 3]])  # coincident copies
+    if flat:
+        r_pc[:, 2] = 0.0
+    cell, pbc = np.diag([2.0, 2.0, 2.0 if not flat else 0.0]), np.zeros(3, dtype=bool)
+    h, skin = 0.8, 0.2
+    nlist = NeighborList(h, skin=skin)
+    nlist.update(r_pc, cell, pbc)
+    assert nlist.plain
+    _, f, _ = pair_potential_sums(nlist, r_pc, h, 1.0, KERNEL)
+    assert listed(nlist, r_pc, cell, pbc, h + skin) == set(brute_force_pairs(r_pc, cell, pbc, h + skin))
+    one_shot = NeighborList(h)
+    one_shot.update(r_pc, cell, pbc, store=False)
+    _, f_ref, _ = pair_potential_sums(one_shot, r_pc, h, 1.0, KERNEL)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * max(np.abs(f_ref).max(), 1.0))
