@@ -28,11 +28,14 @@ from .base import SPHCalculator, periodic_measure
 
 __all__ = ["FanCalculator", "MAX_SKIN_FACTOR"]
 
-MAX_SKIN_FACTOR = {1: 1.0, 2: 3.0, 3: 1.0}
+MAX_SKIN_FACTOR = {1: 1.0, 2: 3.0, 3: 1.5}
 """The adaptive skin's limit over the default 0.1 h, by dimension (1: fixed). On Fan's circle at 1e5 particles (FIRE
 to the interior mean 6e-4, one thread, runs interleaved) a fixed 0.3 h took 0.85x the CPU time of 0.1 h and the
-adaptive skin 0.91x (17 builds instead of 44); on the sphere at 3e4 a fixed 0.2 h and 0.3 h took 1.07x and 1.08x:
-a wider list costs more in 3D than its fewer builds save. 1D: not measured."""
+adaptive skin 0.91x (17 builds instead of 44). On the sphere a wider list costs more in 3D: at 3e4 a fixed 0.2 h and
+0.3 h took 1.07x and 1.08x; since the plain build (a rebuild 0.84x) an adaptive skin up to 0.15 h takes 0.97x the
+time of a fixed 0.1 h at 1e5 on one thread and at 1e6 on two (33 builds instead of 46;
+``reproductions/speed-fan-1e6/skin_scan.py``, ``results/skin_3d_1e5.json``, ``skin_3d_1e6.json``). 1D: not
+measured."""
 
 
 class FanCalculator(SPHCalculator):
