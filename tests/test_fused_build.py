@@ -242,21 +242,29 @@ def test_plain_applies_to_bounded_sets_of_one_cutoff_only():
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 10_000), st.integers(2, 40), st.booleans())
 def test_plain_build_on_grid_points_with_coincident_pairs_and_pairs_at_the_reach(seed, n, flat):
-    """Points on a grid of spacing 0.25 (pairs at exactly h + skin = 1.0 and 0.75, beyond and within) with
-    coincident copies: the plain build lists what brute force lists (distance < h + skin) and its forces are
-    the one-shot scan's."""
+    """Points on a grid of spacing 0.25 (pairs at exactly h + skin = 1.0 and 0.75, beyond and within; points on
+    bin edges) with coincident copies: the plain build (distance test alone) lists what brute force lists
+    (distance < h + skin), the general loop's list in its order, and its forces are the one-shot scan's and, bit
+    for bit, the general loop's."""
     rng = np.random.default_rng(seed)
     r_pc = rng.integers(0, 8, (n, 3)) * 0.25
     r_pc = np.concatenate([r_pc, r_pc[: n // 3]])  # coincident copies
     if flat:
         r_pc[:, 2] = 0.0
     cell, pbc = np.diag([2.0, 2.0, 2.0 if not flat else 0.0]), np.zeros(3, dtype=bool)
-    h, skin = 0.8, 0.2
+    h, skin = 0.8, 0.2  # bins of edge 0.5 (3D) or 1/3 (2D): many points on bin edges
     nlist = NeighborList(h, skin=skin)
     nlist.update(r_pc, cell, pbc)
     assert nlist.plain
     _, f, _ = pair_potential_sums(nlist, r_pc, h, 1.0, KERNEL)
     assert listed(nlist, r_pc, cell, pbc, h + skin) == set(brute_force_pairs(r_pc, cell, pbc, h + skin))
+    with pytest.MonkeyPatch.context() as patch:  # the general loop (every test): the same list
+        patch.setattr(NeighborList, "plain", property(lambda self: False))
+        general = NeighborList(h, skin=skin)
+        general.update(r_pc, cell, pbc)
+        _, f_general, _ = pair_potential_sums(general, r_pc, h, 1.0, KERNEL)
+    np.testing.assert_array_equal(nlist.pair_j, general.pair_j)
+    np.testing.assert_array_equal(f, f_general)
     one_shot = NeighborList(h)
     one_shot.update(r_pc, cell, pbc, store=False)
     _, f_ref, _ = pair_potential_sums(one_shot, r_pc, h, 1.0, KERNEL)
