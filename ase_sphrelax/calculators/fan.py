@@ -28,14 +28,14 @@ from .base import SPHCalculator, periodic_measure
 
 __all__ = ["FanCalculator", "MAX_SKIN_FACTOR"]
 
-MAX_SKIN_FACTOR = {1: 1.0, 2: 3.0, 3: 1.5}
+MAX_SKIN_FACTOR = {1: 1.0, 2: 3.0, 3: 1.0}
 """The adaptive skin's limit over the default 0.1 h, by dimension (1: fixed). On Fan's circle at 1e5 particles (FIRE
 to the interior mean 6e-4, one thread, runs interleaved) a fixed 0.3 h took 0.85x the CPU time of 0.1 h and the
 adaptive skin 0.91x (17 builds instead of 44). On the sphere a wider list costs more in 3D: at 3e4 a fixed 0.2 h and
-0.3 h took 1.07x and 1.08x; since the plain build (a rebuild 0.84x) an adaptive skin up to 0.15 h takes 0.97x the
-time of a fixed 0.1 h at 1e5 on one thread and at 1e6 on two (33 builds instead of 46;
-``reproductions/speed-fan-1e6/skin_scan.py``, ``results/skin_3d_1e5.json``, ``skin_3d_1e6.json``). 1D: not
-measured."""
+0.3 h took 1.07x and 1.08x; an adaptive skin up to 0.15 h took 0.97x the time of 0.1 h at 1e5 on one thread and at
+1e6 on two (``reproductions/speed-fan-1e6/skin_scan.py``, ``results/skin_3d_1e5.json``, ``skin_3d_1e6.json``) but
+raised the 50-step peaks of SPHFIRE and SPHLBFGS at 1e6 to 561 and 609 B per particle beyond the Atoms (383 and 574
+at 0.1 h, two threads; issue 33's goal 600): not kept. 1D: not measured."""
 
 
 class FanCalculator(SPHCalculator):
@@ -145,7 +145,10 @@ class FanCalculator(SPHCalculator):
         pair_e_p, f_pc, virial = pair_potential_sums(state.nlist, r_pc, model.h, model.pair_prefactor(vols.v0),
                                                      model.kernel, want_virial=want_stress,
                                                      planar=state.dim < 3, want_energy=want_energy,
-                                                     keep_scratch=True)  # Fan's peak is inside its pair sum
+                                                     keep_scratch=state.dim < 3)
+        # the accumulators' pages kept between sums in 2D only: there the peak lies inside the pair sum (SPHFIRE 292
+        # B per particle at 1e6 either way, 0.97x the CPU time); in 3D they added 42 and 34 B to the 50-step peaks of
+        # SPHFIRE and SPHLBFGS at 1e6 (425 and 607 against 383 and 573, two threads; the 600 B goal)
         energies_p = pair_e_p  # a fresh array of the pair sums: completed in place
         if want_energy:
             energies_p += model.self_energy(n, vols.v0, vols.volume) / n
