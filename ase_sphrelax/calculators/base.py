@@ -13,6 +13,8 @@ SPH-ParVI, Fan in LAMMPS) subclass it.
 from __future__ import annotations
 
 import copy
+import sys
+import weakref
 from dataclasses import dataclass
 
 import numba
@@ -405,9 +407,14 @@ class SPHCalculator(Calculator):
     def _take_snapshot(self, atoms, skip=()):
         """``self.atoms = atoms.copy()`` (as ASE's ``Calculator.calculate``) without the arrays named in ``skip``,
         each array copied into the previous copy's array of that name where shape and type agree: no new pages
-        for the positions at every evaluation (at 1e6 particles ASE's copy cost 5 ms, half of it page faults)."""
+        for the positions at every evaluation (at 1e6 particles ASE's copy cost 5 ms, half of it page faults).
+
+        Only while nothing but this calculator holds the previous copy and the array: a copy (or an array of it) that
+        a caller kept stays as it was, and the new copy gets new arrays."""
         # the arrays of the previous copy (kept here: ASE's get_property drops self.atoms when the positions change)
         previous = self.__dict__.pop("_snapshot_arrays", {})
+        if previous and not self._snapshot_unshared():
+            previous = {}
         if type(atoms) is not Atoms:  # a subclass copies itself
             snapshot = atoms.copy()
             for name in skip:
@@ -421,7 +428,9 @@ class SPHCalculator(Calculator):
             if name in skip:
                 continue
             kept = previous.get(name)
-            if kept is not None and kept is not values and kept.shape == values.shape and kept.dtype == values.dtype:
+            # held by ``previous``, ``kept`` and getrefcount's argument only: no one else reads it
+            if kept is not None and kept is not values and kept.shape == values.shape and kept.dtype == values.dtype \
+                    and sys.getrefcount(kept) <= 3:
                 if kept.ndim == 2:
                     copy_rows(kept, values)
                 else:
@@ -432,6 +441,16 @@ class SPHCalculator(Calculator):
         snapshot.constraints = copy.deepcopy(atoms.constraints)
         self.atoms = snapshot
         self._snapshot_arrays = snapshot.arrays
+        self._snapshot_ref = weakref.ref(snapshot)
+
+    def _snapshot_unshared(self):
+        """True when the previous copy of the atoms is gone or held by ``self.atoms`` alone."""
+        ref = self.__dict__.get("_snapshot_ref")
+        old = ref() if ref is not None else None
+        if old is None:
+            return True
+        # ``old``, getrefcount's argument and, if it is still there, ``self.atoms``
+        return sys.getrefcount(old) <= 2 + (self.__dict__.get("atoms") is old)
 
     def forces_view(self, atoms):
         """The forces on ``atoms`` as ``get_forces`` (ASE's cache, an evaluation when needed), without the copy:
