@@ -35,8 +35,10 @@ the same way. :class:`PairInteraction` turns the function into the loops:
 * the walk over a stored Verlet half list, the bin scan fused with the pair physics
   (one-shot evaluations, no list stored), and the rebuild scan, which writes the Verlet
   list of a pending build (:attr:`NeighborList.build_pending`) and evaluates the pairs in
-  the same pass, so that a rebuild costs one bin scan and no list walk; all from one
-  definition;
+  the same pass, so that a rebuild costs one bin scan and no list walk (a point's candidates
+  appended without a branch, then its listed pairs computed as the walk computes them; for a
+  set of originals of one cut-off, :attr:`NeighborList.plain`, by the distance alone); all from
+  one definition;
 * a's terms summed in registers over its partners and written once; b's added to b;
   global terms summed per thread;
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
