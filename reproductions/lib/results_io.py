@@ -4,12 +4,13 @@ import gzip
 import json
 from pathlib import Path
 
+from ase_sphrelax.reproductions import read_data
+
 
 def read_json(path):
-    """The JSON of ``path``; a ``.gz`` suffix is read through gzip."""
-    path = Path(path)
-    with (gzip.open(path, "rt") if path.suffix == ".gz" else open(path)) as handle:
-        return json.load(handle)
+    """The JSON of ``path``; a ``.gz`` suffix is read through gzip (the registry's own reader,
+    :func:`ase_sphrelax.reproductions.read_data`)."""
+    return read_data(path)
 
 
 def write_json(path, data):
