@@ -37,8 +37,8 @@ the same way. :class:`PairInteraction` turns the function into the loops:
   list of a pending build (:attr:`NeighborList.build_pending`) and evaluates the pairs in
   the same pass, so that a rebuild costs one bin scan and no list walk (a point's candidates
   appended without a branch, then its listed pairs computed as the walk computes them; for a
-  set of originals of one cut-off, :attr:`NeighborList.plain`, by the distance alone); all from
-  one definition;
+  set of originals of one cut-off, :attr:`NeighborList.plain`, by the distance alone, two points
+  of one bin scanning their rows together); all from one definition;
 * a's terms summed in registers over its partners and written once; b's added to b;
   global terms summed per thread;
 * serial below :data:`~ase_sphrelax.neighbors.PARALLEL_MIN` points, numba threads above it,
@@ -194,7 +194,6 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
         {zero_own}
         ca = cut_s[a]
         start = pos
-        rc2 = (ca + skin) * (ca + skin)
         # a's partners within max(cut-offs) + skin, appended without a branch on the test (each candidate is
         # written, and kept by moving on): whether a candidate is in reach is not predictable
         for k in range(-1, stencil_rows(a, kx, ky, kz, nbin_c, stencil)):
@@ -217,13 +216,90 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
 """
 
 
-# The build's test of a candidate b of point a: in general within max(cut_a, cut_b) + skin, the canonical
-# orientation of an original-ghost pair, found once by a wide point's stencil; "plain" (every point an original
-# with the same cut-off, no wide points: :meth:`PairInteraction.compute` checks) within cut_a + skin alone.
+
+_BUILD_PLAIN_TEMPLATE = """
+def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil, room, count_s, pair_j,
+           pos, reach2, params, inp, out, base, first, last):
+    {views}
+    if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
+        {zero_buffers_nested}
+    {zero_global}
+    cap = pair_j.shape[0]
+    second = np.empty(max(room, 1), dtype=pair_j.dtype)  # the partners of a pair's second point, listed apart
+    a0 = first
+    while a0 < last:
+        bin_end = bin_start[bin_s[a0] + 1]
+        two = a0 + 1 < bin_end and a0 + 1 < last  # a0 and a0 + 1 share a bin: the same stencil rows
+        # room for every candidate of the points (at most ``room`` each), or stop before a0
+        if pos + (2 if two else 1) * room > cap:
+            {store_global_early}
+            return a0, pos
+        kx, ky, kz = bin_coords(a0, bin_s, nbin_c)
+        rc2 = (cut_s[a0] + skin) * (cut_s[a0] + skin)
+        {load_first}
+        start = pos
+        # partners within the cut-off + skin, appended without a branch on the test (each candidate is written,
+        # and kept by moving on); two points of one bin scan the rows together: one load of each candidate
+        if two:
+            a1 = a0 + 1
+            {load_second}
+            for b in range(a0 + 1, bin_end):
+                {diff_first}
+                pair_j[pos] = b
+                pos += {norm_first} < rc2
+            m = 0
+            for b in range(a1 + 1, bin_end):
+                {diff_second}
+                second[m] = b
+                m += {norm_second} < rc2
+            for k in range(stencil.shape[0]):
+                lo, hi = stencil_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
+                for b in range(lo, hi):
+                    {load_candidate}
+                    {diff_both}
+                    pair_j[pos] = b
+                    pos += {norm_first} < rc2
+                    second[m] = b
+                    m += {norm_second} < rc2
+            count_s[a0 + 1] = pos - start
+            pair_j[pos:pos + m] = second[:m]
+            count_s[a1 + 1] = m
+            pos += m
+            n_points = 2
+        else:
+            for k in range(-1, stencil.shape[0]):
+                lo, hi = stencil_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
+                for b in range(lo, hi):
+                    {diff_first}
+                    pair_j[pos] = b
+                    pos += {norm_first} < rc2
+            count_s[a0 + 1] = pos - start
+            n_points = 1
+        # then their terms, as a walk of the stored list computes them: the same pairs in the same order
+        stop = start
+        for a in range(a0, a0 + n_points):
+            begin = stop
+            stop = begin + count_s[a + 1]
+            {load_a}
+            {zero_own}
+            for p in range(begin, stop):
+                b = pair_j[p]
+                {diff}
+                r2 = {norm2}
+                {reach_test}
+                {body}
+            {store_own}
+        a0 += n_points
+    {store_global}
+    return last, pos
+"""
+
+# The general build's test of a candidate b of point a: within max(cut_a, cut_b) + skin, the canonical orientation
+# of an original-ghost pair, found once by a wide point's stencil. (The plain build, _BUILD_PLAIN_TEMPLATE, for
+# points that are all originals of one cut-off without wide points, tests the distance alone.)
 _KEEP_GENERAL = """rc = max(ca, cut_s[b]) + skin
                 pos += ({norm2} < rc * rc) & is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \\
                     & finds_pair(a, b, stencil)"""
-_KEEP_PLAIN = "pos += {norm2} < rc2"
 
 
 def _targets(outputs, per_point, point, planar=False):
@@ -250,7 +326,7 @@ def _bound_name(name, params):
 
 
 def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=(),
-                 planar=False, reach_test=True, plain=False):
+                 planar=False, reach_test=True, own_indent=8):
     """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
 
     ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
@@ -259,10 +335,10 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
     the compiler folds into the pair function) and leaves the z components of spatial outputs alone.
     ``reach_test`` False (a list walk of an interaction whose terms vanish beyond the reach,
     :class:`PairInteraction`'s ``support``): every listed pair is computed, without the test ``r2 < reach2``.
-    ``plain`` (a build): the candidates' test of a set without ghosts, wide points or differing cut-offs.
+    ``own_indent``: the indentation of the lines that start and store a point's sums.
     """
     own = _targets(outputs, True, "a", planar)
-    scan_norm2 = " + ".join(f"e{c} * e{c}" for c in range(2 if planar else dim))
+    scan_norm2 = " + ".join(f"e{c} * e{c}" for c in range(2 if planar else dim))  # the general build's
     other = _targets(outputs, True, "b", planar)
     glob_t = _targets(outputs, False, None)
     pad = "\n" + " " * indent
@@ -286,14 +362,14 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         lines.append(f"tb, tg = pair(b, a, r2, {minus_d}{data})")
         lines += [f"{t} += tb[{i}]" for i, t in enumerate(other) if t is not None]
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
-    pad_a = "\n" + " " * 8
+    pad_a = "\n" + " " * own_indent
     pad_t = "\n" + " " * 4
     return template.format(
         name=name,
         views=pad_t.join([f"o{k} = out[{k}]" for k in range(len(outputs))] + unpack),
         # each thread zeroes its own buffers at the start of its chunk (in parallel)
         zero_buffers=pad_t.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
-        zero_buffers_nested=pad_a.join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
+        zero_buffers_nested=("\n" + " " * 8).join(f"o{k}[:] = 0.0" for k in range(len(outputs))),
         zero_global=pad_t.join(f"tg{i} = 0.0" for i in range(len(glob_t))) or "pass",
         store_global=pad_t.join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
         store_global_early=("\n" + " " * 12).join(f"{t} += tg{i}" for i, t in enumerate(glob_t)) or "pass",
@@ -303,7 +379,16 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
                       + [f"d{c} = 0.0" for c in range(read, dim)]),
         scan_diff=("\n" + " " * 16).join(f"e{c} = x_sc[b, {c}] - xa{c}" for c in range(read)),
-        keep=_KEEP_PLAIN.format(norm2=scan_norm2) if plain else _KEEP_GENERAL.format(norm2=scan_norm2),
+        keep=_KEEP_GENERAL.format(norm2=scan_norm2),
+        # the plain build's listing of one point (a0) or two (a0, a1) of one bin
+        load_first="; ".join(f"u{c} = x_sc[a0, {c}]" for c in range(read)),
+        load_second="; ".join(f"w{c} = x_sc[a1, {c}]" for c in range(read)),
+        load_candidate="; ".join(f"y{c} = x_sc[b, {c}]" for c in range(read)),
+        diff_first="; ".join(f"e{c} = x_sc[b, {c}] - u{c}" for c in range(read)),
+        diff_second="; ".join(f"g{c} = x_sc[b, {c}] - w{c}" for c in range(read)),
+        diff_both="; ".join([f"e{c} = y{c} - u{c}" for c in range(read)] + [f"g{c} = y{c} - w{c}" for c in range(read)]),
+        norm_first=" + ".join(f"e{c} * e{c}" for c in range(read)),
+        norm_second=" + ".join(f"g{c} * g{c}" for c in range(read)),
         norm2=" + ".join(f"d{c} * d{c}" for c in range(read)),
         reach_test=(f"if r2 >= reach2:{pad}    continue" if reach_test
                     else "pass  # no test: every term vanishes beyond the reach (PairInteraction's support)"),
@@ -318,7 +403,7 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _KEEP_GENERAL + _KEEP_PLAIN + SCAN_SOURCE
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _BUILD_PLAIN_TEMPLATE + _KEEP_GENERAL + SCAN_SOURCE
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
@@ -376,10 +461,10 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     # the declared order of params/inputs is part of the loop's bytecode; the stamp keeps the name unique
     space = "planar" if planar else f"{dim}d"
     name = f"_{kind}{'' if reach_test else '_all'}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
-    indent = 16 if kind == "scan" else 12
+    indent = 16 if kind in ("scan", "build_plain") else 12
     source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar,
-                          reach_test, plain=kind == "build_plain")
-    namespace = {"pair": pair, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
+                          reach_test, own_indent=12 if kind == "build_plain" else 8)
+    namespace = {"pair": pair, "np": np, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
     exec(compile(source, inspect.getfile(pair.py_func), "exec"), namespace)  # noqa: S102
@@ -561,7 +646,7 @@ class PairInteraction:
         key = (kind, None if kernel is None else kernel.key, planar, reach_test)
         if key not in self._loops:
             template = {"list": _LIST_TEMPLATE, "scan": _SCAN_TEMPLATE, "build": _BUILD_TEMPLATE,
-                        "build_plain": _BUILD_TEMPLATE}[kind]
+                        "build_plain": _BUILD_PLAIN_TEMPLATE}[kind]
             pair, arguments = self.specialised(kernel)
             self._loops[key] = _compile(pair, template, kind, list(self.outputs.values()), self.dim, self.symmetric,
                                         self.params, self.inputs, arguments, planar, reach_test)
