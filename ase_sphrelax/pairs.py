@@ -176,7 +176,8 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, bin_s, nbin_c, bin_start, stencil, r
 """
 
 
-_BUILD_TEMPLATE = """
+# The fused builds: the same head, and the listed pairs' terms computed as the walk computes them
+_BUILD_HEAD = """
 def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil, room, count_s, pair_j,
            pos, reach2, params, inp, out, base, first, last):
     {views}
@@ -184,7 +185,22 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
         {zero_buffers_nested}
     {zero_global}
     cap = pair_j.shape[0]
-    for a in range(first, last):
+"""
+
+
+def _terms(indent):
+    """The terms of a point's listed partners ``pair_j[begin:stop]``, as the walk computes them (``indent``: of the
+    loop's first line)."""
+    return textwrap.indent("""for p in range(begin, stop):
+    b = pair_j[p]
+    {diff}
+    r2 = {norm2}
+    {reach_test}
+    {body}
+""", " " * indent)
+
+
+_BUILD_TEMPLATE = _BUILD_HEAD + """    for a in range(first, last):
         # room for every candidate of a (at most ``room``), or stop before a (nothing of a is added yet)
         if pos + point_room(a, room, stencil) > cap:
             {store_global_early}
@@ -204,28 +220,14 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
                 {keep}
         count_s[a + 1] = pos - start
         # then their terms, as a walk of the stored list computes them: the same pairs in the same order
-        for p in range(start, pos):
-            b = pair_j[p]
-            {diff}
-            r2 = {norm2}
-            {reach_test}
-            {body}
-        {store_own}
+        begin, stop = start, pos
+""" + _terms(8) + """        {store_own}
     {store_global}
     return last, pos
 """
 
 
-
-_BUILD_PLAIN_TEMPLATE = """
-def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_start, stencil, room, count_s, pair_j,
-           pos, reach2, params, inp, out, base, first, last):
-    {views}
-    if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
-        {zero_buffers_nested}
-    {zero_global}
-    cap = pair_j.shape[0]
-    second = np.empty(max(room, 1), dtype=pair_j.dtype)  # the partners of a pair's second point, listed apart
+_BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dtype=pair_j.dtype)  # the partners of a pair's second point, listed apart
     a0 = first
     while a0 < last:
         bin_end = bin_start[bin_s[a0] + 1]
@@ -282,13 +284,7 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
             stop = begin + count_s[a + 1]
             {load_a}
             {zero_own}
-            for p in range(begin, stop):
-                b = pair_j[p]
-                {diff}
-                r2 = {norm2}
-                {reach_test}
-                {body}
-            {store_own}
+""" + _terms(12) + """            {store_own}
         a0 += n_points
     {store_global}
     return last, pos
