@@ -216,8 +216,11 @@ _BUILD_TEMPLATE = _BUILD_HEAD + """    for a in range(first, last):
             lo, hi = stencil_range(a, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
             for b in range(lo, hi):
                 {scan_diff}
+                rc = max(ca, cut_s[b]) + skin
                 pair_j[pos] = b
-                {keep}
+                # in reach, the canonical orientation of an original-ghost pair, found once by a wide point's stencil
+                pos += ({norm_first} < rc * rc) & is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \\
+                    & finds_pair(a, b, stencil)
         count_s[a + 1] = pos - start
         # then their terms, as a walk of the stored list computes them: the same pairs in the same order
         begin, stop = start, pos
@@ -290,13 +293,6 @@ _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dty
     return last, pos
 """
 
-# The general build's test of a candidate b of point a: within max(cut_a, cut_b) + skin, the canonical orientation
-# of an original-ghost pair, found once by a wide point's stencil. (The plain build, _BUILD_PLAIN_TEMPLATE, for
-# points that are all originals of one cut-off without wide points, tests the distance alone.)
-_KEEP_GENERAL = """rc = max(ca, cut_s[b]) + skin
-                pos += ({norm2} < rc * rc) & is_canonical_pair(a, b, src_s, img_sc, is_ghost_s) \\
-                    & finds_pair(a, b, stencil)"""
-
 
 def _targets(outputs, per_point, point, planar=False):
     """Buffer element of every flattened term of the per-point (or global) outputs:
@@ -334,7 +330,6 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
     ``own_indent``: the indentation of the lines that start and store a point's sums.
     """
     own = _targets(outputs, True, "a", planar)
-    scan_norm2 = " + ".join(f"e{c} * e{c}" for c in range(2 if planar else dim))  # the general build's
     other = _targets(outputs, True, "b", planar)
     glob_t = _targets(outputs, False, None)
     pad = "\n" + " " * indent
@@ -375,7 +370,6 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         diff=pad.join([f"d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
                       + [f"d{c} = 0.0" for c in range(read, dim)]),
         scan_diff=("\n" + " " * 16).join(f"e{c} = x_sc[b, {c}] - xa{c}" for c in range(read)),
-        keep=_KEEP_GENERAL.format(norm2=scan_norm2),
         # the plain build's listing of one point (a0) or two (a0, a1) of one bin
         load_first="; ".join(f"u{c} = x_sc[a0, {c}]" for c in range(read)),
         load_second="; ".join(f"w{c} = x_sc[a1, {c}]" for c in range(read)),
@@ -399,7 +393,7 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _BUILD_PLAIN_TEMPLATE + _KEEP_GENERAL + SCAN_SOURCE
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _BUILD_PLAIN_TEMPLATE + SCAN_SOURCE
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
