@@ -704,9 +704,10 @@ class PairInteraction:
             the plane too).
         keep_scratch : bool
             True: the threads' accumulators keep their pages after a large sum (:data:`RELEASE_MIN_POINTS`), for a
-            method whose peak memory lies inside its pair sums, where they are in use anyway (Fan: the same peak, and
-            0.97x the CPU time of a relaxation step that faults them in again). False (default): given back, so
-            that a later peak outside the sums (ALARIC's H solve) does not hold them.
+            method whose peak memory lies inside its pair sums, where they are in use anyway (Fan in 2D: the same peak,
+            and 0.97x the CPU time of a relaxation step that faults them in again; in 3D SPHLBFGS's step peaked
+            higher with them kept). False (default): given back, so that a later peak outside the sums (ALARIC's H
+            solve, an optimiser's step) does not hold them.
 
         Returns
         -------
