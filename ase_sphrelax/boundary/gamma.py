@@ -138,6 +138,18 @@ def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a
     return triangle_terms(x, y, z, elem, nrm, frames, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
 
 
+@numba.njit(cache=True, inline="always")
+def _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p):
+    """What :func:`_row` gives particle ``p`` with no element within ``h``, without its call: the callers test for
+    an empty row first (a call per particle cost 0.8 us, 8 of the 11 ms of BIPI's trapezoid at 12500 particles in
+    2D, where most particles have none)."""
+    sum_p[p] = 0.0
+    grad_pc[p, 0] = grad_pc[p, 1] = grad_pc[p, 2] = 0.0
+    near_pc[p, 0] = near_pc[p, 1] = near_pc[p, 2] = 0.0
+    nearest_p[p] = np.inf
+    chi_p[p] = UNKNOWN
+
+
 @numba.njit(cache=True, nogil=True)
 def _row(kind, p, k0, k1, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid, next_s, prev_s, pseudo,
          inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k,
@@ -200,12 +212,12 @@ def _row(kind, p, k0, k1, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge
     near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
     nearest_p[p] = best
     if k_best < 0:
-        chi_p[p] = -1.0
-        return visit
-    s = point_k[k_best]
-    if kind == 0:
+        chi_p[p] = UNKNOWN
+    elif kind == 0:
+        s = point_k[k_best]
         chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
     else:
+        s = point_k[k_best]
         chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best, close2)
     return visit
 
@@ -246,6 +258,9 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     visit = -1
     for p in range(first, last):
         if use_skip and skip_p[p]:
+            continue
+        if start_p[p] == start_p[p + 1]:
+            _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p)
             continue
         visit = _row(kind, p, start_p[p], start_p[p + 1], x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk,
                      centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band,
@@ -294,6 +309,9 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
                 dist_r[n] = math.sqrt(d2)
                 point_r[n] = s
                 n += 1
+        if n == 0:
+            _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p)
+            continue
         visit = _row(kind, p, 0, n, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid, next_s,
                      prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
                      no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
