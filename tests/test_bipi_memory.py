@@ -119,3 +119,46 @@ def test_the_default_keeps_no_list_in_3d():
     ref, _ = _pack(False)
     assert calc.parameters.store_list is None and not calc.nlist.stored
     np.testing.assert_array_equal(got, ref)
+
+
+def _star_segments():
+    """A star polygon: sharp convex tips and concave corners, segments of unequal length."""
+    from ase_sphrelax.boundary import BoundarySegments
+
+    angle = np.linspace(0.0, 2.0 * np.pi, 14, endpoint=False)
+    radius = np.where(np.arange(14) % 2 == 0, 0.5, 0.22)
+    loop = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=1)
+    return BoundarySegments.from_vertices([loop])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("store", [False, True])
+def test_row_blocks_change_no_value(dim, store):
+    """The boundary rows are computed a block of particles per call (``block_rows``, BLOCK_ROWS by default): one row
+    per call, a few, and blocks cut by the scratch's room instead of the row count give every output bit for bit,
+    in the fused query and in the pair path (with the per-pair terms)."""
+    rng = np.random.default_rng(5)
+    if dim == 3:
+        boundary, r = sphere(), cloud(700, rng)
+    else:
+        boundary = _star_segments()
+        r = np.zeros((900, 3))
+        r[:, :2] = rng.uniform(-0.55, 0.55, size=(900, 2))
+    nl = NeighborList(H, skin=SKIN)
+    nl.update(r, np.zeros((3, 3)), [False] * 3, store=store)
+
+    def outputs(block_rows, keep_pairs):
+        integrals = BoundaryIntegrals(boundary, H)
+        integrals.block_rows = block_rows
+        got = integrals.compute(nl, r, band=0.025, terms=keep_pairs, keep_pairs=keep_pairs)
+        names = ["gamma_p", "grad_gamma_pc", "chi_p", "near_pc", "nearest_p"]
+        names += ["gamma_k", "grad_k", "delta_k"] if keep_pairs else []
+        return {name: getattr(got, name) for name in names}
+
+    for keep_pairs in (False, True):
+        ref = outputs(64, keep_pairs)
+        assert np.isfinite(ref["nearest_p"]).sum() > 200  # many non-empty rows: several blocks of 64
+        for block_rows in (1, 2, 3, 7):  # 1-3: the scratch's room (longest * (block_rows // 4) + longest) cuts blocks
+            got = outputs(block_rows, keep_pairs)
+            for name, value in ref.items():
+                np.testing.assert_array_equal(got[name], value, err_msg=f"{name}, block_rows={block_rows}")

@@ -47,6 +47,9 @@ from .triangles import BoundaryTriangles
 __all__ = ["BoundaryIntegrals", "BoundaryTerms", "gamma_and_gradient", "boundary_terms", "as_boundary"]
 
 UNKNOWN, NEAR_SURFACE = -1.0, -2.0  # chi codes: use the inside test; 3D point within NUDGE h of the surface
+# particles whose boundary rows one call of _row_block computes (a call per particle cost more than its terms;
+# BoundaryIntegrals.block_rows)
+BLOCK_ROWS = 64
 # 3D: points closer than NUDGE h to the surface (whose side the closest-point test cannot resolve) are evaluated
 # NUDGE h inside and carried back by the exact gradient there (remainder ~ NUDGE^2, about 1e-14)
 NUDGE = 1e-7
@@ -140,9 +143,8 @@ def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a
 
 @numba.njit(cache=True, inline="always")
 def _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p):
-    """What :func:`_row` gives particle ``p`` with no element within ``h``, without its call: the callers test for
-    an empty row first (a call per particle cost 0.8 us, 8 of the 11 ms of BIPI's trapezoid at 12500 particles in
-    2D, where most particles have none)."""
+    """What :func:`_row_block` gives particle ``p`` with no element within ``h``: the callers test for an empty row
+    and leave such particles out of their blocks (most particles are far from the boundary)."""
     sum_p[p] = 0.0
     grad_pc[p, 0] = grad_pc[p, 1] = grad_pc[p, 2] = 0.0
     near_pc[p, 0] = near_pc[p, 1] = near_pc[p, 2] = 0.0
@@ -151,74 +153,83 @@ def _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p):
 
 
 @numba.njit(cache=True, nogil=True)
-def _row(kind, p, k0, k1, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid, next_s, prev_s, pseudo,
-         inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k,
-         sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit):
-    """The terms of particle ``p`` from its pairs ``k0:k1`` (see :func:`_rows`); returns the last edge visit."""
+def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
+               next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms,
+               gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d,
+               stamp_e, slot_e, visit):
+    """The terms of particles ``p_r[:n_rows]``, each from its pairs ``k0_r[i]:k1_r[i]`` (see :func:`_rows`); returns
+    the last edge visit. A block of rows per call, not one: a call per row cost about 0.8 us (its ~50 arguments),
+    more than the terms of a row of a few segments (BIPI's trapezoid at 1e5 particles in 2D: the boundary rows
+    took 8.7 ms with a call per row, 3.8 ms with the row inlined)."""
     slot_w, slot_pair, pair_c, row_cuts, mom = scratch
     h = 1.0 / inv_h
-    run = k0
-    while kind == 1 and run < k1:  # per point: every pair of this particle's row has the same (see BoundaryPairs)
-        s = point_k[run]
-        end = run + 1
-        while end < k1 and point_k[end] == s:
-            end += 1
-        visit += 1
-        triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
-                           breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
-                           row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
-        run = end
-    total = 0.0
-    g0 = g1 = g2 = 0.0
-    w0 = w1 = w2 = 0.0
-    best = np.inf
-    k_best = -1
-    delta_best = 0.0
-    for k in range(k0, k1):
-        s = point_k[k]
-        e = elem_k[k]
-        x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-        if kind == 1:
-            g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
+    for i in range(n_rows):
+        p = p_r[i]
+        k0 = k0_r[i]
+        k1 = k1_r[i]
+        run = k0
+        while kind == 1 and run < k1:  # per point: every pair of a particle's row has the same (see BoundaryPairs)
+            s = point_k[run]
+            end = run + 1
+            while end < k1 and point_k[end] == s:
+                end += 1
+            visit += 1
+            triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
+                               breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
+                               row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
+            run = end
+        total = 0.0
+        g0 = g1 = g2 = 0.0
+        w0 = w1 = w2 = 0.0
+        best = np.inf
+        k_best = -1
+        delta_best = 0.0
+        for k in range(k0, k1):
+            s = point_k[k]
+            e = elem_k[k]
+            x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
+            if kind == 1:
+                g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
+            else:
+                g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
+            total += g
+            g0 += gr * nrm[e, 0]
+            g1 += gr * nrm[e, 1]
+            g2 += gr * nrm[e, 2]
+            gb = 0.0
+            if rule == 2:
+                if dist_k[k] < band:
+                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
+                                        band * inv_h, cuts)[1]
+            elif rule == 1:
+                cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
+                gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
+            elif abs(d) * h < band:
+                gb = gr
+            w0 += gb * nrm[e, 0]
+            w1 += gb * nrm[e, 1]
+            w2 += gb * nrm[e, 2]
+            if want_terms:
+                gamma_k[k] = g
+                grad_k[k] = gr
+                delta_k[k] = d * h
+            if dist_k[k] < best:
+                best = dist_k[k]
+                k_best = k
+                delta_best = d
+        sum_p[p] = total
+        grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
+        near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
+        nearest_p[p] = best
+        if k_best < 0:
+            chi_p[p] = UNKNOWN
+        elif kind == 0:
+            s = point_k[k_best]
+            chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
         else:
-            g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
-        total += g
-        g0 += gr * nrm[e, 0]
-        g1 += gr * nrm[e, 1]
-        g2 += gr * nrm[e, 2]
-        gb = 0.0
-        if rule == 2:
-            if dist_k[k] < band:
-                gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                    band * inv_h, cuts)[1]
-        elif rule == 1:
-            cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
-            gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
-        elif abs(d) * h < band:
-            gb = gr
-        w0 += gb * nrm[e, 0]
-        w1 += gb * nrm[e, 1]
-        w2 += gb * nrm[e, 2]
-        if want_terms:
-            gamma_k[k] = g
-            grad_k[k] = gr
-            delta_k[k] = d * h
-        if dist_k[k] < best:
-            best = dist_k[k]
-            k_best = k
-            delta_best = d
-    sum_p[p] = total
-    grad_pc[p, 0], grad_pc[p, 1], grad_pc[p, 2] = g0, g1, g2
-    near_pc[p, 0], near_pc[p, 1], near_pc[p, 2] = w0, w1, w2
-    nearest_p[p] = best
-    if k_best < 0:
-        chi_p[p] = UNKNOWN
-    elif kind == 0:
-        s = point_k[k_best]
-        chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
-    else:
-        s = point_k[k_best]
-        chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best, close2)
+            s = point_k[k_best]
+            chi_p[p] = _chi_triangle(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem, pseudo, elem_k[k_best], delta_best,
+                                     close2)
     return visit
 
 
@@ -236,7 +247,7 @@ def _row_buffers(kind, longest, breaks, cols, n_edges):
 @numba.njit(cache=True, nogil=True)
 def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
           pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k,
-          grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, first, last):
+          grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, block_rows, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum, the point term and the nearest element's distance
     (see the module docstring).
 
@@ -255,6 +266,10 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     for p in range(first, last):
         longest = max(longest, start_p[p + 1] - start_p[p])
     scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
+    p_r = np.empty(block_rows, dtype=np.int64)
+    k0_r = np.empty(block_rows, dtype=np.int64)
+    k1_r = np.empty(block_rows, dtype=np.int64)
+    n_rows = 0
     visit = -1
     for p in range(first, last):
         if use_skip and skip_p[p]:
@@ -262,16 +277,25 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
         if start_p[p] == start_p[p + 1]:
             _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p)
             continue
-        visit = _row(kind, p, start_p[p], start_p[p + 1], x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk,
-                     centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band,
-                     rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts,
-                     scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
+        p_r[n_rows], k0_r[n_rows], k1_r[n_rows] = p, start_p[p], start_p[p + 1]
+        n_rows += 1
+        if n_rows == block_rows:
+            visit = _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames,
+                               edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
+                               sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc,
+                               chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
+            n_rows = 0
+    if n_rows:
+        _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
+                   next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule,
+                   want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch,
+                   row_g, row_gr, row_d, stamp_e, slot_e, visit)
 
 
 @numba.njit(cache=True, nogil=True)
 def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, radius2, elem, nrm, frames,
                 edge_tk, n_edges, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                close2, band, rule, skip_p, sum_p, grad_pc, near_pc, chi_p, nearest_p, first, last):
+                close2, band, rule, skip_p, sum_p, grad_pc, near_pc, chi_p, nearest_p, block_rows, first, last):
     """:func:`_rows` with the query fused in: no pair arrays. Each sorted point ``s`` (ghosts skipped: every
     particle's pairs are those of its own point) finds its elements closer than ``sqrt(radius2)`` among its
     source row (``by_bin``: the elements registered in its bin, ``src_start[bin_s[s]]:``; else its candidate
@@ -287,10 +311,18 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
         for s in range(first, last):
             longest = max(longest, src_start[s + 1] - src_start[s])
     scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
-    elem_r = np.empty(longest, dtype=np.int64)
-    dist_r = np.empty(longest)
-    point_r = np.empty(longest, dtype=np.int64)
+    # the rows of a block of particles one after another: room for a quarter of block_rows rows of the longest's
+    # length and one more (rows within h are shorter than their candidate rows)
+    cap = longest * (block_rows // 4) + longest
+    elem_r = np.empty(cap, dtype=np.int64)
+    dist_r = np.empty(cap)
+    point_r = np.empty(cap, dtype=np.int64)
+    p_r = np.empty(block_rows, dtype=np.int64)
+    k0_r = np.empty(block_rows, dtype=np.int64)
+    k1_r = np.empty(block_rows, dtype=np.int64)
     no_terms = np.empty(0)
+    n_rows = 0
+    pos = 0
     visit = -1
     for s in range(first, last):
         if is_ghost_s[s]:
@@ -299,23 +331,33 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
         if use_skip and skip_p[p]:
             continue
         row = bin_s[s] if by_bin else s
+        if n_rows == block_rows or pos + src_start[row + 1] - src_start[row] > cap:  # the block is full
+            visit = _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames,
+                               edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
+                               sigma, close2, band, rule, False, no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc,
+                               chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
+            n_rows = 0
+            pos = 0
         x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-        n = 0
+        k0 = pos
         for k in range(src_start[row], src_start[row + 1]):
             e = src_elem[k]
             d2 = _element_dist2(kind, elem, e, x, y, z)
             if d2 < radius2:
-                elem_r[n] = e
-                dist_r[n] = math.sqrt(d2)
-                point_r[n] = s
-                n += 1
-        if n == 0:
+                elem_r[pos] = e
+                dist_r[pos] = math.sqrt(d2)
+                point_r[pos] = s
+                pos += 1
+        if pos == k0:
             _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p)
             continue
-        visit = _row(kind, p, 0, n, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid, next_s,
-                     prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
-                     no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
-                     row_gr, row_d, stamp_e, slot_e, visit)
+        p_r[n_rows], k0_r[n_rows], k1_r[n_rows] = p, k0, pos
+        n_rows += 1
+    if n_rows:
+        _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid,
+                   next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
+                   no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
+                   row_gr, row_d, stamp_e, slot_e, visit)
 
 
 @numba.njit(cache=True)
@@ -440,6 +482,7 @@ class BoundaryIntegrals:
         self.inside_tests = 0
         self._cache = None
         self.reused = 0  # particles whose terms came from the cache in the last compute
+        self.block_rows = BLOCK_ROWS  # particles per call of the rows' terms (the values do not depend on it)
 
     def _inside(self, nlist, r_pc):
         """Inside test of every particle, redone when the neighbour list builds new bins."""
@@ -532,12 +575,14 @@ class BoundaryIntegrals:
         if pairs is not None:
             # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
             run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k,
-                                  *geometry, bool(terms), skip_p, gamma_k, grad_k, delta_k, *outputs),
+                                  *geometry, bool(terms), skip_p, gamma_k, grad_k, delta_k, *outputs,
+                                  self.block_rows),
                        nthreads=thread_count(m))
         else:
             x_sc, pts, by_bin, src_start, src_elem, work = source
             run_chunks(_rows_fused, x_sc.shape[0], (kind, x_sc, pts.src_s, pts.is_ghost_s, pts.bin_s, by_bin,
-                                                    src_start, src_elem, self.h * self.h, *geometry, skip_p, *outputs),
+                                                    src_start, src_elem, self.h * self.h, *geometry, skip_p, *outputs,
+                                                    self.block_rows),
                        nthreads=thread_count(work))
             del source, x_sc, src_start, src_elem
         unknown = chi_p == UNKNOWN
