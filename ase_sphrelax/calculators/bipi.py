@@ -97,10 +97,10 @@ class BIPICalculator(SPHCalculator):
     ``C`` and ``grad C`` are undefined where ``gamma = 0`` (a particle farther than ``h``
     outside the boundary): asking for them then raises, naming the particles.
 
-    The first evaluation in a process fixes glibc's mmap threshold, as the H solve of ALARIC and SPH-ParVI does
-    (:data:`ase_sphrelax.sph.MMAP_THRESHOLD`, :func:`~ase_sphrelax.sph.fix_mmap_threshold_once`; it lasts for the
-    process, ``sph.MMAP_THRESHOLD = None`` before it keeps glibc's rule): the freed per-particle arrays of a step are
-    given back, not kept as the heap's pages (BIPI 2D at 1e4 particles: about 60 B per particle of the peak).
+    BIPI's calculator leaves glibc's mmap threshold alone (the H solve of ALARIC and SPH-ParVI fixes it:
+    :data:`ase_sphrelax.sph.MMAP_THRESHOLD`): fixed, every freed per-particle array of a step was given back and the
+    next one written to fresh pages, which made a BIPI 2D Step-2c iteration at 1e5 particles 1.2-1.4x slower, while
+    under glibc's own rule BIPI 2D stays within 600 B per particle (``reproductions/speed-scale-memory-2d``).
     """
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "gamma", "grad_gamma", "concentration",
@@ -176,7 +176,6 @@ class BIPICalculator(SPHCalculator):
         return self.model.h, self.skin
 
     def evaluate(self, state, properties):
-        sph.fix_mmap_threshold_once()  # the first evaluation of a process (MMAP_THRESHOLD)
         model = self.model
         self._nearest_p = None  # the last evaluation's, not kept while this one runs
         # the query fused into the boundary rows: no (particle, element) pair arrays (24 B per pair)
