@@ -95,9 +95,9 @@ def default_eta(kernel):
 
 MMAP_THRESHOLD = 64 * 1024
 """glibc's mmap threshold in bytes, fixed (``mallopt(M_MMAP_THRESHOLD)``, process-wide) at the first
-:func:`solve_smoothing_lengths` (ALARIC, SPH-ParVI; :func:`fix_mmap_threshold_once`); None leaves glibc's own.
-BIPI's calculator no longer fixes it: its Step-2c iteration at 1e5 particles in 2D was 1.2-1.4x slower with it, and
-it keeps within 600 B per particle without it. glibc raises the threshold to the size of each large
+:func:`solve_smoothing_lengths` (ALARIC, SPH-ParVI) or 3D :class:`~ase_sphrelax.BIPICalculator` evaluation
+(:func:`fix_mmap_threshold_once`); None leaves glibc's own. A 2D BIPI evaluation leaves it alone: its Step-2c
+iteration at 1e5 particles was 1.2-1.4x slower with it, and it keeps within 600 B per particle without it. glibc raises the threshold to the size of each large
 block freed (up to 32 MB), after which per-particle arrays come from the heap, whose freed pages it keeps: in ALARIC
 2D's and SPH-ParVI 2D's steps at 1e4-1e5 particles such kept pages were 60-140 bytes per particle of the peak
 resident set, in BIPI 2D's at 1e4 about 60 (``reproductions/speed-scale-memory-2d``). Fixed, every array above it is
@@ -119,8 +119,8 @@ def fix_mmap_threshold(threshold=None):
 
 
 def fix_mmap_threshold_once():
-    """:func:`fix_mmap_threshold` at :data:`MMAP_THRESHOLD` on the first call of a process (the first H solve);
-    later calls do nothing. True when this call set it."""
+    """:func:`fix_mmap_threshold` at :data:`MMAP_THRESHOLD` on the first call of a process (the first H solve
+    or 3D BIPI evaluation); later calls do nothing. True when this call set it."""
     global _mmap_fixed
     if _mmap_fixed:
         return False

@@ -97,10 +97,13 @@ class BIPICalculator(SPHCalculator):
     ``C`` and ``grad C`` are undefined where ``gamma = 0`` (a particle farther than ``h``
     outside the boundary): asking for them then raises, naming the particles.
 
-    BIPI's calculator leaves glibc's mmap threshold alone (the H solve of ALARIC and SPH-ParVI fixes it:
-    :data:`ase_sphrelax.sph.MMAP_THRESHOLD`): fixed, every freed per-particle array of a step was given back and the
-    next one written to fresh pages, which made a BIPI 2D Step-2c iteration at 1e5 particles 1.2-1.4x slower, while
-    under glibc's own rule BIPI 2D stays within 600 B per particle (``reproductions/speed-scale-memory-2d``).
+    In 3D the first evaluation in a process fixes glibc's mmap threshold, as the H solve of ALARIC and SPH-ParVI
+    does (:data:`ase_sphrelax.sph.MMAP_THRESHOLD`, :func:`~ase_sphrelax.sph.fix_mmap_threshold_once`; it lasts for
+    the process, ``sph.MMAP_THRESHOLD = None`` before it keeps glibc's rule). BIPI 3D at 1e4 particles then peaks at
+    about 660 B per particle, against up to 850 under glibc's rule (goal 900), at the same speed. In 2D it is left
+    alone. Fixed there, every freed per-particle array of a step is given back and the next one is written to fresh
+    pages, which made a Step-2c iteration at 1e5 particles 1.2-1.4x slower. Under glibc's rule BIPI 2D stays within
+    600 B per particle (``reproductions/speed-scale-memory-2d``).
     """
 
     implemented_properties = ["energy", "free_energy", "energies", "forces", "gamma", "grad_gamma", "concentration",
@@ -176,6 +179,8 @@ class BIPICalculator(SPHCalculator):
         return self.model.h, self.skin
 
     def evaluate(self, state, properties):
+        if state.dim == 3:
+            sph.fix_mmap_threshold_once()  # the first evaluation of a process (MMAP_THRESHOLD); not in 2D (above)
         model = self.model
         self._nearest_p = None  # the last evaluation's, not kept while this one runs
         # the query fused into the boundary rows: no (particle, element) pair arrays (24 B per pair)
