@@ -97,7 +97,7 @@ MMAP_THRESHOLD = 64 * 1024
 """glibc's mmap threshold in bytes, fixed (``mallopt(M_MMAP_THRESHOLD)``, process-wide) at the first
 :func:`solve_smoothing_lengths` (ALARIC, SPH-ParVI) or 3D :class:`~ase_sphrelax.BIPICalculator` evaluation
 (:func:`fix_mmap_threshold_once`); None leaves glibc's own. A 2D BIPI evaluation leaves it alone: its Step-2c
-iteration at 1e5 particles was 1.2-1.4x slower with it, and it keeps within 600 B per particle without it. glibc raises the threshold to the size of each large
+iteration at 1e5 particles was about 1.3x slower with it, and it keeps within 600 B per particle without it. glibc raises the threshold to the size of each large
 block freed (up to 32 MB), after which per-particle arrays come from the heap, whose freed pages it keeps: in ALARIC
 2D's and SPH-ParVI 2D's steps at 1e4-1e5 particles such kept pages were 60-140 bytes per particle of the peak
 resident set, in BIPI 2D's at 1e4 about 60 (``reproductions/speed-scale-memory-2d``). Fixed, every array above it is

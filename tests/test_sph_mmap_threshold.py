@@ -82,7 +82,7 @@ def test_the_first_solve_fixes_the_mmap_threshold():
 
 @glibc
 def test_a_2d_bipi_evaluation_leaves_glibc_s_own_rule():
-    """BIPI solves no H. In 2D it leaves the threshold alone: fixed, its Step-2c iteration at 1e5 was 1.2-1.4x slower
+    """BIPI solves no H. In 2D it leaves the threshold alone: fixed, its Step-2c iteration at 1e5 was about 1.3x slower
     (fresh pages for every temporary), and without it BIPI 2D keeps within 600 B per particle (issue 33 item 4)."""
     before, after = _probe("bipi")
     if before >= 2**20:

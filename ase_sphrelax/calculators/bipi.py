@@ -102,7 +102,7 @@ class BIPICalculator(SPHCalculator):
     the process, ``sph.MMAP_THRESHOLD = None`` before it keeps glibc's rule). BIPI 3D at 1e4 particles then peaks at
     about 660 B per particle, against up to 850 under glibc's rule (goal 900), at the same speed. In 2D it is left
     alone. Fixed there, every freed per-particle array of a step is given back and the next one is written to fresh
-    pages, which made a Step-2c iteration at 1e5 particles 1.2-1.4x slower. Under glibc's rule BIPI 2D stays within
+    pages, which made a Step-2c iteration at 1e5 particles about 1.3x slower. Under glibc's rule BIPI 2D stays within
     600 B per particle (``reproductions/speed-scale-memory-2d``).
     """
 

@@ -2,7 +2,8 @@
 max and the min, for each code state (``before``: c5d123d; ``after``: this entry's commit; ``copy_chunk``: the
 same with the list copy of ``neighbors._copy_releasing`` chunked for small lists, not committed;
 ``copy_chunk_glibc``: that with ``sph.MMAP_THRESHOLD = None``, BIPI rows only; ``final``: the lead's commit that
-took the chunked copy, with the session's other changes). Writes
+took the chunked copy, with the session's other changes; ``bipi_glibc``: 3b80355, where BIPI's calculator leaves
+glibc's mmap threshold alone in 2D, BIPI rows only). Writes
 ``results/summary.json``.
 
     python reproductions/speed-scale-memory-2d/summarise.py
@@ -11,7 +12,7 @@ import json
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-STATES = ("before", "after", "copy_chunk", "copy_chunk_glibc", "final")
+STATES = ("before", "after", "copy_chunk", "copy_chunk_glibc", "final", "bipi_glibc")
 
 
 def main():
