@@ -96,15 +96,17 @@ def default_eta(kernel):
 MMAP_THRESHOLD = 64 * 1024
 """glibc's mmap threshold in bytes, fixed (``mallopt(M_MMAP_THRESHOLD)``, process-wide) at the first
 :func:`solve_smoothing_lengths` (ALARIC, SPH-ParVI) or 3D :class:`~ase_sphrelax.BIPICalculator` evaluation
-(:func:`fix_mmap_threshold_once`); None leaves glibc's own. A 2D BIPI evaluation leaves it alone: its Step-2c
-iteration at 1e5 particles was about 1.3x slower with it, and it keeps within 600 B per particle without it. glibc raises the threshold to the size of each large
+(:func:`fix_mmap_threshold_once`); None leaves glibc's own. glibc raises the threshold to the size of each large
 block freed (up to 32 MB), after which per-particle arrays come from the heap, whose freed pages it keeps: in ALARIC
 2D's and SPH-ParVI 2D's steps at 1e4-1e5 particles such kept pages were 60-140 bytes per particle of the peak
 resident set, in BIPI 2D's at 1e4 about 60 (``reproductions/speed-scale-memory-2d``). Fixed, every array above it is
 its own mapping, given back when freed, and written to fresh pages when made: page faults cost about 3 % of an ALARIC
-2D step at 1e5 (``reproductions/speed-scale-memory-alaric``), and the setting stays for the rest of the process, so a
-Fan relaxation run after ALARIC or SPH-ParVI in the same process costs 1.15-1.2x the CPU time a step (2D, 1e5
-particles). Set it to None before the first solve to keep glibc's rule (faster, about 60-140 B per particle more)."""
+2D step at 1e5 against a threshold fixed at 32 MiB (``reproductions/speed-scale-memory-alaric``), more against
+glibc's own rule, which also trims the heap less: a BIPI 2D Step-2c iteration at 1e5 was about 1.3x slower with it,
+so a 2D BIPI evaluation leaves it alone (BIPI 2D keeps within 600 B per particle without it). The setting stays for
+the rest of the process, so a Fan relaxation run after ALARIC or SPH-ParVI in the same process costs 1.15-1.2x the
+CPU time a step (2D, 1e5 particles). Set it to None before the first solve to keep glibc's rule (faster, about
+60-140 B per particle more)."""
 _mmap_fixed = False
 
 

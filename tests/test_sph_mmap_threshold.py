@@ -1,7 +1,7 @@
 """The H solve and BIPI's calculator in 3D fix glibc's mmap threshold (``sph.MMAP_THRESHOLD``, issue 33 item 4): after
-the first :func:`ase_sphrelax.sph.solve_smoothing_lengths` or 3D BIPI evaluation of a process, a freed 1 MB array is given
-back to the system at once, where glibc's own rule (after a larger block was freed) keeps it in the heap. Each case
-runs in a fresh process: the setting is process-wide."""
+the first :func:`ase_sphrelax.sph.solve_smoothing_lengths` or 3D BIPI evaluation of a process, a freed 1 MB array is
+given back to the system at once, where glibc's own rule (after a larger block was freed) keeps it in the heap; a 2D
+BIPI evaluation leaves glibc's rule. Each case runs in a fresh process: the setting is process-wide."""
 import subprocess
 import sys
 import textwrap

@@ -199,8 +199,8 @@ def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, ele
             gb = 0.0
             if rule == 2:
                 if dist_k[k] < band:
-                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
-                                        band * inv_h, cuts)[1]
+                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
+                                        sigma, band * inv_h, cuts)[1]
             elif rule == 1:
                 cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
                 gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
