@@ -76,7 +76,6 @@ that carries the kernel and a hash of the bound values, so that cache files neve
 """
 from __future__ import annotations
 
-import ast
 import hashlib
 import inspect
 import itertools
@@ -90,6 +89,7 @@ import numpy as np
 from .kernels import KERNEL_FUNCTIONS
 from .neighbors import SCAN_HELPERS, SCAN_SOURCE, release_free_memory, release_pages
 from .parallel import chunk_bounds, run_chunks, thread_count
+from .specialise import recompiled
 
 __all__ = ["PairInteraction", "Output", "PairResult"]
 
@@ -424,22 +424,9 @@ def _specialise(pair, constants, kernel):
     arguments = [n for n in _data_names(py_func) if n not in constants]
     if not constants and kernel is None:
         return pair, arguments
-    tree = ast.parse(textwrap.dedent(inspect.getsource(py_func)))
-    function = tree.body[0]
-    function.decorator_list = []
-    function.args.args = [arg for arg in function.args.args if arg.arg not in constants]
     suffix = (f"{kernel.key}_" if kernel is not None else "") + _stamp(sorted(constants.items(), key=str))
-    name = function.name = f"{py_func.__name__}__{suffix}"
-    ast.increment_lineno(tree, py_func.__code__.co_firstlineno - 1)
-    namespace = dict(py_func.__globals__)
-    namespace.update(constants)
-    if kernel is not None:
-        namespace.update(kernel.closed_forms())
-    # compiled against the pair function's own file, as the loops are: numba's disk cache holds it
-    exec(compile(tree, inspect.getfile(py_func), "exec"), namespace)  # noqa: S102
-    specialised = namespace[name]
-    specialised.__module__ = py_func.__module__
-    return numba.njit(cache=True, inline="always")(specialised), arguments
+    bind = dict(constants, **(kernel.closed_forms() if kernel is not None else {}))
+    return recompiled(pair, f"{py_func.__name__}__{suffix}", bind, drop=constants, inline="always"), arguments
 
 
 def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=(), arguments=(), planar=False,

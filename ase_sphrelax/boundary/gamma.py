@@ -37,6 +37,7 @@ import numpy as np
 from ..checks import check_positive
 from ..domains.closest import closest_on_triangle
 from ..parallel import run_chunks, thread_count
+from ..specialise import recompiled
 from .line_integrals import at_vertex, line_offset, segment_terms
 from .query import BoundaryQuery, _element_dist2, boundary_pairs
 from .radial import RadialTables
@@ -54,6 +55,10 @@ BLOCK_ROWS = 64
 # NUDGE h inside and carried back by the exact gradient there (remainder ~ NUDGE^2, about 1e-14)
 NUDGE = 1e-7
 BAND_RULES = ("normal", "centroid", "ball")
+# the boundary rows' templates (_row_block, _rows, _rows_fused) are compiled for each element kind by _for_kind, which
+# binds KIND (0: segments, 1: triangles; None here: the templates are not called as they are)
+ELEMENT_KINDS = ("segments", "triangles")
+KIND = None
 
 
 @numba.njit(cache=True, inline="always")
@@ -134,14 +139,6 @@ def _chi_triangle(px, py, pz, tri, pseudo, t, delta, close2):
 
 
 @numba.njit(cache=True, inline="always")
-def _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, q_max, cuts):
-    """(gamma_as, int W dS, delta) of a segment (kind 0) or a triangle (kind 1)."""
-    if kind == 0:
-        return segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, q_max)
-    return triangle_terms(x, y, z, elem, nrm, frames, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma, q_max, cuts)
-
-
-@numba.njit(cache=True, inline="always")
 def _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p):
     """What :func:`_row_block` gives particle ``p`` with no element within ``h``: the callers test for an empty row
     and leave such particles out of their blocks (most particles are far from the boundary)."""
@@ -152,15 +149,15 @@ def _empty_row(p, sum_p, grad_pc, near_pc, chi_p, nearest_p):
     chi_p[p] = UNKNOWN
 
 
-@numba.njit(cache=True, nogil=True)
-def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
+def _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
                next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms,
                gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d,
                stamp_e, slot_e, visit):
     """The terms of particles ``p_r[:n_rows]``, each from its pairs ``k0_r[i]:k1_r[i]`` (see :func:`_rows`); returns
     the last edge visit. A block of rows per call, not one: a call per row cost about 0.8 us (its ~50 arguments),
     more than the terms of a row of a few segments (BIPI's trapezoid at 1e5 particles in 2D: the boundary rows
-    took 8.7 ms with a call per row, 3.8 ms with the row inlined)."""
+    took 8.7 ms with a call per row, 3.8 ms with the row inlined). A template: ``KIND`` is bound by
+    :func:`_for_kind`."""
     slot_w, slot_pair, pair_c, row_cuts, mom = scratch
     h = 1.0 / inv_h
     for i in range(n_rows):
@@ -168,16 +165,17 @@ def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, ele
         k0 = k0_r[i]
         k1 = k1_r[i]
         run = k0
-        while kind == 1 and run < k1:  # per point: every pair of a particle's row has the same (see BoundaryPairs)
-            s = point_k[run]
-            end = run + 1
-            while end < k1 and point_k[end] == s:
-                end += 1
-            visit += 1
-            triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
-                               breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
-                               row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
-            run = end
+        if KIND == 1:  # per point: every pair of a particle's row has the same (see BoundaryPairs)
+            while run < k1:
+                s = point_k[run]
+                end = run + 1
+                while end < k1 and point_k[end] == s:
+                    end += 1
+                visit += 1
+                triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
+                                   breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
+                                   row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
+                run = end
         total = 0.0
         g0 = g1 = g2 = 0.0
         w0 = w1 = w2 = 0.0
@@ -188,7 +186,7 @@ def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, ele
             s = point_k[k]
             e = elem_k[k]
             x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
-            if kind == 1:
+            if KIND == 1:
                 g, gr, d = row_g[k - k0], row_gr[k - k0], row_d[k - k0]
             else:
                 g, gr, d = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, 1.0)
@@ -199,8 +197,11 @@ def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, ele
             gb = 0.0
             if rule == 2:
                 if dist_k[k] < band:
-                    gb = _element_terms(kind, x, y, z, elem, nrm, frames, e, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
-                                        sigma, band * inv_h, cuts)[1]
+                    if KIND == 0:
+                        gb = segment_terms(x, y, elem, e, inv_h, breaks, fc, gc, a, sigma, band * inv_h)[1]
+                    else:
+                        gb = triangle_terms(x, y, z, elem, nrm, frames, e, inv_h, breaks, lp, lq, a[0], p1_one, sigma,
+                                            band * inv_h, cuts)[1]
             elif rule == 1:
                 cx, cy, cz = centroid[e, 0] - x, centroid[e, 1] - y, centroid[e, 2] - z
                 gb = gr if cx * cx + cy * cy + cz * cz < band * band else 0.0
@@ -223,7 +224,7 @@ def _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, ele
         nearest_p[p] = best
         if k_best < 0:
             chi_p[p] = UNKNOWN
-        elif kind == 0:
+        elif KIND == 0:
             s = point_k[k_best]
             chi_p[p] = _chi_segment(x_sc[s, 0], x_sc[s, 1], elem, elem_k[k_best], next_s, prev_s, inv_h)
         else:
@@ -244,8 +245,7 @@ def _row_buffers(kind, longest, breaks, cols, n_edges):
             np.empty(stamp_e.shape[0], dtype=np.int64))
 
 
-@numba.njit(cache=True, nogil=True)
-def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
+def _rows(x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_edges, centroid, next_s, prev_s,
           pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, want_terms, skip_p, gamma_k,
           grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, block_rows, first, last):
     """Per particle: sum_s gamma_as, grad gamma_a, the band sum, the point term and the nearest element's distance
@@ -259,13 +259,15 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
     Triangles: a particle's terms come edge by edge
     (:func:`~ase_sphrelax.boundary.surface_integrals.triangle_row_terms`): each edge near it is integrated
     once for both its triangles (``edge_tk``: edge ids shared by the triangles of an edge).
+
+    A template, as :func:`_row_block` (``KIND``, and the ``_row_block`` it calls, bound by :func:`_for_kind`).
     """
     cuts = np.empty(2 * breaks.shape[0] + 5)
     use_skip = skip_p.shape[0] > 0
     longest = 1
     for p in range(first, last):
         longest = max(longest, start_p[p + 1] - start_p[p])
-    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
+    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(KIND, longest, breaks, lp.shape[1], n_edges)
     p_r = np.empty(block_rows, dtype=np.int64)
     k0_r = np.empty(block_rows, dtype=np.int64)
     k1_r = np.empty(block_rows, dtype=np.int64)
@@ -280,27 +282,27 @@ def _rows(kind, x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_
         p_r[n_rows], k0_r[n_rows], k1_r[n_rows] = p, start_p[p], start_p[p + 1]
         n_rows += 1
         if n_rows == block_rows:
-            visit = _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames,
+            visit = _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames,
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
                                sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc,
                                chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
             n_rows = 0
     if n_rows:
-        _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
+        _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
                    next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule,
                    want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch,
                    row_g, row_gr, row_d, stamp_e, slot_e, visit)
 
 
-@numba.njit(cache=True, nogil=True)
-def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, radius2, elem, nrm, frames,
+def _rows_fused(x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, radius2, elem, nrm, frames,
                 edge_tk, n_edges, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma,
                 close2, band, rule, skip_p, sum_p, grad_pc, near_pc, chi_p, nearest_p, block_rows, first, last):
     """:func:`_rows` with the query fused in: no pair arrays. Each sorted point ``s`` (ghosts skipped: every
     particle's pairs are those of its own point) finds its elements closer than ``sqrt(radius2)`` among its
     source row (``by_bin``: the elements registered in its bin, ``src_start[bin_s[s]]:``; else its candidate
     row ``src_start[s]:``) in their order, as :class:`~ase_sphrelax.boundary.query.BoundaryQuery` does, into a
-    row of scratch, and gets the terms of :func:`_rows` from that row (the same values)."""
+    row of scratch, and gets the terms of :func:`_rows` from that row (the same values). A template, as
+    :func:`_rows`."""
     cuts = np.empty(2 * breaks.shape[0] + 5)
     use_skip = skip_p.shape[0] > 0
     longest = 1
@@ -310,7 +312,7 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
     else:
         for s in range(first, last):
             longest = max(longest, src_start[s + 1] - src_start[s])
-    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(kind, longest, breaks, lp.shape[1], n_edges)
+    scratch, row_g, row_gr, row_d, stamp_e, slot_e = _row_buffers(KIND, longest, breaks, lp.shape[1], n_edges)
     # the rows of a block of particles one after another: room for a quarter of block_rows rows of the longest's
     # length and one more (rows within h are shorter than their candidate rows)
     cap = longest * (block_rows // 4) + longest
@@ -332,7 +334,7 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
             continue
         row = bin_s[s] if by_bin else s
         if n_rows == block_rows or pos + src_start[row + 1] - src_start[row] > cap:  # the block is full
-            visit = _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames,
+            visit = _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames,
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
                                sigma, close2, band, rule, False, no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc,
                                chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
@@ -342,7 +344,7 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
         k0 = pos
         for k in range(src_start[row], src_start[row + 1]):
             e = src_elem[k]
-            d2 = _element_dist2(kind, elem, e, x, y, z)
+            d2 = _element_dist2(KIND, elem, e, x, y, z)
             if d2 < radius2:
                 elem_r[pos] = e
                 dist_r[pos] = math.sqrt(d2)
@@ -354,10 +356,23 @@ def _rows_fused(kind, x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_ele
         p_r[n_rows], k0_r[n_rows], k1_r[n_rows] = p, k0, pos
         n_rows += 1
     if n_rows:
-        _row_block(kind, n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid,
+        _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid,
                    next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
                    no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
                    row_gr, row_d, stamp_e, slot_e, visit)
+
+
+def _for_kind(template, kind, **calls):
+    """``template`` (:func:`_row_block`, :func:`_rows`, :func:`_rows_fused`) compiled for one element kind,
+    ``KIND`` = 0 (segments, 2D) or 1 (triangles, 3D), with the jitted functions ``calls`` it calls by name: the
+    branches of the other kind are pruned, so a 2D run never compiles the triangles' terms (the one function for both
+    kinds took 33 s of the 52 s of a cold ``sphrelax relax`` in 2D)."""
+    return recompiled(template, f"{template.__name__}__{ELEMENT_KINDS[kind]}", dict(KIND=kind, **calls), nogil=True)
+
+
+_ROW_BLOCK = {kind: _for_kind(_row_block, kind) for kind in (0, 1)}
+_ROWS = {kind: _for_kind(_rows, kind, _row_block=_ROW_BLOCK[kind]) for kind in (0, 1)}
+_ROWS_FUSED = {kind: _for_kind(_rows_fused, kind, _row_block=_ROW_BLOCK[kind]) for kind in (0, 1)}
 
 
 @numba.njit(cache=True)
@@ -574,13 +589,13 @@ class BoundaryIntegrals:
         outputs = (sum_p, grad_pc, near_pc, chi_p, nearest_p)
         if pairs is not None:
             # threads by the number of pairs (the work), not of particles: 4000 particles near a mesh are 2e5 pairs
-            run_chunks(_rows, n, (kind, pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k,
+            run_chunks(_ROWS[kind], n, (pairs.x_sc, pairs.start_p, pairs.element_k, pairs.distance_k, pairs.point_k,
                                   *geometry, bool(terms), skip_p, gamma_k, grad_k, delta_k, *outputs,
                                   self.block_rows),
                        nthreads=thread_count(m))
         else:
             x_sc, pts, by_bin, src_start, src_elem, work = source
-            run_chunks(_rows_fused, x_sc.shape[0], (kind, x_sc, pts.src_s, pts.is_ghost_s, pts.bin_s, by_bin,
+            run_chunks(_ROWS_FUSED[kind], x_sc.shape[0], (x_sc, pts.src_s, pts.is_ghost_s, pts.bin_s, by_bin,
                                                     src_start, src_elem, self.h * self.h, *geometry, skip_p, *outputs,
                                                     self.block_rows),
                        nthreads=thread_count(work))
