@@ -230,6 +230,7 @@ _BUILD_TEMPLATE = _BUILD_HEAD + """    for a in range(first, last):
 """
 
 
+# a plain build's bins hold no wide points: its stencil is the half stencil's array, read by _half_range itself
 _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dtype=pair_j.dtype)  # the partners of a pair's second point, listed apart
     a0 = first
     while a0 < last:
@@ -258,7 +259,7 @@ _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dty
                 second[m] = b
                 m += {norm_second} < rc2
             for k in range(stencil.shape[0]):
-                lo, hi = stencil_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
+                lo, hi = _half_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
                 for b in range(lo, hi):
                     {load_candidate}
                     {diff_both}
@@ -273,7 +274,7 @@ _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dty
             n_points = 2
         else:
             for k in range(-1, stencil.shape[0]):
-                lo, hi = stencil_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
+                lo, hi = _half_range(a0, k, kx, ky, kz, bin_s, nbin_c, bin_start, stencil)
                 for b in range(lo, hi):
                     {diff_first}
                     pair_j[pos] = b
