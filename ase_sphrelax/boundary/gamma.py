@@ -172,9 +172,10 @@ def _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm
                 while end < k1 and point_k[end] == s:
                     end += 1
                 visit += 1
-                triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk, inv_h,
-                                   breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w, slot_pair, pair_c,
-                                   row_cuts, mom, row_g[run - k0:], row_gr[run - k0:], row_d[run - k0:])
+                triangle_row_terms(x_sc[s, 0], x_sc[s, 1], x_sc[s, 2], elem_k, run, end, elem, nrm, frames, edge_tk,
+                                   inv_h, breaks, lp, lq, a[0], p1_one, sigma, stamp_e, slot_e, visit, slot_w,
+                                   slot_pair, pair_c, row_cuts, mom, row_g[run - k0:], row_gr[run - k0:],
+                                   row_d[run - k0:])
                 run = end
         total = 0.0
         g0 = g1 = g2 = 0.0
