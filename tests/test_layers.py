@@ -34,7 +34,7 @@ PACKAGES = ("ase_sphrelax", "lammps_io")
 # Lowest first. A module belongs to the layer of its longest matching prefix (dotted, whole
 # components). Mirrors the table of ARCHITECTURE.md: change both together.
 LAYERS = (
-    ("checks", ("ase_sphrelax.lazy", "ase_sphrelax.checks")),
+    ("checks", ("ase_sphrelax.lazy", "ase_sphrelax.checks", "ase_sphrelax.specialise")),
     ("kernels", ("ase_sphrelax.kernels",)),
     ("threads", ("ase_sphrelax.parallel",)),
     ("neighbours", ("ase_sphrelax.neighbors", "ase_sphrelax.tree_neighbors")),
