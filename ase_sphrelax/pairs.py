@@ -268,7 +268,8 @@ _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dty
                     second[m] = b
                     m += {norm_second} < rc2
             count_s[a0 + 1] = pos - start
-            pair_j[pos:pos + m] = second[:m]
+            for q in range(m):  # element by element: a slice copy compiles numba's shape-mismatch message
+                pair_j[pos + q] = second[q]
             count_s[a1 + 1] = m
             pos += m
             n_points = 2

@@ -87,8 +87,11 @@ def _bucket_count(seg, glo, gh, gn, out_count, out_list, out_dist, fill):
             if fill:
                 k0 = out_count[cell]
                 order = np.argsort(out_dist[k0:k0 + k])
-                out_list[k0:k0 + k] = out_list[k0:k0 + k][order]
-                out_dist[k0:k0 + k] = out_dist[k0:k0 + k][order]
+                list_k = out_list[k0:k0 + k].copy()
+                dist_k = out_dist[k0:k0 + k].copy()
+                for q in range(k):  # element by element: a slice copy compiles numba's shape-mismatch message
+                    out_list[k0 + q] = list_k[order[q]]
+                    out_dist[k0 + q] = dist_k[order[q]]
             else:
                 out_count[cell + 1] = k
 
