@@ -61,7 +61,7 @@ ELEMENT_KINDS = ("segments", "triangles")
 KIND = None
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _chi_segment(px, py, seg, e, next_s, prev_s, inv_h):
     """Point term of a particle whose nearest segment is e (see the module docstring).
 
@@ -116,7 +116,7 @@ def _chi_segment(px, py, seg, e, next_s, prev_s, inv_h):
     return 1.0 if (left_out or left_in) else 0.0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True)
 def _chi_triangle(px, py, pz, tri, pseudo, t, delta, close2):
     """Point term of a particle whose nearest triangle is t (see the module docstring).
 
