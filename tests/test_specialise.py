@@ -41,3 +41,36 @@ def test_the_boundary_rows_are_compiled_per_element_kind():
             assert table[kind].py_func.__globals__["KIND"] == kind
         assert gamma._ROWS[kind].py_func.__globals__["_row_block"] is gamma._ROW_BLOCK[kind]
     assert gamma.KIND is None
+
+
+ONE_ROW_BLOCK = """
+import numpy as np
+from ase_sphrelax.boundary import gamma
+from ase_sphrelax.boundary.gamma import BoundaryIntegrals
+from ase_sphrelax.boundary.segments import BoundarySegments
+from ase_sphrelax.neighbors import NeighborList
+t = np.linspace(0.0, 2.0 * np.pi, 41)[:-1]
+vertices = np.stack([0.5 + 0.3 * np.cos(t), 0.5 + 0.3 * np.sin(t)], axis=1)
+boundary = BoundarySegments.from_vertices([vertices])
+r = np.zeros((600, 3))
+r[:, :2] = np.random.default_rng(0).uniform(0.15, 0.85, size=(600, 2))
+nl = NeighborList(0.05, skin=0.005)
+nl.update(r, np.zeros((3, 3)), [False] * 3, store=True)
+integrals = BoundaryIntegrals(boundary, 0.05)
+integrals.compute(nl, r, band=0.01, terms=False, keep_pairs=False)  # the fused rows
+integrals.compute(nl, r, band=0.01, terms=True, keep_pairs=True)  # the rows of stored pairs
+print(len(gamma._ROW_BLOCK[0].overloads), len(gamma._ROWS_FUSED[0].overloads), len(gamma._ROWS[0].overloads))
+"""
+
+
+def test_both_row_paths_compile_one_row_block(tmp_path):
+    """With numba's cache empty, the fused rows and the rows of stored pairs compile the segments' row block once:
+    the same argument types from both (a literal 0 or False at one call site compiled it again, 4 times in all)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    done = subprocess.run([sys.executable, "-c", ONE_ROW_BLOCK], env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["1", "1", "1"]

@@ -272,7 +272,7 @@ def _rows(x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_
     p_r = np.empty(block_rows, dtype=np.int64)
     k0_r = np.empty(block_rows, dtype=np.int64)
     k1_r = np.empty(block_rows, dtype=np.int64)
-    n_rows = 0
+    n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
     visit = -1
     for p in range(first, last):
         if use_skip and skip_p[p]:
@@ -287,7 +287,7 @@ def _rows(x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
                                sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc,
                                chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
-            n_rows = 0
+            n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
     if n_rows:
         _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
                    next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule,
@@ -324,7 +324,8 @@ def _rows_fused(x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, rad
     k0_r = np.empty(block_rows, dtype=np.int64)
     k1_r = np.empty(block_rows, dtype=np.int64)
     no_terms = np.empty(0)
-    n_rows = 0
+    no_flag = np.bool_(False)  # typed bool, as _rows passes want_terms: a literal False compiles _row_block again
+    n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
     pos = 0
     visit = -1
     for s in range(first, last):
@@ -337,9 +338,9 @@ def _rows_fused(x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, rad
         if n_rows == block_rows or pos + src_start[row + 1] - src_start[row] > cap:  # the block is full
             visit = _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames,
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
-                               sigma, close2, band, rule, False, no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc,
+                               sigma, close2, band, rule, no_flag, no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc,
                                chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
-            n_rows = 0
+            n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
             pos = 0
         x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
         k0 = pos
@@ -358,7 +359,7 @@ def _rows_fused(x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, rad
         n_rows += 1
     if n_rows:
         _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames, edge_tk, centroid,
-                   next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, False,
+                   next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule, no_flag,
                    no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc, chi_p, nearest_p, cuts, scratch, row_g,
                    row_gr, row_d, stamp_e, slot_e, visit)
 
