@@ -287,7 +287,7 @@ def _rows(x_sc, start_p, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, n_
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
                                sigma, close2, band, rule, want_terms, gamma_k, grad_k, delta_k, sum_p, grad_pc, near_pc,
                                chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
-            n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
+            n_rows = np.int64(0)
     if n_rows:
         _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_k, dist_k, point_k, elem, nrm, frames, edge_tk, centroid,
                    next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one, sigma, close2, band, rule,
@@ -338,9 +338,9 @@ def _rows_fused(x_sc, src_s, is_ghost_s, bin_s, by_bin, src_start, src_elem, rad
         if n_rows == block_rows or pos + src_start[row + 1] - src_start[row] > cap:  # the block is full
             visit = _row_block(n_rows, p_r, k0_r, k1_r, x_sc, elem_r, dist_r, point_r, elem, nrm, frames,
                                edge_tk, centroid, next_s, prev_s, pseudo, inv_h, breaks, fc, gc, a, lp, lq, p1_one,
-                               sigma, close2, band, rule, no_flag, no_terms, no_terms, no_terms, sum_p, grad_pc, near_pc,
-                               chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
-            n_rows = np.int64(0)  # typed int64 from the start: a literal 0 would compile _row_block a second time
+                               sigma, close2, band, rule, no_flag, no_terms, no_terms, no_terms, sum_p, grad_pc,
+                               near_pc, chi_p, nearest_p, cuts, scratch, row_g, row_gr, row_d, stamp_e, slot_e, visit)
+            n_rows = np.int64(0)
             pos = 0
         x, y, z = x_sc[s, 0], x_sc[s, 1], x_sc[s, 2]
         k0 = pos
@@ -368,7 +368,7 @@ def _for_kind(template, kind, **calls):
     """``template`` (:func:`_row_block`, :func:`_rows`, :func:`_rows_fused`) compiled for one element kind,
     ``KIND`` = 0 (segments, 2D) or 1 (triangles, 3D), with the jitted functions ``calls`` it calls by name: the
     branches of the other kind are pruned, so a 2D run never compiles the triangles' terms (the one function for both
-    kinds took 33 s of the 52 s of a cold ``sphrelax relax`` in 2D)."""
+    kinds took 35 s of the 51 s of a cold ``sphrelax relax`` in 2D: ``benchmarks/bench_cold_start.py``)."""
     return recompiled(template, f"{template.__name__}__{ELEMENT_KINDS[kind]}", dict(KIND=kind, **calls), nogil=True)
 
 
