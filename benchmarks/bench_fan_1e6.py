@@ -65,16 +65,18 @@ RATIO = 2.6  # h / dx
 RADIUS = 0.2
 
 
+def scene_dx(dim, n):
+    """The spacing of the scene with about ``n`` particles."""
+    return 0.000354 * np.sqrt(1e6 / n) if dim == 2 else (4.0 / 3.0 * np.pi * RADIUS**3 / n) ** (1.0 / 3.0)
+
+
 def scene(dim, n):
     """``(domain, dx, atoms)``: Fan's circle or sphere filled with about ``n`` particles."""
     from ase_sphrelax.build import fill
     from ase_sphrelax.domains import Circle, Sphere
 
-    if dim == 2:
-        domain, dx = Circle((0.5, 0.5), RADIUS), 0.000354 * np.sqrt(1e6 / n)
-    else:
-        domain = Sphere((0.5, 0.5, 0.5), RADIUS)
-        dx = (4.0 / 3.0 * np.pi * RADIUS**3 / n) ** (1.0 / 3.0)
+    domain = Circle((0.5, 0.5), RADIUS) if dim == 2 else Sphere((0.5, 0.5, 0.5), RADIUS)
+    dx = scene_dx(dim, n)
     return domain, dx, fill(domain, dx, jitter=0.1, seed=0)
 
 
@@ -119,8 +121,9 @@ def interior_mean_norm(f_pc, phi_p, below):
 _NORM_SUM = None
 
 
-def run_ours(dim, n, target, check_every, max_steps):
-    """Ours end to end until the measure reaches ``target``: a dict of times, steps and the trace."""
+def run_ours(dim, n, target, check_every, max_steps, **optimizer_kwargs):
+    """Ours end to end until the measure reaches ``target``: a dict of times, steps and the trace
+    (``optimizer_kwargs``: passed to ``make_optimizer``, for scans; the bench passes none)."""
     from ase_sphrelax import FanCalculator, make_optimizer
 
     t0 = time.perf_counter()
@@ -128,7 +131,7 @@ def run_ours(dim, n, target, check_every, max_steps):
     t_fill = time.perf_counter() - t0
     h = RATIO * dx
     atoms.calc = FanCalculator(h=h, dx=dx, domain=domain)
-    opt = make_optimizer("fire", atoms)
+    opt = make_optimizer("fire", atoms, **optimizer_kwargs)
     v0 = dx**dim
     trace = []
     reached = False

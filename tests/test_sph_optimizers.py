@@ -42,7 +42,9 @@ def trajectory(name, backend, dim, steps=40, prepare=None, **kwargs):
                          ids=["fire", "fire2", "lbfgs-memory20", "lbfgs-memory3"])
 def test_same_trajectory_as_ases_optimiser(dim, name, kwargs):
     """Every step's positions to 1e-9 dx and energies to 1e-9 relative over 40 steps (memory 20 and 3:
-    the history wraps)."""
+    the history wraps); FIRE without its cut of each particle's move in 3D (max_particle_step), which ASE's has not."""
+    if name == "fire":
+        kwargs = dict(kwargs, max_particle_step=None)
     ours, _, _, frames = trajectory(name, "sph", dim, **kwargs)
     ase_opt, _, _, reference = trajectory(name, "ase", dim, **kwargs)
     assert type(ours) is {"fire": SPHFIRE, "fire2": SPHFIRE2, "lbfgs": SPHLBFGS}[name]
@@ -167,6 +169,8 @@ def test_a_step_can_be_called_by_hand_with_given_forces():
     (SPHFIRE, {"dt": 0.0}, "dt must be a positive"),
     (SPHFIRE, {"maxstep": -1.0}, "maxstep must be positive"),
     (SPHFIRE, {"dim": 4}, "dim must be None, 2 or 3"),
+    (SPHFIRE, {"max_particle_step": 0.0}, "max_particle_step must be a positive finite"),
+    (SPHFIRE, {"max_particle_step": np.inf}, "max_particle_step must be a positive finite"),
     (SPHFIRE2, {"dtmin": 0.0}, "dtmin must be a positive"),
     (SPHFIRE2, {"maxstep": -1.0}, "maxstep must be positive"),
     (SPHLBFGS, {"restart": "state.json"}, "restart: SPHLBFGS keeps no restart file"),
@@ -176,6 +180,60 @@ def test_bad_input_is_a_one_line_error(cls, kwargs, match):
     with pytest.raises(ValueError, match=match) as info:
         cls(atoms, logfile=None, **kwargs)
     assert "\n" not in str(info.value)
+
+
+def test_max_particle_step_cuts_only_the_particles_that_would_move_further():
+    """Two runs in step for 8 steps; at the 9th one cuts at the 90 % quantile of the other's moves: its moves equal
+    the other's where they are shorter, and are cut to that length in the same direction where they are longer."""
+    runs = []
+    for _ in range(2):
+        atoms, _ = fan_case(3)
+        opt = make_optimizer("fire", atoms, max_particle_step=None, keep_inside=False)
+        opt.run(fmax=0.0, steps=8)
+        runs.append((opt, atoms, atoms.positions.copy()))
+    (free, atoms_free, start), (cut, atoms_cut, start_cut) = runs
+    np.testing.assert_array_equal(start, start_cut)
+    free.step()
+    move_free = atoms_free.positions - start
+    lengths = np.linalg.norm(move_free, axis=1)
+    cap = float(np.quantile(lengths, 0.9))
+    cut.max_particle_step = cap
+    cut.step()
+    move_cut = atoms_cut.positions - start
+    longer = lengths > cap
+    assert 0 < longer.sum() < len(lengths)
+    np.testing.assert_array_equal(move_cut[~longer], move_free[~longer])
+    # the moves read back as differences of positions: to round-off of the positions (1e-12 of the cut)
+    np.testing.assert_allclose(np.linalg.norm(move_cut[longer], axis=1), cap, rtol=0, atol=1e-12 * cap)
+    np.testing.assert_allclose(move_cut[longer], move_free[longer] * (cap / lengths[longer])[:, None], rtol=0,
+                               atol=1e-12 * cap)
+    np.testing.assert_array_equal(cut.vel, free.vel)  # the velocities are kept
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_make_optimizer_cuts_fires_particle_moves_in_3d_only(dim):
+    """FIRE_PARTICLE_STEP: 0.005 h in 3D (fewer list rebuilds), none in 2D; a run's moves stay within the cut;
+    ASE's backend takes None and refuses a cut."""
+    from ase_sphrelax.drivers.optimizers import FIRE_PARTICLE_STEP
+
+    atoms, _ = fan_case(dim)
+    h = atoms.calc.parameters["h"]
+    opt = make_optimizer("fire", atoms)
+    expected = None if FIRE_PARTICLE_STEP[dim] is None else FIRE_PARTICLE_STEP[dim] * h
+    assert FIRE_PARTICLE_STEP == {2: None, 3: 0.005}
+    assert opt.max_particle_step == expected and opt.todict()["max_particle_step"] == expected
+    frames = [atoms.positions.copy()]
+    opt.attach(lambda: frames.append(atoms.positions.copy()))
+    opt.run(fmax=0.0, steps=10)
+    longest = max(np.linalg.norm(b - a, axis=1).max() for a, b in zip(frames[1:], frames[2:]))
+    if dim == 3:
+        assert longest <= expected * (1 + 1e-12)
+    assert make_optimizer("fire2", fan_case(dim)[0]).max_particle_step is None
+    assert make_optimizer("fire", fan_case(dim)[0], max_particle_step=None).max_particle_step is None
+    make_optimizer("fire", fan_case(dim)[0], backend="ase", max_particle_step=None)
+    for name, backend in (("fire", "ase"), ("fire2", "sph")):
+        with pytest.raises(ValueError, match="max_particle_step: only 'fire' with backend='sph'"):
+            make_optimizer(name, fan_case(dim)[0], backend=backend, max_particle_step=0.01 * h)
 
 
 def test_make_optimizer_refuses_an_unknown_backend():

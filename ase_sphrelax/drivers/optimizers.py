@@ -23,8 +23,9 @@ from .keep_inside import attach_keep_inside
 # re-exported: NothingRelaxedWarning and check_c have been public names of this module
 from .step_scale import NothingRelaxedWarning, calculator_h, check_c, mark_scaled, warn_if_nothing_relaxed
 
-__all__ = ["OPTIMIZERS", "BACKENDS", "DEFAULT_C", "DEFAULT_MEMORY", "FIRE_DYNAMICS", "make_optimizer", "check_c",
-           "NothingRelaxedWarning", "SPHScaleWarning", "warn_if_nothing_relaxed", "ASE_DEFAULT_FMAX"]
+__all__ = ["OPTIMIZERS", "BACKENDS", "DEFAULT_C", "DEFAULT_MEMORY", "FIRE_DYNAMICS", "FIRE_PARTICLE_STEP",
+           "make_optimizer", "check_c", "NothingRelaxedWarning", "SPHScaleWarning", "warn_if_nothing_relaxed",
+           "ASE_DEFAULT_FMAX"]
 
 
 _CHECKED = {}
@@ -61,6 +62,15 @@ BACKENDS = ("sph", "ase")
 # between restarts): half the steps of ASE's values in 2D at 1e4-1e6, 0.7 of them on the sphere at 1e4
 # (the entry speed-optimizer-steps)
 FIRE_DYNAMICS = dict(dtmax_over_dt=2.5, astart=0.15, a=0.15, fa=1.0)
+
+# FIRE's cut of each particle's move in one step, in units of h, by dimension (None: no cut), for the "sph"
+# backend and a calculator with a Verlet list's ``skin`` (SPHFIRE's ``max_particle_step``; ASE's FIRE has none).
+# In 3D the list's skin stays 0.1 h (FanCalculator's MAX_SKIN_FACTOR) and its rebuilds are set off by a few fast
+# particles: cut at 0.005 h (a tenth of half the skin) they leave 16 rebuilds instead of 46 on Fan's sphere at
+# 1e5 and 1e6, for 170-175 steps instead of 155-165, and the run to the bench's target takes 0.8-0.9 of the time;
+# in 2D the adaptive skin already keeps the rebuilds few and no cut shortened the run
+# (reproductions/speed-fan-1e6/particle_step_scan.py, the entry speed-fan-1e6)
+FIRE_PARTICLE_STEP = {2: None, 3: 0.005}
 
 # LBFGS history length per backend: ASE's LBFGS keeps 20 pairs (its own 100 cost more than a force call);
 # SPHLBFGS 5, each pair 16 dim bytes per particle: on Fan's circle and sphere it converges per step as
@@ -105,22 +115,30 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE` /
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE2` /
         :class:`~ase_sphrelax.drivers.sph_optimizers.SPHLBFGS` (ASE's algorithms with numba
-        vector work, the same trajectories), ``"ase"`` ASE's own classes.
+        vector work, the same trajectories with the same parameters), ``"ase"`` ASE's own classes.
     **kwargs
         Override the optimiser's own parameters. ``"fire"`` sets ``dtmax``, ``a``, ``astart`` and
         ``fa`` from :data:`FIRE_DYNAMICS` (``dtmax`` 2.5 times the first ``dt``, a constant mixing
-        ``a = 0.15``; ASE's are ``dtmax`` 10 dt, ``a`` 0.1 shrinking by 0.99 a step).
+        ``a = 0.15``; ASE's are ``dtmax`` 10 dt, ``a`` 0.1 shrinking by 0.99 a step) and, with the
+        ``"sph"`` backend in 3D and a calculator that keeps a Verlet list (a ``skin``: Fan's, BIPI's), cuts
+        each particle's move at ``max_particle_step`` = 0.005 h (:data:`FIRE_PARTICLE_STEP`;
+        ``max_particle_step=None`` gives ASE's step).
     """
     from ase.optimize import BFGS, FIRE, LBFGS
 
     from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
-    from .sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS
+    from .sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS, _resolve_dim
 
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     sph = backend == "sph" and name != "bfgs"  # "fire", "lbfgs": ours (and "fan" returns before it is read)
+    if kwargs.get("max_particle_step") is not None and not (sph and name == "fire"):
+        raise ValueError(f"max_particle_step: only 'fire' with backend='sph' cuts each particle's move, got "
+                         f"{name!r} with backend={backend!r}")
+    if not (sph and name == "fire"):
+        kwargs.pop("max_particle_step", None)  # None: the optimiser's own step
     resolve_blas_threads(blas_threads)  # bad values fail before any work
     c = DEFAULT_C[name] if c is None else c
     h = calculator_h(atoms) if h is None else h
@@ -145,6 +163,11 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         if name == "fire":  # FIRE_DYNAMICS: about half the steps of ASE's values on Fan's circle
             dynamics = dict(FIRE_DYNAMICS)
             params.update(dtmax=dynamics.pop("dtmax_over_dt") * dt, **dynamics)
+            base = getattr(atoms, "atoms", atoms)  # a Filter's atoms
+            cut = FIRE_PARTICLE_STEP[_resolve_dim(base, kwargs.get("dim"))]
+            # fewer rebuilds of a Verlet list in 3D (FIRE_PARTICLE_STEP): for a calculator that keeps one
+            if sph and cut is not None and getattr(getattr(base, "calc", None), "skin", None) is not None:
+                params["max_particle_step"] = cut * h
         else:  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
             params["dtmin"] = 0.02 * dt
         params.update(kwargs)

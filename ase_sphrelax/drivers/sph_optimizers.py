@@ -186,14 +186,21 @@ def _fire_velocity(v_pc, f_pc, mode, a, sqrt_ff, sqrt_vv, dt, d, out, first, las
 
 
 @numba.njit(**_NOGIL)
-def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, d, first, last):
-    """New positions x + dt v (scaled to norm maxstep when scaled) into f_pc."""
+def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, cap, d, first, last):
+    """New positions x + dt v (scaled to norm maxstep when scaled, then each particle's move cut to length ``cap``
+    when ``cap > 0``) into f_pc."""
     for p in range(first, last):
+        length2 = 0.0
         for c in range(d):
             dr = dt * v_pc[p, c]
             if scaled:
                 dr = maxstep * dr / normdr
-            f_pc[p, c] = x_pc[p, c] + dr
+            f_pc[p, c] = dr
+            length2 += dr * dr
+        cut = cap > 0.0 and length2 > cap * cap
+        shrink = cap / np.sqrt(length2) if cut else 1.0
+        for c in range(d):
+            f_pc[p, c] = x_pc[p, c] + (f_pc[p, c] * shrink if cut else f_pc[p, c])
         for c in range(d, 3):
             f_pc[p, c] = x_pc[p, c]
 
@@ -387,18 +394,24 @@ def _check_positive_finite(**values):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
 
-def _set_fire_step(opt, dt, maxstep):
-    """FIRE's and FIRE2's time step, step counter and step cap (``maxstep`` None: the optimiser's default)."""
+def _set_fire_step(opt, dt, maxstep, max_particle_step=None):
+    """FIRE's and FIRE2's time step, step counter, step cap (``maxstep`` None: the optimiser's default) and cut of
+    each particle's move (``max_particle_step`` None: none)."""
     opt.dt = float(dt)
     opt.Nsteps = 0
     opt.maxstep = opt.defaults["maxstep"] if maxstep is None else float(maxstep)
     if not opt.maxstep > 0:
         raise ValueError(f"maxstep must be positive, got {maxstep!r}")
+    if max_particle_step is not None:
+        _check_positive_finite(max_particle_step=max_particle_step)
+        max_particle_step = float(max_particle_step)
+    opt.max_particle_step = max_particle_step
 
 
 class _FIREBase(_SPHOptimizer):
-    """What FIRE and FIRE2 share: the velocity reset, the step's inputs, the move ``x += dt v`` capped at ``maxstep`` (the velocity update's partial sums
-    ``outs`` of |dt v|^2 give its length) and ``todict``."""
+    """What FIRE and FIRE2 share: the velocity reset, the step's inputs, the move ``x += dt v`` capped at ``maxstep``
+    (the velocity update's partial sums ``outs`` of |dt v|^2 give its length) and each particle's move at
+    ``max_particle_step`` (FIRE's; None in FIRE2), and ``todict``."""
 
     def initialize(self):
         self.vel = None
@@ -412,12 +425,13 @@ class _FIREBase(_SPHOptimizer):
         normdr = float(np.sqrt(_sum(outs)))
         scaled = normdr > self.maxstep
         new_pc = self._scratch_like(f_pc)
-        run_chunks(_fire_move, n, (x_pc, self.vel, new_pc, self.dt, scaled, self.maxstep, normdr, d))
+        cap = 0.0 if self.max_particle_step is None else self.max_particle_step
+        run_chunks(_fire_move, n, (x_pc, self.vel, new_pc, self.dt, scaled, self.maxstep, normdr, cap, d))
         self._set_positions(new_pc)
 
     def todict(self):
         description = Optimizer.todict(self)
-        description.update(dt=self.dt, dim=self.dim)
+        description.update(dt=self.dt, dim=self.dim, max_particle_step=self.max_particle_step)
         return description
 
 
@@ -432,16 +446,21 @@ class SPHFIRE(_FIREBase):
         As :class:`ase.optimize.FIRE` (``maxstep`` caps the norm of the whole step, as ASE's).
     dim : None, 2 or 3
         Coordinates that move: None takes 2 from an SPH calculator in 2D, else 3.
+    max_particle_step : float or None
+        Each particle's move in one step is cut to at most this length (after ``maxstep``'s cut of the whole
+        step; its velocity is kept). Only the particles that would move further are cut, where LAMMPS's
+        ``min_modify dmax`` shortens the time step of all. None (default): no cut, ASE's step.
     logfile, trajectory, **kwargs
         As :class:`ase.optimize.optimize.Optimizer` (``restart`` is refused).
     """
 
     def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dt=0.1, maxstep=None, dtmax=1.0, Nmin=5,
-                 finc=1.1, fdec=0.5, astart=0.1, fa=0.99, a=0.1, dim=None, **kwargs):
+                 finc=1.1, fdec=0.5, astart=0.1, fa=0.99, a=0.1, dim=None,
+                 max_particle_step=None, **kwargs):
         _check_positive_finite(dt=dt, dtmax=dtmax, finc=finc, fdec=fdec, fa=fa)
         _SPHOptimizer.__init__(self, atoms, restart=restart, logfile=logfile, trajectory=trajectory, dim=dim,
                                **kwargs)
-        _set_fire_step(self, dt, maxstep)
+        _set_fire_step(self, dt, maxstep, max_particle_step)
         self.dtmax, self.Nmin, self.finc, self.fdec = float(dtmax), Nmin, float(finc), float(fdec)
         self.astart, self.fa, self.a = float(astart), float(fa), float(a)
 
@@ -504,7 +523,7 @@ class SPHFIRE2(_FIREBase):
         _check_positive_finite(dt=dt, dtmax=dtmax, dtmin=dtmin, finc=finc, fdec=fdec, fa=fa)
         _SPHOptimizer.__init__(self, atoms, restart=restart, logfile=logfile, trajectory=trajectory, dim=dim,
                                **kwargs)
-        _set_fire_step(self, dt, maxstep)
+        _set_fire_step(self, dt, maxstep)  # no cut of a particle's move: its uphill correction goes back dt v / 2
         self.dtmax, self.dtmin, self.Nmin = float(dtmax), float(dtmin), Nmin
         self.finc, self.fdec, self.astart, self.fa = float(finc), float(fdec), float(astart), float(fa)
         self.a = self.astart
