@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 import numba
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -58,7 +59,19 @@ def main():
     cuts = [None if c == "none" else float(c) for c in args.cuts.split(",")]
     rows = scan([int(d) for d in args.dims.split(",")], int(args.n), cuts, args.repeats)
     write_json(args.out, dict(version=git_version(), threads=numba.get_num_threads(), load_average=os.getloadavg(),
-                              n=int(args.n), runs=rows))
+                              n=int(args.n), runs=rows, medians=medians(rows)))
+
+
+def medians(rows):
+    """Per dimension and cut: the median wall time over the repeats, and the steps and builds (the same in every
+    repeat: the runs are deterministic)."""
+    out = []
+    for key in dict.fromkeys((r["dim"], r["cut_over_h"]) for r in rows):
+        runs = [r for r in rows if (r["dim"], r["cut_over_h"]) == key]
+        out.append(dict(dim=key[0], cut_over_h=key[1], runs=len(runs),
+                        wall_time=float(np.median([r["wall_time"] for r in runs])),
+                        steps=sorted({r["steps"] for r in runs}), list_builds=sorted({r["list_builds"] for r in runs})))
+    return out
 
 
 if __name__ == "__main__":
