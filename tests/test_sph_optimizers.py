@@ -29,6 +29,8 @@ def trajectory(name, backend, dim, steps=40, prepare=None, **kwargs):
         prepare(atoms)
     if name == "lbfgs":  # the backends' default histories differ (DEFAULT_MEMORY): compare like with like
         kwargs.setdefault("memory", 5)
+    if name == "fire":  # nor has ASE's FIRE make_optimizer's cut of each particle's move (FIRE_PARTICLE_STEP)
+        kwargs.setdefault("max_particle_step", None)
     opt = make_optimizer(name, atoms, backend=backend, **kwargs)
     frames = []
     opt.attach(lambda: frames.append((atoms.positions.copy(), atoms.get_potential_energy())))
@@ -42,9 +44,7 @@ def trajectory(name, backend, dim, steps=40, prepare=None, **kwargs):
                          ids=["fire", "fire2", "lbfgs-memory20", "lbfgs-memory3"])
 def test_same_trajectory_as_ases_optimiser(dim, name, kwargs):
     """Every step's positions to 1e-9 dx and energies to 1e-9 relative over 40 steps (memory 20 and 3:
-    the history wraps); FIRE without its cut of each particle's move in 3D (max_particle_step), which ASE's has not."""
-    if name == "fire":
-        kwargs = dict(kwargs, max_particle_step=None)
+    the history wraps)."""
     ours, _, _, frames = trajectory(name, "sph", dim, **kwargs)
     ase_opt, _, _, reference = trajectory(name, "ase", dim, **kwargs)
     assert type(ours) is {"fire": SPHFIRE, "fire2": SPHFIRE2, "lbfgs": SPHLBFGS}[name]
@@ -119,7 +119,8 @@ def test_keep_in_domain_holds_for_every_step_and_matches_ase(name):
     runs = []
     for backend in ("sph", "ase"):
         atoms, _ = fan_case(2, domain=domain, dx=1 / 48)
-        opt = make_optimizer(name, atoms, c=0.2, backend=backend, **({"memory": 5} if name == "lbfgs" else {}))
+        opt = make_optimizer(name, atoms, c=0.2, backend=backend, **({"memory": 5} if name == "lbfgs" else
+                                                                     {"max_particle_step": None} if name == "fire" else {}))
         outside = []
         opt.attach(lambda: outside.append(int((domain.phi(atoms.positions[:, :2]) >= 0).sum())))
         opt.run(fmax=0.0, steps=25)
@@ -211,29 +212,37 @@ def test_max_particle_step_cuts_only_the_particles_that_would_move_further():
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_make_optimizer_cuts_fires_particle_moves_in_3d_only(dim):
-    """FIRE_PARTICLE_STEP: 0.005 h in 3D (fewer list rebuilds), none in 2D; a run's moves stay within the cut;
-    ASE's backend takes None and refuses a cut."""
+def test_make_optimizer_cuts_fires_particle_moves(dim):
+    """FIRE_PARTICLE_STEP: 0.01 h in 2D, 0.005 h in 3D (fewer list rebuilds); a run's moves stay within the cut;
+    FIRE2 and ASE's backend have none, and refuse one."""
     from ase_sphrelax.drivers.optimizers import FIRE_PARTICLE_STEP
 
+    assert FIRE_PARTICLE_STEP == {2: 0.01, 3: 0.005}
     atoms, _ = fan_case(dim)
     h = atoms.calc.parameters["h"]
     opt = make_optimizer("fire", atoms)
-    expected = None if FIRE_PARTICLE_STEP[dim] is None else FIRE_PARTICLE_STEP[dim] * h
-    assert FIRE_PARTICLE_STEP == {2: None, 3: 0.005}
+    expected = FIRE_PARTICLE_STEP[dim] * h
     assert opt.max_particle_step == expected and opt.todict()["max_particle_step"] == expected
     frames = [atoms.positions.copy()]
     opt.attach(lambda: frames.append(atoms.positions.copy()))
     opt.run(fmax=0.0, steps=10)
-    longest = max(np.linalg.norm(b - a, axis=1).max() for a, b in zip(frames[1:], frames[2:]))
-    if dim == 3:
-        assert longest <= expected * (1 + 1e-12)
+    moves = [np.linalg.norm(b - a, axis=1).max() for a, b in zip(frames[1:], frames[2:])]
+    assert max(moves) <= expected * (1 + 1e-12)
+    assert max(moves) >= expected * (1 - 1e-12)  # the cut acts in these steps: the test can fail
     assert make_optimizer("fire2", fan_case(dim)[0]).max_particle_step is None
     assert make_optimizer("fire", fan_case(dim)[0], max_particle_step=None).max_particle_step is None
     make_optimizer("fire", fan_case(dim)[0], backend="ase", max_particle_step=None)
     for name, backend in (("fire", "ase"), ("fire2", "sph")):
         with pytest.raises(ValueError, match="max_particle_step: only 'fire' with backend='sph'"):
             make_optimizer(name, fan_case(dim)[0], backend=backend, max_particle_step=0.01 * h)
+
+
+def test_a_calculator_without_a_verlet_list_gets_no_cut():
+    from ase.calculators.lj import LennardJones
+
+    atoms, _ = fan_case(3)
+    atoms.calc = LennardJones(sigma=0.05, rc=0.15)
+    assert make_optimizer("fire", atoms, h=0.1).max_particle_step is None
 
 
 def test_make_optimizer_refuses_an_unknown_backend():

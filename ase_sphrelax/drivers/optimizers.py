@@ -65,12 +65,12 @@ FIRE_DYNAMICS = dict(dtmax_over_dt=2.5, astart=0.15, a=0.15, fa=1.0)
 
 # FIRE's cut of each particle's move in one step, in units of h, by dimension (None: no cut), for the "sph"
 # backend and a calculator with a Verlet list's ``skin`` (SPHFIRE's ``max_particle_step``; ASE's FIRE has none).
-# In 3D the list's skin stays 0.1 h (FanCalculator's MAX_SKIN_FACTOR) and its rebuilds are set off by a few fast
-# particles: cut at 0.005 h (a tenth of half the skin) they leave 16 rebuilds instead of 46 on Fan's sphere at
-# 1e5 and 1e6, for 170-175 steps instead of 155-165, and the run to the bench's target takes 0.8-0.9 of the time;
-# in 2D the adaptive skin already keeps the rebuilds few and no cut shortened the run
+# The list's rebuilds are set off by a few fast particles; cut, they come less often, for a few more steps. On
+# Fan's sphere (skin 0.1 h) 0.005 h, a tenth of half the skin, leaves 16 rebuilds instead of 46 for 170 steps
+# instead of 155 at 1e6 (40 s instead of 47 s to the bench's target); on the circle (its skin adapts up to 0.3 h)
+# 0.01 h leaves 16 instead of 21 for 165 steps instead of 155 (17 s instead of 18 s)
 # (reproductions/speed-fan-1e6/particle_step_scan.py, the entry speed-fan-1e6)
-FIRE_PARTICLE_STEP = {2: None, 3: 0.005}
+FIRE_PARTICLE_STEP = {2: 0.01, 3: 0.005}
 
 # LBFGS history length per backend: ASE's LBFGS keeps 20 pairs (its own 100 cost more than a force call);
 # SPHLBFGS 5, each pair 16 dim bytes per particle: on Fan's circle and sphere it converges per step as
@@ -120,8 +120,8 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         Override the optimiser's own parameters. ``"fire"`` sets ``dtmax``, ``a``, ``astart`` and
         ``fa`` from :data:`FIRE_DYNAMICS` (``dtmax`` 2.5 times the first ``dt``, a constant mixing
         ``a = 0.15``; ASE's are ``dtmax`` 10 dt, ``a`` 0.1 shrinking by 0.99 a step) and, with the
-        ``"sph"`` backend in 3D and a calculator that keeps a Verlet list (a ``skin``: Fan's, BIPI's), cuts
-        each particle's move at ``max_particle_step`` = 0.005 h (:data:`FIRE_PARTICLE_STEP`;
+        ``"sph"`` backend and a calculator that keeps a Verlet list (a ``skin``: Fan's, BIPI's), cuts each
+        particle's move at ``max_particle_step`` = 0.01 h in 2D, 0.005 h in 3D (:data:`FIRE_PARTICLE_STEP`;
         ``max_particle_step=None`` gives ASE's step).
     """
     from ase.optimize import BFGS, FIRE, LBFGS
@@ -165,7 +165,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
             params.update(dtmax=dynamics.pop("dtmax_over_dt") * dt, **dynamics)
             base = getattr(atoms, "atoms", atoms)  # a Filter's atoms
             cut = FIRE_PARTICLE_STEP[_resolve_dim(base, kwargs.get("dim"))]
-            # fewer rebuilds of a Verlet list in 3D (FIRE_PARTICLE_STEP): for a calculator that keeps one
+            # fewer rebuilds of a Verlet list (FIRE_PARTICLE_STEP): for a calculator that keeps one
             if sph and cut is not None and getattr(getattr(base, "calc", None), "skin", None) is not None:
                 params["max_particle_step"] = cut * h
         else:  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
