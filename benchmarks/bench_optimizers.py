@@ -88,6 +88,8 @@ n, dim, threads, name, rounds, steps, memory = (float(sys.argv[1]), int(sys.argv
                                                 int(sys.argv[5]), int(sys.argv[6]), json.loads(sys.argv[7]))
 numba.set_num_threads(threads)
 def options(name, backend):
+    if name == "fire" and backend == "sph":
+        return {"max_particle_step": None}  # ASE's step: the same trajectory as ASE's FIRE
     return {"memory": memory} if (name == "lbfgs" and backend == "sph" and memory) else {}
 warm(dim, options)
 domain, dx, atoms0 = case(n, dim)
@@ -146,6 +148,8 @@ n, dim, threads, what, steps, memory = (float(sys.argv[1]), int(sys.argv[2]), in
                                         int(sys.argv[5]), json.loads(sys.argv[6]))
 numba.set_num_threads(threads)
 def options(name, backend):
+    if name == "fire" and backend == "sph":
+        return {"max_particle_step": None}  # ASE's step: the same trajectory as ASE's FIRE
     return {"memory": memory} if (name == "lbfgs" and backend == "sph" and memory) else {}
 warm(dim, options)
 domain, dx, atoms = case(n, dim)
