@@ -237,12 +237,19 @@ def test_make_optimizer_cuts_fires_particle_moves(dim):
             make_optimizer(name, fan_case(dim)[0], backend=backend, max_particle_step=0.01 * h)
 
 
-def test_a_calculator_without_a_verlet_list_gets_no_cut():
+def test_no_cut_without_a_verlet_list_or_through_a_filter():
+    """The cut saves list rebuilds: none for a calculator without a list, none by default through a Filter (its rows
+    may be a cell's too), where one can still be asked for."""
     from ase.calculators.lj import LennardJones
+    from ase.filters import Filter
 
     atoms, _ = fan_case(3)
     atoms.calc = LennardJones(sigma=0.05, rc=0.15)
     assert make_optimizer("fire", atoms, h=0.1).max_particle_step is None
+    atoms, _ = fan_case(3)
+    moving = Filter(atoms, indices=range(30, len(atoms)))
+    assert make_optimizer("fire", moving, keep_inside=False).max_particle_step is None
+    assert make_optimizer("fire", moving, keep_inside=False, max_particle_step=0.02).max_particle_step == 0.02
 
 
 def test_make_optimizer_refuses_an_unknown_backend():

@@ -120,10 +120,11 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         Override the optimiser's own parameters. ``"fire"`` sets ``dtmax``, ``a``, ``astart`` and
         ``fa`` from :data:`FIRE_DYNAMICS` (``dtmax`` 2.5 times the first ``dt``, a constant mixing
         ``a = 0.15``; ASE's are ``dtmax`` 10 dt, ``a`` 0.1 shrinking by 0.99 a step) and, with the
-        ``"sph"`` backend and a calculator that keeps a Verlet list (a ``skin``: Fan's, BIPI's), cuts each
-        particle's move at ``max_particle_step`` = 0.01 h in 2D, 0.005 h in 3D (:data:`FIRE_PARTICLE_STEP`;
-        ``max_particle_step=None`` gives ASE's step).
+        ``"sph"`` backend, an Atoms (not a Filter) and a calculator that keeps a Verlet list (a ``skin``: Fan's,
+        BIPI's), cuts each particle's move at ``max_particle_step`` = 0.01 h in 2D, 0.005 h in 3D
+        (:data:`FIRE_PARTICLE_STEP`; ``max_particle_step=None`` gives ASE's step).
     """
+    from ase import Atoms
     from ase.optimize import BFGS, FIRE, LBFGS
 
     from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
@@ -163,10 +164,10 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
         if name == "fire":  # FIRE_DYNAMICS: about half the steps of ASE's values on Fan's circle
             dynamics = dict(FIRE_DYNAMICS)
             params.update(dtmax=dynamics.pop("dtmax_over_dt") * dt, **dynamics)
-            base = getattr(atoms, "atoms", atoms)  # a Filter's atoms
-            cut = FIRE_PARTICLE_STEP[_resolve_dim(base, kwargs.get("dim"))]
-            # fewer rebuilds of a Verlet list (FIRE_PARTICLE_STEP): for a calculator that keeps one
-            if sph and cut is not None and getattr(getattr(base, "calc", None), "skin", None) is not None:
+            # fewer rebuilds of a Verlet list (FIRE_PARTICLE_STEP): for the particles of an Atoms (a Filter's rows
+            # may be a cell's too) whose calculator keeps one
+            cut = FIRE_PARTICLE_STEP[_resolve_dim(atoms, kwargs.get("dim"))]
+            if sph and cut is not None and isinstance(atoms, Atoms) and getattr(atoms.calc, "skin", None) is not None:
                 params["max_particle_step"] = cut * h
         else:  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)
             params["dtmin"] = 0.02 * dt
