@@ -119,8 +119,8 @@ def test_keep_in_domain_holds_for_every_step_and_matches_ase(name):
     runs = []
     for backend in ("sph", "ase"):
         atoms, _ = fan_case(2, domain=domain, dx=1 / 48)
-        opt = make_optimizer(name, atoms, c=0.2, backend=backend, **({"memory": 5} if name == "lbfgs" else
-                                                                     {"max_particle_step": None} if name == "fire" else {}))
+        own = {"lbfgs": {"memory": 5}, "fire": {"max_particle_step": None}}.get(name, {})  # like with like
+        opt = make_optimizer(name, atoms, c=0.2, backend=backend, **own)
         outside = []
         opt.attach(lambda: outside.append(int((domain.phi(atoms.positions[:, :2]) >= 0).sum())))
         opt.run(fmax=0.0, steps=25)
