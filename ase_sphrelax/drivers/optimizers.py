@@ -135,11 +135,10 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     sph = backend == "sph" and name != "bfgs"  # "fire", "lbfgs": ours (and "fan" returns before it is read)
-    if kwargs.get("max_particle_step") is not None and not (sph and name == "fire"):
-        raise ValueError(f"max_particle_step: only 'fire' with backend='sph' cuts each particle's move, got "
-                         f"{name!r} with backend={backend!r}")
-    if not (sph and name == "fire"):
-        kwargs.pop("max_particle_step", None)  # None: the optimiser's own step
+    if not (sph and name == "fire"):  # SPHFIRE alone cuts each particle's move
+        if kwargs.pop("max_particle_step", None) is not None:
+            raise ValueError(f"max_particle_step: only 'fire' with backend='sph' cuts each particle's move, got "
+                             f"{name!r} with backend={backend!r}")
     resolve_blas_threads(blas_threads)  # bad values fail before any work
     c = DEFAULT_C[name] if c is None else c
     h = calculator_h(atoms) if h is None else h

@@ -197,10 +197,9 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, cap, d, first, las
                 dr = maxstep * dr / normdr
             f_pc[p, c] = dr
             length2 += dr * dr
-        cut = cap > 0.0 and length2 > cap * cap
-        shrink = cap / np.sqrt(length2) if cut else 1.0
+        shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
         for c in range(d):
-            f_pc[p, c] = x_pc[p, c] + (f_pc[p, c] * shrink if cut else f_pc[p, c])
+            f_pc[p, c] = x_pc[p, c] + f_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
         for c in range(d, 3):
             f_pc[p, c] = x_pc[p, c]
 

@@ -39,8 +39,8 @@ def scan(dims, n, cuts, repeats):
         bf.warm_up(dim)
         for _ in range(repeats):  # the cuts alternate within each repeat
             for cut in cuts:
-                h = bf.RATIO * bf.scene_dx(dim, n) if cut is not None else None
-                run = bf.run_ours(dim, n, 6e-4, 5, 2000, max_particle_step=None if cut is None else cut * h)
+                step = None if cut is None else cut * bf.RATIO * bf.scene_dx(dim, n)  # cut * h
+                run = bf.run_ours(dim, n, 6e-4, 5, 2000, max_particle_step=step)
                 rows.append(dict(dim=dim, cut_over_h=cut, n=run["n"], wall_time=run["wall_time"], steps=run["steps"],
                                  list_builds=run["list_builds"], final_measure=run["final_measure"],
                                  reached=run["reached"]))
