@@ -90,7 +90,8 @@ def test_boundary_force_is_minus_the_gradient_of_the_boundary_energy(domain):
                                          (Box((0.0, 0.0), (1.0, 1.0)), "gamma")], ids=["sphere", "box-gamma"])
 def test_boundary_added_into_given_arrays_in_chunks_is_the_same_term(monkeypatch, domain, term):
     """``out=``: the term is added in place (the calculator's energies and forces), bit for bit the
-    sum of the fresh arrays; the level set taken in chunks of 7 particles changes no bit."""
+    sum of the fresh arrays; the level set taken in chunks of 7 particles, or of candidates far from the wall too,
+    changes no bit."""
     import ase_sphrelax.models.fan as fan
 
     dim = domain.dim
@@ -110,6 +111,10 @@ def test_boundary_added_into_given_arrays_in_chunks_is_the_same_term(monkeypatch
     chunked_e, chunked_f = model.boundary(r_pc, 0.01)
     np.testing.assert_array_equal(chunked_e, e_p)
     np.testing.assert_array_equal(chunked_f, f_pc)
+    if term == "level_set":  # every particle a candidate, those beyond h from the wall included: they add nothing
+        every_e, every_f = model.boundary(r_pc, 0.01, candidates=np.arange(50))
+        np.testing.assert_array_equal(every_e, e_p)
+        np.testing.assert_array_equal(every_f, f_pc)
     out_e = base_e.copy()
     assert model.boundary(r_pc, 0.01, want_forces=False, out=(out_e, None))[1] is None
     np.testing.assert_array_equal(out_e, base_e + e_p)
