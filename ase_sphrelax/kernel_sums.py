@@ -53,7 +53,7 @@ PAIR_FORCES = PairInteraction(_radial_potential, dict(forces=_PER_POINT["forces"
 
 
 def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar=False, want_energy=True,
-                        keep_scratch=False):
+                        keep_scratch=False, forces_out=None):
     """Energy, forces and virial of ``phi(r) = scale * f(r / h)`` summed over pairs.
 
     Parameters
@@ -75,6 +75,9 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
         False (and no virial): forces only, ``energies_p`` None (a step of an optimiser that reads forces).
     keep_scratch : bool
         As :meth:`~ase_sphrelax.pairs.PairInteraction.compute`'s.
+    forces_out : ndarray (N, 3) or None
+        An array to write the forces into (:meth:`~ase_sphrelax.pairs.PairInteraction.compute`'s ``out``);
+        None: a fresh one.
 
     Returns
     -------
@@ -87,15 +90,16 @@ def pair_potential_sums(pairs, r_pc, h, scale, kernel, want_virial=False, planar
     """
     h = float(h)
     params = dict(inv_h=1.0 / h, scale=float(scale))
+    into = None if forces_out is None else dict(forces=forces_out)
     if not want_virial and not want_energy:
         return None, PAIR_FORCES.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
-                                           keep_scratch=keep_scratch).forces, None
+                                           keep_scratch=keep_scratch, out=into).forces, None
     if not want_virial:
         out = PAIR_POTENTIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
-                                     keep_scratch=keep_scratch)
+                                     keep_scratch=keep_scratch, out=into)
         return out.energies, out.forces, np.zeros((3, 3))
     out = PAIR_POTENTIAL_VIRIAL.compute(pairs, r_pc, params, reach=h, kernel=kernel, planar=planar,
-                                        keep_scratch=keep_scratch)
+                                        keep_scratch=keep_scratch, out=into)
     v = out.virial
     virial = np.array([[v[0], v[5], v[4]], [v[5], v[1], v[3]], [v[4], v[3], v[2]]])
     return out.energies, out.forces, virial

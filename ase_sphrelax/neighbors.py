@@ -814,22 +814,43 @@ def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
                         out_pk[p, k] += part_i[t][row, k]
 
 
-def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n):
+def _fold_outputs(widths, n, outs):
+    """The arrays (n, k) a fold writes, one per width k: ``outs[i]`` where given (not None; overwritten), else
+    fresh. A given array must be float64, C-contiguous, writeable and of shape (n, k) (ValueError)."""
+    if outs is None:
+        return tuple(np.empty((n, k)) for k in widths)
+    if len(outs) != len(widths):
+        raise ValueError(f"outs: {len(widths)} arrays or None expected, got {len(outs)}")
+    arrays = []
+    for k, out in zip(widths, outs):
+        if out is None:
+            out = np.empty((n, k))
+        elif not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == (n, k)
+                  and out.flags.c_contiguous and out.flags.writeable):
+            raise ValueError(f"outs: a writeable C-contiguous float64 array of shape {(n, k)} expected, got "
+                             f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")
+        arrays.append(out)
+    return tuple(arrays)
+
+
+def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n, outs=None):
     """Per-particle sums (n, k) of per-thread buffers that start at their thread's first
     point: ``parts[i][t]`` has shape (m_t, k), row 0 being point ``bases[t]``, rows beyond
-    ``bases[t] + m_t`` zero (see :meth:`NeighborList.partner_ends`)."""
+    ``bases[t] + m_t`` zero (see :meth:`NeighborList.partner_ends`); written into ``outs[i]`` where given
+    (:func:`_fold_outputs`), else into fresh arrays."""
     parts = tuple(tuple(p) for p in parts)
-    outs = tuple(np.empty((n, part[0].shape[1])) for part in parts)
+    outs = _fold_outputs([part[0].shape[1] for part in parts], n, outs)
     run_chunks(_fold_part_originals, src_s.shape[0], (parts, bases, src_s, is_ghost_s, outs),
                nthreads=len(parts[0]))
     _fold_part_ghosts(parts, bases, ghost_s, src_s, outs)
     return outs
 
 
-def fold_thread_buffers(bufs, src_s, is_ghost_s, ghost_s, n):
-    """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer."""
+def fold_thread_buffers(bufs, src_s, is_ghost_s, ghost_s, n, outs=None):
+    """Per-particle sums (n, k) of per-thread values on sorted extended points (T, n_s, k), for each buffer;
+    written into ``outs[i]`` where given (:func:`_fold_outputs`), else into fresh arrays."""
     bufs = tuple(bufs)
-    outs = tuple(np.empty((n, buf.shape[2])) for buf in bufs)
+    outs = _fold_outputs([buf.shape[2] for buf in bufs], n, outs)
     run_chunks(_fold_originals, bufs[0].shape[1], (bufs, src_s, is_ghost_s, outs), nthreads=bufs[0].shape[0])
     _fold_ghosts(bufs, ghost_s, src_s, outs)
     return outs
@@ -1053,14 +1074,16 @@ class BinnedPoints:
         out = _fold(values_s.reshape(values_s.shape[0], -1), self.src_s, self.n_particles)
         return out[:, 0] if flat else out
 
-    def fold_threads(self, bufs):
-        """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer."""
-        return fold_thread_buffers(bufs, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
+    def fold_threads(self, bufs, outs=None):
+        """Per-particle sums (N, k) of per-thread buffers (T, n_extended, k), ghosts included, for each buffer
+        (into ``outs``' arrays where given, see :func:`fold_thread_buffers`)."""
+        return fold_thread_buffers(bufs, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles, outs)
 
-    def fold_thread_parts(self, parts, bases):
+    def fold_thread_parts(self, parts, bases, outs=None):
         """Per-particle sums (N, k) of per-thread buffers starting at each thread's first
-        point (see :func:`fold_thread_parts`), ghosts included, for each output."""
-        return fold_thread_parts(parts, bases, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles)
+        point (see :func:`fold_thread_parts`), ghosts included, for each output (into ``outs``' arrays where
+        given)."""
+        return fold_thread_parts(parts, bases, self.src_s, self.is_ghost_s, self.ghost_s, self.n_particles, outs)
 
     def loop_arrays(self):
         """("scan", arrays) for the pair loops of :mod:`ase_sphrelax.pairs`: the fused bin scan."""
@@ -1262,11 +1285,11 @@ class NeighborList:
         """Sum per-extended-point values onto particles (see :meth:`BinnedPoints.fold`)."""
         return self.points.fold(values_s)
 
-    def fold_threads(self, bufs):
-        return self.points.fold_threads(bufs)
+    def fold_threads(self, bufs, outs=None):
+        return self.points.fold_threads(bufs, outs)
 
-    def fold_thread_parts(self, parts, bases):
-        return self.points.fold_thread_parts(parts, bases)
+    def fold_thread_parts(self, parts, bases, outs=None):
+        return self.points.fold_thread_parts(parts, bases, outs)
 
     def partner_ends(self, nthreads):
         """For the ``nthreads`` chunks of points of the pair loops (:func:`chunk_bounds`), 1 + the

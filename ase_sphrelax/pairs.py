@@ -665,7 +665,7 @@ class PairInteraction:
         return [tuple(stack[t] for stack in self._stacked) for t in range(nthreads)]
 
     def compute(self, neighbors, positions, params=None, inputs=None, reach=None, kernel=None, consume_inputs=False,
-                planar=False, keep_scratch=False):
+                planar=False, keep_scratch=False, out=None):
         """Run the interaction over every pair within ``reach``; return the folded outputs.
 
         Parameters
@@ -697,6 +697,11 @@ class PairInteraction:
             and 0.97x the CPU time of a relaxation step that faults them in again; in 3D SPHLBFGS's step peaked
             higher with them kept). False (default): given back, so that a later peak outside the sums (ALARIC's H
             solve, an optimiser's step) does not hold them.
+        out : dict of str to ndarray, optional
+            Per-point outputs to write into by name (overwritten; float64, C-contiguous, writeable, shape
+            ``(N,) + shape`` of the output): e.g. a calculator's previous forces array that no one else holds, whose
+            pages are in memory already (at 1e6 particles a fresh array's pages cost more than the fold that fills
+            them). The others are fresh arrays.
 
         Returns
         -------
@@ -748,7 +753,7 @@ class PairInteraction:
             kind, arrays = neighbors.loop_arrays()
             loop = self.loop(kind, kernel, planar, reach_test=reach_test)
             run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
-        result = self._fold(neighbors, buffers, bases, forward)
+        result = self._fold(neighbors, buffers, bases, forward, out)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:
             if not keep_scratch:  # not held through the next sum's peak (the H solve's update)
@@ -758,21 +763,52 @@ class PairInteraction:
             release_free_memory()
         return result
 
-    def _fold(self, neighbors, buffers, bases, forward):
+    def _fold_into(self, out, point_k, neighbors):
+        """The arrays (N, size) the fold writes, one per per-point output (None: fresh), from ``out`` by name; None
+        when ``out`` names none."""
+        if not out:
+            return None
+        n = neighbors.n_particles
+        outputs = list(self.outputs.items())
+        unknown = sorted(set(out) - {outputs[k][0] for k in point_k})
+        if unknown:
+            raise ValueError(f"out: per-point outputs of {self!r} expected, got {unknown[0]!r}")
+        arrays = []
+        for k in point_k:
+            name, output = outputs[k]
+            given = out.get(name)
+            shape = (n,) + output.shape
+            if given is not None and not (isinstance(given, np.ndarray) and given.shape == shape
+                                          and given.dtype == np.float64 and given.flags.c_contiguous
+                                          and given.flags.writeable):
+                raise ValueError(f"out[{name!r}]: a writeable C-contiguous float64 array of shape {shape} expected, "
+                                 f"got {getattr(given, 'dtype', type(given).__name__)} {getattr(given, 'shape', '')}")
+            arrays.append(None if given is None else given.reshape(n, max(output.size, 1)))
+        return arrays
+
+    def _fold(self, neighbors, buffers, bases, forward, out=None):
         result = PairResult()
         outputs = list(self.outputs.items())
         point_k = [k for k, (_, o) in enumerate(outputs) if o.per_point]
         if point_k:
+            into = self._fold_into(out, point_k, neighbors)
+            given = {} if into is None else {"outs": into}  # a neighbour set of an older interface takes none
             if forward:  # per-thread buffers of their own lengths
                 parts = [tuple(buffers[t][k].reshape(buffers[t][k].shape[0], max(outputs[k][1].size, 1))
                                for t in range(len(buffers))) for k in point_k]
-                folded = neighbors.fold_thread_parts(parts, np.asarray(bases, dtype=np.int64))
+                folded = neighbors.fold_thread_parts(parts, np.asarray(bases, dtype=np.int64), **given)
             else:
                 stacked = self._stacked
                 folded = neighbors.fold_threads([stacked[k].reshape(stacked[k].shape[0], stacked[k].shape[1], -1)
-                                                 for k in point_k])
+                                                 for k in point_k], **given)
             for k, values in zip(point_k, folded):
-                result[outputs[k][0]] = values.reshape((values.shape[0],) + outputs[k][1].shape)
+                name, shape = outputs[k][0], (values.shape[0],) + outputs[k][1].shape
+                if out and out.get(name) is not None:
+                    result[name] = out[name]  # the given array itself, written through its (n, size) view
+                elif values.shape == shape:
+                    result[name] = values  # the array itself, not a view of it (its owner is the result)
+                else:
+                    result[name] = values.reshape(shape)
         for k, (name, output) in enumerate(outputs):
             if not output.per_point:
                 result[name] = sum(buffers[t][k] for t in range(len(buffers)))

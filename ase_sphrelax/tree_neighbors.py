@@ -206,10 +206,11 @@ class TreeNeighborList:
         out[self.order_s] = values_s
         return out
 
-    def fold_threads(self, bufs):
-        """Per-point sums (M, k) of per-thread buffers (T, M, k) on sorted points, for each buffer."""
+    def fold_threads(self, bufs, outs=None):
+        """Per-point sums (M, k) of per-thread buffers (T, M, k) on sorted points, for each buffer (into ``outs``'
+        arrays where given)."""
         # order_s[s] is the point at sorted position s; every point is an original (no ghosts)
-        return fold_thread_buffers(bufs, self.order_s, self._is_ghost_s, self._no_ghosts, self.n_particles)
+        return fold_thread_buffers(bufs, self.order_s, self._is_ghost_s, self._no_ghosts, self.n_particles, outs)
 
     def loop_arrays(self):
         """("list", (pair_start, pair_j)) for :class:`~ase_sphrelax.pairs.PairInteraction`."""

@@ -262,3 +262,44 @@ def test_level_set_term_on_the_particles_near_the_wall_at_the_build_changes_noth
             assert 0 < len(atoms.calc._near) < len(atoms)
         runs.append(atoms.positions.copy())
     assert np.array_equal(runs[0], runs[1])
+
+
+def test_forces_are_written_into_the_previous_array_when_no_one_holds_it():
+    """An evaluation writes its forces into the array of the results it replaces (SPHCalculator.spare_forces): the
+    same object, the same bits as into a fresh array; not when someone holds that array (a forces_view, the results'
+    array itself), whose values stay, and not at a rebuild of the neighbour list."""
+    import weakref
+
+    from ase_sphrelax.build import fill
+
+    domain = Circle((0.5, 0.5), 0.3)
+    atoms = fill(domain, 0.02, jitter=0.1, seed=1)
+    twin = atoms.copy()
+    calc = atoms.calc = FanCalculator(h=0.052, dx=0.02, domain=domain)
+    twin.calc = FanCalculator(h=0.052, dx=0.02, domain=domain)
+    rng = np.random.default_rng(2)
+    held = []
+    for step in range(7):
+        before = weakref.ref(calc.results["forces"]) if "forces" in calc.results else None
+        kept = None
+        if step == 3:
+            kept = calc.forces_view(atoms)  # a view held across the next evaluation
+            kept_values = kept.copy()
+        if step == 4:
+            held.append(calc.results["forces"])  # the array itself
+            held_values = held[0].copy()
+        move = rng.normal(scale=1e-4, size=(len(atoms), 3)) if step != 5 else np.full((len(atoms), 3), 0.01)
+        move[:, 2] = 0.0
+        builds = calc.nlist.builds if calc.nlist is not None else 0
+        for a in (atoms, twin):
+            a.positions = a.positions + move
+        forces = calc.forces_view(atoms)
+        np.testing.assert_array_equal(forces, twin.get_forces())
+        rebuilt = calc.nlist.builds > builds
+        reused = before is not None and calc.results["forces"] is before()
+        # 0: the one-shot evaluation, 1: the list's build, 3 and 4: held, 5: a rebuild
+        assert reused == (step in (2, 6)) and rebuilt == (step in (1, 5)), (step, reused, rebuilt)
+        forces = None
+        if kept is not None:
+            np.testing.assert_array_equal(kept, kept_values)
+    np.testing.assert_array_equal(held[0], held_values)

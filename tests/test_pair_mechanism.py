@@ -248,6 +248,57 @@ def test_every_sum_accepts_the_list_in_both_states():
         np.testing.assert_allclose(listed, one_shot, rtol=1e-12, atol=1e-14)
 
 
+def test_outputs_are_written_into_given_arrays_in_both_states_and_folds():
+    """``compute(..., out=)``: a per-point output is written into the given array (returned itself, equal to a fresh
+    result bit for bit; whatever it held is overwritten), on a periodic list with ghosts, one-shot or stored, and
+    through the stacked fold of a neighbour set without forward pairs; a wrong array is a one-line ValueError."""
+    from ase_sphrelax.kernel_sums import KERNEL_SUMS, pair_potential_sums
+    from ase_sphrelax.kernels import get_kernel
+    from ase_sphrelax.tree_neighbors import TreeNeighborList
+
+    rng = np.random.default_rng(12)
+    r_pc = np.zeros((150, 3))
+    r_pc[:, :2] = rng.uniform(0, 5, (150, 2))
+    cell, pbc, kernel = np.diag([5.0, 5.0, 1.0]), [True, True, False], get_kernel("wendland_c2", 2)
+    for store in (False, True):
+        nlist = NeighborList(1.3, skin=0.2)
+        nlist.update(r_pc, cell, pbc, store=store)
+        fresh = KERNEL_SUMS.compute(nlist, r_pc, dict(inv_h=1 / 1.3), kernel=kernel)
+        grad = np.full((150, 3), np.nan)
+        given = KERNEL_SUMS.compute(nlist, r_pc, dict(inv_h=1 / 1.3), kernel=kernel, out=dict(grad=grad))
+        assert given.grad is grad
+        np.testing.assert_array_equal(grad, fresh.grad)
+        np.testing.assert_array_equal(given.w, fresh.w)
+        forces = np.full((150, 3), np.nan)
+        _, f_pc, _ = pair_potential_sums(nlist, r_pc, 1.3, 1.0, kernel, want_energy=False, forces_out=forces)
+        assert f_pc is forces and np.all(np.isfinite(forces))
+    tree = TreeNeighborList(1.3)
+    tree.update(np.ascontiguousarray(r_pc[:, :2]))
+    assert not getattr(tree, "forward_pairs", False)  # the stacked buffers' fold
+    x2 = np.ascontiguousarray(r_pc[:, :2])
+    fresh = KERNEL_SUMS_2D.compute(tree, x2, dict(inv_h=1 / 1.3))
+    w = np.full(150, np.nan)
+    given = KERNEL_SUMS_2D.compute(tree, x2, dict(inv_h=1 / 1.3), out=dict(w=w))
+    assert given.w is w
+    np.testing.assert_array_equal(w, fresh.w)
+    nlist = NeighborList(1.3, skin=0.2)
+    nlist.update(r_pc, cell, pbc)
+    for bad, match in [(dict(grad=np.zeros((150, 2))), "shape"), (dict(grad=np.zeros((3, 150)).T), "C-contiguous"),
+                       (dict(grad=np.zeros((150, 3), dtype=np.float32)), "float64"),
+                       (dict(virial=np.zeros(150)), "per-point outputs")]:
+        with pytest.raises(ValueError, match=match):
+            KERNEL_SUMS.compute(nlist, r_pc, dict(inv_h=1 / 1.3), kernel=kernel, out=bad)
+
+
+@numba.njit(cache=True, inline="always")
+def _count_pair_2d(a, b, r2, d, inv_h):
+    w = max(1.0 - np.sqrt(r2) * inv_h, 0.0)
+    return (w,), (w,), ()
+
+
+KERNEL_SUMS_2D = PairInteraction(_count_pair_2d, dict(w=Output(())), params=("inv_h",), dim=2)
+
+
 def test_gather_copies_values_to_ghosts_without_image_shifts():
     rng = np.random.default_rng(11)
     r_pc = rng.uniform(0, 2, (20, 3))
