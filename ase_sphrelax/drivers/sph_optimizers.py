@@ -205,6 +205,45 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, cap, d, first, las
 
 
 @numba.njit(**_NOGIL)
+def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt, scaled, maxstep, normdr, cap, d,
+                        first, last):
+    """:func:`_fire_velocity` (modes 1 and 2) and :func:`_fire_move` in one pass, the same arithmetic per element:
+    the norm of the whole move ``normdr`` is known before the pass (:meth:`SPHFIRE._step`). ``new_pc`` may be
+    ``f_pc`` (each element of F is read before it is written)."""
+    for p in range(first, last):
+        length2 = 0.0
+        for c in range(d):
+            f = f_pc[p, c]
+            if mode == 1:
+                v = (1.0 - a) * v_pc[p, c] + a * f / sqrt_ff * sqrt_vv
+            else:
+                v = v_pc[p, c] * 0.0
+            v = v + dt * f
+            v_pc[p, c] = v
+            dr = dt * v
+            if scaled:
+                dr = maxstep * dr / normdr
+            new_pc[p, c] = dr
+            length2 += dr * dr
+        shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
+        for c in range(d):
+            new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink
+        for c in range(d, 3):
+            new_pc[p, c] = x_pc[p, c]
+
+
+def _fire_move_norm(mode, a, sqrt_ff, sqrt_vv, vf, ff, vv, dt):
+    """``|dt v'|`` of FIRE's new velocity ``v'`` (:func:`_fire_velocity`, modes 1 and 2) from the sums of F.v, F.F
+    and v.v: ``v' = (1 - a) v + b F`` with ``b = a |v| / |F| + dt`` (mode 1; every term is positive, as F.v > 0), or
+    ``dt F`` (mode 2)."""
+    if mode == 2:
+        return dt * dt * sqrt_ff
+    b = a * sqrt_vv / sqrt_ff + dt if sqrt_ff > 0.0 else dt
+    v2 = (1.0 - a) ** 2 * vv + 2.0 * (1.0 - a) * b * vf + b * b * ff
+    return dt * float(np.sqrt(max(v2, 0.0)))
+
+
+@numba.njit(**_NOGIL)
 def _fire2_back(x_pc, v_pc, half_dt, d, new_pc, first, last):
     """FIRE2's correction after an uphill step: new positions x - dt v / 2 into new_pc."""
     for p in range(first, last):
@@ -437,6 +476,10 @@ class _FIREBase(_SPHOptimizer):
 class SPHFIRE(_FIREBase):
     """ASE's FIRE (Bitzek et al. 2006, as :class:`ase.optimize.FIRE`) with numba vector work.
 
+    Per step two passes over the ``dim * N`` coordinates that move: one for ``F . v``, ``F . F`` and ``v . v``, one
+    for the new velocity and the move, whose norm (for ``maxstep``'s cap) follows from the first pass's sums (the
+    first step, ``v = dt F``, sums it in a pass of its own).
+
     Parameters
     ----------
     atoms : Atoms or Filter
@@ -485,8 +528,18 @@ class SPHFIRE(_FIREBase):
             self.a = self.astart
             self.dt *= self.fdec
             self.Nsteps = 0
-        outs = reduce_chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
-        self._move(outs, x_pc, f_pc, n, d)
+        if mode == 0:  # the first step: v = dt F, whose norm the pass sums
+            outs = reduce_chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
+            self._move(outs, x_pc, f_pc, n, d)
+            return
+        # the new velocity and the move in one pass: the move's norm from the sums above
+        normdr = _fire_move_norm(mode, a_mix, sqrt_ff, sqrt_vv, vf, ff, vv, self.dt)
+        scaled = normdr > self.maxstep
+        new_pc = self._scratch_like(f_pc)
+        cap = 0.0 if self.max_particle_step is None else self.max_particle_step
+        run_chunks(_fire_velocity_move, n, (x_pc, self.vel, f_pc, new_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt,
+                                            scaled, self.maxstep, normdr, cap, d))
+        self._set_positions(new_pc)
 
 
 class SPHFIRE2(_FIREBase):
