@@ -139,15 +139,13 @@ def {name}(x_sc, pair_start, pair_j, reach2, params, inp, out, base, first, last
     {views}
     {zero_buffers}
     {zero_global}
+    {scratch}
     for a in range(first, last):
         {load_a}
         {zero_own}
-        for p in range(pair_start[a], pair_start[a + 1]):
-            b = pair_j[p]
-            {diff}
-            r2 = {norm2}
-            {reach_test}
-            {body}
+        begin = pair_start[a]
+        stop = pair_start[a + 1]
+        {terms}
         {store_own}
     {store_global}
 """
@@ -184,20 +182,9 @@ def {name}(x_sc, src_s, img_sc, is_ghost_s, cut_s, skin, bin_s, nbin_c, bin_star
     if pos == 0:  # the chunk's first call (a call resumed after growing pair_j has pos > 0)
         {zero_buffers_nested}
     {zero_global}
+    {scratch}
     cap = pair_j.shape[0]
 """
-
-
-def _terms(indent):
-    """The terms of a point's listed partners ``pair_j[begin:stop]``, as the walk computes them (``indent``: of the
-    loop's first line)."""
-    return textwrap.indent("""for p in range(begin, stop):
-    b = pair_j[p]
-    {diff}
-    r2 = {norm2}
-    {reach_test}
-    {body}
-""", " " * indent)
 
 
 _BUILD_TEMPLATE = _BUILD_HEAD + """    for a in range(first, last):
@@ -224,7 +211,8 @@ _BUILD_TEMPLATE = _BUILD_HEAD + """    for a in range(first, last):
         count_s[a + 1] = pos - start
         # then their terms, as a walk of the stored list computes them: the same pairs in the same order
         begin, stop = start, pos
-""" + _terms(8) + """        {store_own}
+        {terms}
+        {store_own}
     {store_global}
     return last, pos
 """
@@ -289,7 +277,8 @@ _BUILD_PLAIN_TEMPLATE = _BUILD_HEAD + """    second = np.empty(max(room, 1), dty
             stop = begin + count_s[a + 1]
             {load_a}
             {zero_own}
-""" + _terms(12) + """            {store_own}
+            {terms}
+            {store_own}
         a0 += n_points
     {store_global}
     return last, pos
@@ -357,7 +346,11 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     pad_a = "\n" + " " * own_indent
     pad_t = "\n" + " " * 4
+    terms, scratch = _terms(symmetric and not reach_test, own_indent, lines, own, other, glob_t, read, dim, data,
+                            reach_test)
     return template.format(
+        terms=terms,
+        scratch=scratch,
         name=name,
         views=pad_t.join([f"o{k} = out[{k}]" for k in range(len(outputs))] + unpack),
         # each thread zeroes its own buffers at the start of its chunk (in parallel)
@@ -388,6 +381,44 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
     )
 
 
+def _terms(split, indent, body, own, other, glob_t, read, dim, data, reach_test):
+    """``(terms, scratch)``: the source of the terms of a point's listed partners ``pair_j[begin:stop]`` (its first
+    line at ``indent``; the walk's and the fused builds', so that a build sums what a walk of its list sums, bit for
+    bit) and of the scratch it needs (at the loop's start).
+
+    One pass (``split`` False): per partner the difference, the pair function, a's terms summed, b's added to b.
+    Split (a symmetric interaction whose terms vanish beyond the reach, so no test per pair): three passes, the
+    differences gathered into the scratch ``sd``, the pair function mapped over them with a's terms summed and b's
+    kept in the scratch ``st`` (no gather, no scatter: the compiler's vector loop, its sums reassociated, see
+    :func:`_compile`), then b's terms added to b in the list's order."""
+    d = "(" + "".join(f"d{c}, " for c in range(dim)) + ")"
+    if not split:
+        lines = (["for p in range(begin, stop):", "    b = pair_j[p]"]
+                 + [f"    d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)] + [f"    d{c} = 0.0" for c in range(read, dim)]
+                 + ["    r2 = " + " + ".join(f"d{c} * d{c}" for c in range(read))]
+                 + (["    if r2 >= reach2:", "        continue"] if reach_test else [])
+                 + [f"    {line}" for line in body])
+        return ("\n" + " " * indent).join(lines), "pass"
+    kept = [i for i, t in enumerate(own) if t is not None]
+    kept_b = [(i, t) for i, t in enumerate(other) if t is not None]
+    n_b = max(len(kept_b), 1)
+    lines = ["m = stop - begin", "if m > sd.shape[1]:", f"    sd = np.empty(({read}, 2 * m))",
+             f"    st = np.empty(({n_b}, 2 * m))",
+             "for q in range(m):", "    b = pair_j[begin + q]"]
+    lines += [f"    sd[{c}, q] = x_sc[b, {c}] - xa{c}" for c in range(read)]
+    lines += ["for q in range(m):", "    b = pair_j[begin + q]"]
+    lines += [f"    d{c} = sd[{c}, q]" for c in range(read)] + [f"    d{c} = 0.0" for c in range(read, dim)]
+    lines += ["    r2 = " + " + ".join(f"d{c} * d{c}" for c in range(read)),
+              f"    ta, tb, tg = pair(a, b, r2, {d}{data})"]
+    lines += [f"    ta{i} += ta[{i}]" for i in kept]
+    lines += [f"    st[{j}, q] = tb[{i}]" for j, (i, _) in enumerate(kept_b)]
+    lines += [f"    tg{i} += tg[{i}]" for i in range(len(glob_t))]
+    lines += ["for q in range(m):", "    b = pair_j[begin + q]"]
+    lines += [f"    {t} += st[{j}, q]" for j, (_, t) in enumerate(kept_b)]
+    scratch = f"sd = np.empty(({read}, 64))\n    st = np.empty(({n_b}, 64))"  # grown when a point has more partners
+    return ("\n" + " " * indent).join(lines), scratch
+
+
 def _core_stamp():
     """Short hash of what the generated loops inline from the core (templates, bin helpers).
 
@@ -395,11 +426,13 @@ def _core_stamp():
     the time stamp of the file a function is compiled against (the physics file), so without
     it a change of the core would leave stale loops in the caches of the methods' files.
     """
-    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _BUILD_PLAIN_TEMPLATE + SCAN_SOURCE
+    text = _LIST_TEMPLATE + _SCAN_TEMPLATE + _BUILD_TEMPLATE + _BUILD_PLAIN_TEMPLATE + SCAN_SOURCE \
+        + inspect.getsource(_terms) + repr(SPLIT_FASTMATH)
     return hashlib.sha1(text.encode()).hexdigest()[:8]
 
 
 _CORE_STAMP = None
+SPLIT_FASTMATH = {"reassoc"}  # the split terms' floating-point flags (_terms): sums in any order, nothing else
 
 
 def _data_names(py_func):
@@ -449,8 +482,10 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     exec(compile(source, inspect.getfile(pair.py_func), "exec"), namespace)  # noqa: S102
     function = namespace[name]
     function.__module__ = pair.py_func.__module__
-    # nogil: the chunks of one evaluation run at once on a thread pool (see PairInteraction.compute)
-    return numba.njit(cache=True, nogil=True)(function), source
+    # nogil: the chunks of one evaluation run at once on a thread pool (see PairInteraction.compute); the split terms
+    # (_terms) reassociate their sums, so that the compiler vectorises the pass of the pair function
+    split = symmetric and not reach_test and kind != "scan"
+    return numba.njit(cache=True, nogil=True, **({"fastmath": SPLIT_FASTMATH} if split else {}))(function), source
 
 
 _SCRATCH = {}  # per thread (and "stacked"): the one float array the pair loops' buffers are views of
