@@ -79,7 +79,6 @@ from __future__ import annotations
 import hashlib
 import inspect
 import itertools
-import textwrap
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -394,7 +393,8 @@ def _terms(split, indent, body, own, other, glob_t, read, dim, data, reach_test)
     d = "(" + "".join(f"d{c}, " for c in range(dim)) + ")"
     if not split:
         lines = (["for p in range(begin, stop):", "    b = pair_j[p]"]
-                 + [f"    d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)] + [f"    d{c} = 0.0" for c in range(read, dim)]
+                 + [f"    d{c} = x_sc[b, {c}] - xa{c}" for c in range(read)]
+                 + [f"    d{c} = 0.0" for c in range(read, dim)]
                  + ["    r2 = " + " + ".join(f"d{c} * d{c}" for c in range(read))]
                  + (["    if r2 >= reach2:", "        continue"] if reach_test else [])
                  + [f"    {line}" for line in body])

@@ -66,10 +66,11 @@ FIRE_DYNAMICS = dict(dtmax_over_dt=2.5, astart=0.15, a=0.15, fa=1.0)
 # FIRE's cut of each particle's move in one step, in units of h, by dimension (None: no cut), for the "sph"
 # backend, on an Atoms whose calculator keeps a Verlet list (``skin``; SPHFIRE's ``max_particle_step``; ASE's
 # FIRE has none). Uncut, the list's rebuilds are set off by a few fast particles; cut, they come less often, for a
-# few more steps (and then by the bulk, every particle that moves far moving at the cut). On Fan's sphere (skin 0.1 h) 0.005 h, a tenth of half the skin, leaves 16 rebuilds instead of 46
-# for 170 steps instead of 155 at 1e6 (40 s instead of 47 s to the bench's target); on the circle (its skin
-# adapts up to 0.3 h) 0.01 h leaves 16 instead of 21 for 165 steps instead of 155 (17 s instead of 18 s)
-# (reproductions/speed-fan-1e6/particle_step_scan.py, the entry speed-fan-1e6)
+# few more steps (and then by the bulk, every particle that moves far moving at the cut). On Fan's sphere (skin
+# 0.1 h) 0.005 h, a tenth of half the skin, leaves 16 rebuilds instead of 46 for 170 steps instead of 155 at 1e6
+# (40 s instead of 47 s to the bench's target); on the circle (its skin adapts up to 0.3 h) 0.01 h leaves 16
+# instead of 21 for 165 steps instead of 155 (17 s instead of 18 s) (reproductions/speed-fan-1e6/particle_step_scan.py,
+# the entry speed-fan-1e6)
 FIRE_PARTICLE_STEP = {2: 0.01, 3: 0.005}
 
 # LBFGS history length per backend: ASE's LBFGS keeps 20 pairs (its own 100 cost more than a force call);
