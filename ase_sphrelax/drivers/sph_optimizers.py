@@ -165,20 +165,37 @@ def _fire_dots(v_pc, f_pc, d, out, first, last):
     out[2] += vv
 
 
+@numba.njit(inline="always", cache=True)
+def _fire_velocity_of(v, f, mode, a, sqrt_ff, sqrt_vv, dt):
+    """One element of FIRE's new velocity: mode 0: v = 0 (first step), 1: FIRE mixing, 2: v *= 0 (uphill); then
+    v += dt F."""
+    if mode == 0:
+        v = 0.0
+    elif mode == 1:
+        v = (1.0 - a) * v + a * f / sqrt_ff * sqrt_vv
+    else:
+        v = v * 0.0
+    return v + dt * f
+
+
+@numba.njit(inline="always", cache=True)
+def _place(x_pc, new_pc, p, length2, cap, d):
+    """Particle p's new position: ``x + dr`` with the move ``dr`` (in ``new_pc[p]``, of squared length ``length2``) cut
+    to length ``cap`` when ``cap > 0``; the coordinates beyond ``d`` copied."""
+    shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
+    for c in range(d):
+        new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
+    for c in range(d, 3):
+        new_pc[p, c] = x_pc[p, c]
+
+
 @numba.njit(**_NOGIL)
 def _fire_velocity(v_pc, f_pc, mode, a, sqrt_ff, sqrt_vv, dt, d, out, first, last):
-    """mode 0: v = 0 (first step), 1: FIRE mixing, 2: v *= 0 (uphill); then v += dt F; out += |dt v|^2."""
+    """The new velocities (:func:`_fire_velocity_of`); out += |dt v|^2."""
     acc = 0.0
     for p in range(first, last):
         for c in range(d):
-            f = f_pc[p, c]
-            if mode == 0:
-                v = 0.0
-            elif mode == 1:
-                v = (1.0 - a) * v_pc[p, c] + a * f / sqrt_ff * sqrt_vv
-            else:
-                v = v_pc[p, c] * 0.0
-            v = v + dt * f
+            v = _fire_velocity_of(v_pc[p, c], f_pc[p, c], mode, a, sqrt_ff, sqrt_vv, dt)
             v_pc[p, c] = v
             dr = dt * v
             acc += dr * dr
@@ -197,11 +214,7 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, cap, d, first, las
                 dr = maxstep * dr / normdr
             f_pc[p, c] = dr
             length2 += dr * dr
-        shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
-        for c in range(d):
-            f_pc[p, c] = x_pc[p, c] + f_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
-        for c in range(d, 3):
-            f_pc[p, c] = x_pc[p, c]
+        _place(x_pc, f_pc, p, length2, cap, d)
 
 
 @numba.njit(**_NOGIL)
@@ -213,23 +226,14 @@ def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt,
     for p in range(first, last):
         length2 = 0.0
         for c in range(d):
-            f = f_pc[p, c]
-            if mode == 1:
-                v = (1.0 - a) * v_pc[p, c] + a * f / sqrt_ff * sqrt_vv
-            else:
-                v = v_pc[p, c] * 0.0
-            v = v + dt * f
+            v = _fire_velocity_of(v_pc[p, c], f_pc[p, c], mode, a, sqrt_ff, sqrt_vv, dt)
             v_pc[p, c] = v
             dr = dt * v
             if scaled:
                 dr = maxstep * dr / normdr
             new_pc[p, c] = dr
             length2 += dr * dr
-        shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
-        for c in range(d):
-            new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink
-        for c in range(d, 3):
-            new_pc[p, c] = x_pc[p, c]
+        _place(x_pc, new_pc, p, length2, cap, d)
 
 
 def _fire_move_norm(mode, a, sqrt_ff, sqrt_vv, vf, ff, vv, dt):
