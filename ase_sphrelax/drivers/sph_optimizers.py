@@ -165,84 +165,57 @@ def _fire_dots(v_pc, f_pc, d, out, first, last):
     out[2] += vv
 
 
-@numba.njit(inline="always", cache=True)
-def _fire_velocity_of(v, f, mode, a, sqrt_ff, sqrt_vv, dt):
-    """One element of FIRE's new velocity: mode 0: v = 0 (first step), 1: FIRE mixing, 2: v *= 0 (uphill); then
-    v += dt F."""
-    if mode == 0:
-        v = 0.0
-    elif mode == 1:
-        v = (1.0 - a) * v + a * f / sqrt_ff * sqrt_vv
-    else:
-        v = v * 0.0
-    return v + dt * f
-
-
-@numba.njit(inline="always", cache=True)
-def _place(x_pc, new_pc, p, length2, cap, d):
-    """Particle p's new position: ``x + dr`` with the move ``dr`` (in ``new_pc[p]``, of squared length ``length2``) cut
-    to length ``cap`` when ``cap > 0``; the coordinates beyond ``d`` copied."""
-    shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
-    for c in range(d):
-        new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
-    for c in range(d, 3):
-        new_pc[p, c] = x_pc[p, c]
-
-
 @numba.njit(**_NOGIL)
-def _fire_velocity(v_pc, f_pc, mode, a, sqrt_ff, sqrt_vv, dt, d, out, first, last):
-    """The new velocities (:func:`_fire_velocity_of`); out += |dt v|^2."""
-    acc = 0.0
+def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, d, first, last):
+    """New positions x + dt v (scaled to norm maxstep when scaled) into f_pc."""
     for p in range(first, last):
-        for c in range(d):
-            v = _fire_velocity_of(v_pc[p, c], f_pc[p, c], mode, a, sqrt_ff, sqrt_vv, dt)
-            v_pc[p, c] = v
-            dr = dt * v
-            acc += dr * dr
-    out[0] += acc
-
-
-@numba.njit(**_NOGIL)
-def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, cap, d, first, last):
-    """New positions x + dt v (scaled to norm maxstep when scaled, then each particle's move cut to length ``cap``
-    when ``cap > 0``) into f_pc."""
-    for p in range(first, last):
-        length2 = 0.0
         for c in range(d):
             dr = dt * v_pc[p, c]
             if scaled:
                 dr = maxstep * dr / normdr
-            f_pc[p, c] = dr
-            length2 += dr * dr
-        _place(x_pc, f_pc, p, length2, cap, d)
+            f_pc[p, c] = x_pc[p, c] + dr
+        for c in range(d, 3):
+            f_pc[p, c] = x_pc[p, c]
 
 
 @numba.njit(**_NOGIL)
 def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt, scaled, maxstep, normdr, cap, d,
                         first, last):
-    """:func:`_fire_velocity` (modes 1 and 2) and :func:`_fire_move` in one pass, the same arithmetic per element:
-    the norm of the whole move ``normdr`` is known before the pass (:meth:`SPHFIRE._step`). ``new_pc`` may be
-    ``f_pc`` (each element of F is read before it is written)."""
+    """FIRE's new velocity (mode 0: v = 0, the first step; 1: FIRE's mixing; 2: v *= 0, uphill; then v += dt F) and
+    the move x + dt v (scaled to norm maxstep when scaled, then each particle's move cut to length ``cap`` when
+    ``cap > 0``) into ``new_pc``, in one pass: the norm of the whole move ``normdr`` is known before the pass
+    (:func:`_fire_move_norm`). ``new_pc`` may be ``f_pc`` (each element of F is read before it is written)."""
     for p in range(first, last):
         length2 = 0.0
         for c in range(d):
-            v = _fire_velocity_of(v_pc[p, c], f_pc[p, c], mode, a, sqrt_ff, sqrt_vv, dt)
+            f = f_pc[p, c]
+            if mode == 0:
+                v = 0.0
+            elif mode == 1:
+                v = (1.0 - a) * v_pc[p, c] + a * f / sqrt_ff * sqrt_vv
+            else:
+                v = v_pc[p, c] * 0.0
+            v = v + dt * f
             v_pc[p, c] = v
             dr = dt * v
             if scaled:
                 dr = maxstep * dr / normdr
             new_pc[p, c] = dr
             length2 += dr * dr
-        _place(x_pc, new_pc, p, length2, cap, d)
+        shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
+        for c in range(d):
+            new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
+        for c in range(d, 3):
+            new_pc[p, c] = x_pc[p, c]
 
 
 def _fire_move_norm(mode, a, sqrt_ff, sqrt_vv, vf, ff, vv, dt):
-    """``|dt v'|`` of FIRE's new velocity ``v'`` (:func:`_fire_velocity`, modes 1 and 2) from the sums of F.v, F.F
-    and v.v: ``v' = (1 - a) v + b F`` with ``b = a |v| / |F| + dt`` (mode 1; every term is positive, as F.v > 0), or
-    ``dt F`` (mode 2)."""
-    if mode == 2:
+    """``|dt v'|`` of FIRE's new velocity ``v'`` (:func:`_fire_velocity_move`) from the sums of F.v, F.F and v.v:
+    ``v' = (1 - a) v + b F`` with ``b = a |v| / |F| + dt`` (mode 1; F.v > 0, so |F| > 0 and every term is positive),
+    or ``dt F`` (modes 0 and 2: the first step, an uphill one)."""
+    if mode != 1:
         return dt * dt * sqrt_ff
-    b = a * sqrt_vv / sqrt_ff + dt if sqrt_ff > 0.0 else dt
+    b = a * sqrt_vv / sqrt_ff + dt
     v2 = (1.0 - a) ** 2 * vv + 2.0 * (1.0 - a) * b * vf + b * b * ff
     return dt * float(np.sqrt(max(v2, 0.0)))
 
@@ -451,9 +424,9 @@ def _set_fire_step(opt, dt, maxstep, max_particle_step=None):
 
 
 class _FIREBase(_SPHOptimizer):
-    """What FIRE and FIRE2 share: the velocity reset, the step's inputs, the move ``x += dt v`` capped at ``maxstep``
-    (the velocity update's partial sums ``outs`` of |dt v|^2 give its length) and each particle's move at
-    ``max_particle_step`` (FIRE's; None in FIRE2), and ``todict``."""
+    """What FIRE and FIRE2 share: the velocity reset, the step's inputs, FIRE2's move ``x += dt v`` capped at
+    ``maxstep`` (the velocity update's partial sums ``outs`` of |dt v|^2 give its length; SPHFIRE moves in the pass of
+    its velocity update, with its cut of each particle's move) and ``todict``."""
 
     def initialize(self):
         self.vel = None
@@ -467,8 +440,7 @@ class _FIREBase(_SPHOptimizer):
         normdr = float(np.sqrt(_sum(outs)))
         scaled = normdr > self.maxstep
         new_pc = self._scratch_like(f_pc)
-        cap = 0.0 if self.max_particle_step is None else self.max_particle_step
-        run_chunks(_fire_move, n, (x_pc, self.vel, new_pc, self.dt, scaled, self.maxstep, normdr, cap, d))
+        run_chunks(_fire_move, n, (x_pc, self.vel, new_pc, self.dt, scaled, self.maxstep, normdr, d))
         self._set_positions(new_pc)
 
     def todict(self):
@@ -481,8 +453,7 @@ class SPHFIRE(_FIREBase):
     """ASE's FIRE (Bitzek et al. 2006, as :class:`ase.optimize.FIRE`) with numba vector work.
 
     Per step two passes over the ``dim * N`` coordinates that move: one for ``F . v``, ``F . F`` and ``v . v``, one
-    for the new velocity and the move, whose norm (for ``maxstep``'s cap) follows from the first pass's sums (the
-    first step, ``v = dt F``, sums it in a pass of its own).
+    for the new velocity and the move, whose norm (for ``maxstep``'s cap) follows from the first pass's sums.
 
     Parameters
     ----------
@@ -512,16 +483,15 @@ class SPHFIRE(_FIREBase):
 
     def _step(self, f_pc=None):
         f_pc, x_pc, d, n = self._start_step(f_pc)
-        if self.vel is None:
+        fresh = self.vel is None
+        if fresh:
             self.vel = np.zeros((n, d))
-            mode, sqrt_ff, sqrt_vv = 0, 1.0, 1.0
-        else:
-            if self.vel.shape[0] != n:
-                raise ValueError(f"atoms: the number of particles changed from {self.vel.shape[0]} to {n}")
-            outs = reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
-            vf, ff, vv = _sum(outs, 0), _sum(outs, 1), _sum(outs, 2)
-            sqrt_ff, sqrt_vv = float(np.sqrt(ff)), float(np.sqrt(vv))
-            mode = 1 if vf > 0.0 else 2
+        elif self.vel.shape[0] != n:
+            raise ValueError(f"atoms: the number of particles changed from {self.vel.shape[0]} to {n}")
+        outs = reduce_chunks(_fire_dots, n, (self.vel, f_pc, d), 3)
+        vf, ff, vv = _sum(outs, 0), _sum(outs, 1), _sum(outs, 2)
+        sqrt_ff, sqrt_vv = float(np.sqrt(ff)), float(np.sqrt(vv))
+        mode = 0 if fresh else (1 if vf > 0.0 else 2)
         a_mix = self.a  # the mixing uses a before its update, v += dt F the updated dt (as ASE)
         if mode == 1:
             if self.Nsteps > self.Nmin:
@@ -532,10 +502,6 @@ class SPHFIRE(_FIREBase):
             self.a = self.astart
             self.dt *= self.fdec
             self.Nsteps = 0
-        if mode == 0:  # the first step: v = dt F, whose norm the pass sums
-            outs = reduce_chunks(_fire_velocity, n, (self.vel, f_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt, d), 1)
-            self._move(outs, x_pc, f_pc, n, d)
-            return
         # the new velocity and the move in one pass: the move's norm from the sums above
         normdr = _fire_move_norm(mode, a_mix, sqrt_ff, sqrt_vv, vf, ff, vv, self.dt)
         scaled = normdr > self.maxstep
