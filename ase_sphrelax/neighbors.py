@@ -814,23 +814,24 @@ def _fold_part_ghosts(parts, bases, ghost_s, src_s, outs):
                         out_pk[p, k] += part_i[t][row, k]
 
 
+def check_fold_output(out, shape, name="outs"):
+    """``out`` itself if it can take a fold's sums in place: a writeable C-contiguous float64 array of ``shape``
+    (then a reshape of it is a view); else ValueError naming ``name``."""
+    if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == tuple(shape)
+            and out.flags.c_contiguous and out.flags.writeable):
+        raise ValueError(f"{name}: a writeable C-contiguous float64 array of shape {tuple(shape)} expected, got "
+                         f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")
+    return out
+
+
 def _fold_outputs(widths, n, outs):
-    """The arrays (n, k) a fold writes, one per width k: ``outs[i]`` where given (not None; overwritten), else
-    fresh. A given array must be float64, C-contiguous, writeable and of shape (n, k) (ValueError)."""
+    """The arrays (n, k) a fold writes, one per width k: ``outs[i]`` where given (not None; overwritten,
+    :func:`check_fold_output`), else fresh."""
     if outs is None:
         return tuple(np.empty((n, k)) for k in widths)
     if len(outs) != len(widths):
         raise ValueError(f"outs: {len(widths)} arrays or None expected, got {len(outs)}")
-    arrays = []
-    for k, out in zip(widths, outs):
-        if out is None:
-            out = np.empty((n, k))
-        elif not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == (n, k)
-                  and out.flags.c_contiguous and out.flags.writeable):
-            raise ValueError(f"outs: a writeable C-contiguous float64 array of shape {(n, k)} expected, got "
-                             f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")
-        arrays.append(out)
-    return tuple(arrays)
+    return tuple(np.empty((n, k)) if out is None else check_fold_output(out, (n, k)) for k, out in zip(widths, outs))
 
 
 def fold_thread_parts(parts, bases, src_s, is_ghost_s, ghost_s, n, outs=None):

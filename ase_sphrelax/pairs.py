@@ -86,7 +86,7 @@ import numba
 import numpy as np
 
 from .kernels import KERNEL_FUNCTIONS
-from .neighbors import SCAN_HELPERS, SCAN_SOURCE, release_free_memory, release_pages
+from .neighbors import SCAN_HELPERS, SCAN_SOURCE, check_fold_output, release_free_memory, release_pages
 from .parallel import chunk_bounds, run_chunks, thread_count
 from .specialise import recompiled
 
@@ -308,7 +308,7 @@ def _bound_name(name, params):
 
 
 def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inputs=(), arguments=(),
-                 planar=False, reach_test=True, own_indent=8):
+                 planar=False, reach_test=True, own_indent=8, split=False):
     """Source of one loop: a's terms summed in registers ``ta*``, global terms in ``tg*``.
 
     ``params`` and ``inputs`` are unpacked once from the loop's ``params``/``inp`` tuples (in the
@@ -317,7 +317,8 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
     the compiler folds into the pair function) and leaves the z components of spatial outputs alone.
     ``reach_test`` False (a list walk of an interaction whose terms vanish beyond the reach,
     :class:`PairInteraction`'s ``support``): every listed pair is computed, without the test ``r2 < reach2``.
-    ``own_indent``: the indentation of the lines that start and store a point's sums.
+    ``own_indent``: the indentation of the lines that start and store a point's sums. ``split``: a point's listed
+    terms in three passes (:func:`_terms`; for a symmetric interaction without the reach test).
     """
     own = _targets(outputs, True, "a", planar)
     other = _targets(outputs, True, "b", planar)
@@ -345,8 +346,7 @@ def _loop_source(template, name, outputs, dim, symmetric, indent, params=(), inp
         lines += [f"tg{i} += tg[{i}]" for i in range(len(glob_t))]
     pad_a = "\n" + " " * own_indent
     pad_t = "\n" + " " * 4
-    terms, scratch = _terms(symmetric and not reach_test, own_indent, lines, own, other, glob_t, read, dim, data,
-                            reach_test)
+    terms, scratch = _terms(split, own_indent, lines, own, other, glob_t, read, dim, data, reach_test)
     return template.format(
         terms=terms,
         scratch=scratch,
@@ -474,8 +474,10 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     space = "planar" if planar else f"{dim}d"
     name = f"_{kind}{'' if reach_test else '_all'}_{'sym' if symmetric else 'gather'}_{space}_{_CORE_STAMP}__{base}"
     indent = 16 if kind in ("scan", "build_plain") else 12
+    # a list's terms (the walk's, a build's) in three passes, _terms, for a symmetric interaction without the reach test
+    split = symmetric and not reach_test and kind != "scan"
     source = _loop_source(template, name, outputs, dim, symmetric, indent, params, inputs, arguments, planar,
-                          reach_test, own_indent=12 if kind == "build_plain" else 8)
+                          reach_test, own_indent=12 if kind == "build_plain" else 8, split=split)
     namespace = {"pair": pair, "np": np, **SCAN_HELPERS}  # the bin-stencil helpers (their source is in the stamp)
     # compiled against the physics function's file: numba's disk cache then keys the loop by
     # that file (its time stamp) and by the loop's own bytecode
@@ -484,7 +486,6 @@ def _compile(pair, template, kind, outputs, dim, symmetric, params=(), inputs=()
     function.__module__ = pair.py_func.__module__
     # nogil: the chunks of one evaluation run at once on a thread pool (see PairInteraction.compute); the split terms
     # (_terms) reassociate their sums, so that the compiler vectorises the pass of the pair function
-    split = symmetric and not reach_test and kind != "scan"
     return numba.njit(cache=True, nogil=True, **({"fastmath": SPLIT_FASTMATH} if split else {}))(function), source
 
 
@@ -812,13 +813,9 @@ class PairInteraction:
         for k in point_k:
             name, output = outputs[k]
             given = out.get(name)
-            shape = (n,) + output.shape
-            if given is not None and not (isinstance(given, np.ndarray) and given.shape == shape
-                                          and given.dtype == np.float64 and given.flags.c_contiguous
-                                          and given.flags.writeable):
-                raise ValueError(f"out[{name!r}]: a writeable C-contiguous float64 array of shape {shape} expected, "
-                                 f"got {getattr(given, 'dtype', type(given).__name__)} {getattr(given, 'shape', '')}")
-            arrays.append(None if given is None else given.reshape(n, max(output.size, 1)))
+            if given is not None:  # C-contiguous: the reshape is a view, which the fold writes through
+                given = check_fold_output(given, (n,) + output.shape, f"out[{name!r}]").reshape(n, max(output.size, 1))
+            arrays.append(given)
         return arrays
 
     def _fold(self, neighbors, buffers, bases, forward, out=None):
