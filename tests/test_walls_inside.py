@@ -52,12 +52,16 @@ def _shaken(fluid, domain, dx, rng, amount=0.35):
 
 @st.composite
 def star_polygons(draw):
-    """A star-shaped polygon about the origin (always simple): random radii give sharp corners; a spike
-    (two close angles and a long radius between them) gives a thin feature."""
+    """A star-shaped polygon about the origin (always simple: every edge spans less than half a turn about it, so
+    edges lie in sectors that do not overlap): random radii give sharp corners; a spike (two close angles and a long
+    radius between them) gives a thin feature."""
     n = draw(st.integers(3, 11))
     angles = np.sort(np.array(draw(st.lists(st.floats(0.0, 2 * np.pi, exclude_max=True), min_size=n, max_size=n,
                                             unique=True))))
-    assume(np.diff(np.concatenate([angles, angles[:1] + 2 * np.pi])).min() > 0.05)
+    gaps = np.diff(np.concatenate([angles, angles[:1] + 2 * np.pi]))
+    # a gap of half a turn or more: the closing edge passes the origin's far side and can cross the others (the
+    # angles 0, 1, 2 with a spike at 0.5 crossed itself)
+    assume(gaps.min() > 0.05 and gaps.max() < np.pi - 0.05)
     radii = np.array(draw(st.lists(st.floats(0.25, 1.0), min_size=n, max_size=n)))
     if draw(st.booleans()):  # a thin spike
         i = draw(st.integers(0, n - 1))
