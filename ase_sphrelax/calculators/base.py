@@ -389,10 +389,14 @@ class SPHCalculator(Calculator):
         ASE's generic ``compare_atoms`` runs ``np.isclose`` over every array on every
         property request, which costs more than a relaxation step of a small system.
         """
+        return self._changes(atoms)
+
+    def _changes(self, atoms, moved=False):
+        """:meth:`check_state`'s list; ``moved``: "positions" without comparing them."""
         if self.atoms is None or len(atoms) != len(self.atoms):
             return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
-        if not _equal(atoms.positions, self.atoms.positions):
+        if moved or not _equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
         if not _equal(atoms.numbers, self.atoms.numbers):
             changes.append("numbers")
@@ -471,15 +475,17 @@ class SPHCalculator(Calculator):
         # ``forces`` and getrefcount's argument only (a view of it, as forces_view's, holds it as its base)
         return forces if sys.getrefcount(forces) <= 2 else None
 
-    def forces_view(self, atoms):
+    def forces_view(self, atoms, moved=False):
         """The forces on ``atoms`` as ``get_forces`` (ASE's cache, an evaluation when needed), without the copy:
         a read-only view of this calculator's result, valid until its next evaluation.
 
         For drivers that read the forces once per step and keep nothing
         (:class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`): at 1e6 particles the copy cost 6 ms a step.
         Constraints are not applied (``Atoms.get_forces`` would): the driver decides whether that matters.
+        ``moved``: the caller has just set the positions (a step): they count as changed without the comparison
+        (a pass over 2 N positions); numbers, cell and pbc are compared as always.
         """
-        system_changes = self.check_state(atoms)
+        system_changes = self._changes(atoms, moved)
         if system_changes:
             self.reset()
         if "forces" not in self.results:

@@ -134,6 +134,22 @@ class FanCalculator(SPHCalculator):
             self._near_key = key
         return self._near
 
+    def wall_candidates(self, domain):
+        """``(indices, margin)``: at the positions of this calculator's last evaluation every particle not in
+        ``indices`` lies at least ``margin`` inside ``domain`` (``phi <= -margin``), or None when not known.
+
+        Known for the level-set term on a :class:`~ase_sphrelax.domains.base.Domain` (a signed distance) that is this
+        calculator's domain, with a stored Verlet list: the particles within ``h + skin`` of the wall at the list's
+        build (:meth:`_near_wall`), and ``margin = h + skin / 2``, since the list was valid at that evaluation (no
+        particle had moved ``skin / 2`` since the build). For
+        :meth:`~ase_sphrelax.drivers.keep_inside.KeepInDomain.adjust_moved`: a step whose moves are all shorter than
+        the margin can take only these particles out of the domain."""
+        nlist = self.nlist
+        if domain is None or domain is not getattr(self.model, "domain", None) or nlist is None or not nlist.stored \
+                or nlist.build_pending or getattr(self, "_near_key", None) != (id(nlist), nlist.builds, id(self.model)):
+            return None
+        return self._near, self.model.h + 0.5 * nlist.skin
+
     def evaluate(self, state, properties):
         model, r_pc = self.model, state.r_pc
         vols = model.volumes(len(r_pc), periodic_measure(state.cell, state.atoms.pbc, state.dim))

@@ -69,11 +69,29 @@ class KeepInDomain:
 
     def adjust_positions(self, atoms, new):
         """Cut the steps that leave the domain; move particles that are outside back in (in place)."""
-        out = self._outside(new)
+        self.adjust_moved(np.asarray(atoms.positions, dtype=float), new)
+
+    def adjust_moved(self, old_pc, new, longest=None, candidates=None, margin=None):
+        """:meth:`adjust_positions` for a move from ``old_pc`` to ``new`` (``new`` may be the Atoms' positions array,
+        moved in place by an optimiser step; it is changed in place).
+
+        ``candidates`` and ``margin`` (both or neither): every particle not in ``candidates`` lies at least ``margin``
+        inside the domain at ``old_pc`` (an SPH calculator's ``wall_candidates`` for the positions of its last
+        evaluation). When every move is shorter than half the margin (``longest``, the longest move of a particle) only
+        the candidates can have left (the level set of a :class:`~ase_sphrelax.domains.base.Domain` is a signed
+        distance: it changes by at most the move; half: an interpolated table's slope may exceed 1 a little), and only
+        they are tested: the same particles are found as by testing all (at 1e6 particles in 3D the level set of all of
+        them cost 5 ms a step)."""
+        if candidates is not None and margin is not None and longest is not None and self._takes_positions \
+                and longest < 0.5 * margin:
+            found = self._outside(np.take(new, candidates, axis=0))
+            out = np.asarray(candidates)[found]
+        else:
+            out = self._outside(new)
         if len(out) == 0:
             self.n_left_outside = 0
             return
-        old = np.asarray(atoms.positions, dtype=float)[out]
+        old = np.asarray(old_pc, dtype=float)[out]
         step = new[out] - old
         inside_before = self._phi(old) < 0.0
         if inside_before.any():  # bisection on t in [0, 1]: old + t step stays inside up to t_in

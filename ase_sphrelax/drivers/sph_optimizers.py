@@ -180,11 +180,14 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, d, first, last):
 
 @numba.njit(**_NOGIL)
 def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt, scaled, maxstep, normdr, cap, d,
-                        first, last):
+                        in_place, out, first, last):
     """FIRE's new velocity (mode 0: v = 0, the first step; 1: FIRE's mixing; 2: v *= 0, uphill; then v += dt F) and
     the move x + dt v (scaled to norm maxstep when scaled, then each particle's move cut to length ``cap`` when
     ``cap > 0``) into ``new_pc``, in one pass: the norm of the whole move ``normdr`` is known before the pass
-    (:func:`_fire_move_norm`). ``new_pc`` may be ``f_pc`` (each element of F is read before it is written)."""
+    (:func:`_fire_move_norm`). ``new_pc`` may be ``f_pc`` (each element of F is read before it is written).
+    ``in_place``: the new positions go into ``x_pc`` itself and the old ones into ``new_pc``. ``out[0]``: the
+    largest squared length of a particle's move so far (NaN wins)."""
+    longest2 = out[0]
     for p in range(first, last):
         length2 = 0.0
         for c in range(d):
@@ -204,9 +207,19 @@ def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt,
             length2 += dr * dr
         shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
         for c in range(d):
-            new_pc[p, c] = x_pc[p, c] + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
+            x = x_pc[p, c]
+            moved = x + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
+            if in_place:
+                new_pc[p, c] = x
+                x_pc[p, c] = moved
+            else:
+                new_pc[p, c] = moved
         for c in range(d, 3):
             new_pc[p, c] = x_pc[p, c]
+        move2 = length2 * shrink * shrink
+        if not move2 <= longest2:
+            longest2 = move2
+    out[0] = longest2
 
 
 def _fire_move_norm(mode, a, sqrt_ff, sqrt_vv, vf, ff, vv, dt):
@@ -273,8 +286,13 @@ class _SPHOptimizer(Optimizer):
     :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain`) and form the new positions in a buffer of
     their own, LBFGS in ASE's fresh force array, which it no longer needs; the new positions go
     through the constraints (``adjust_positions``, as ``Atoms.set_positions`` does) and are copied
-    into ``atoms.positions`` in place. Any other optimizable (a Filter) goes through ASE's
-    ``get_x`` / ``get_gradient`` / ``set_x`` on all 3 coordinates.
+    into ``atoms.positions`` in place. SPHFIRE, when the constraints are KeepInDomain only, writes its new
+    positions into ``atoms.positions`` itself and keeps the old ones in its buffer for the constraint (the
+    same result, without the copy). KeepInDomain is told the step's longest move and, from the calculator
+    (``wall_candidates``), which particles can be near the wall: it tests those alone when the moves are short
+    (:meth:`~ase_sphrelax.drivers.keep_inside.KeepInDomain.adjust_moved`). After a step the force request does
+    not compare the positions the step has just set (``forces_view(moved=True)``). Any other optimizable (a
+    Filter) goes through ASE's ``get_x`` / ``get_gradient`` / ``set_x`` on all 3 coordinates.
     """
 
     def __init__(self, atoms, restart=None, logfile="-", trajectory=None, dim=None, **kwargs):
@@ -284,21 +302,25 @@ class _SPHOptimizer(Optimizer):
         self._dim_arg = _resolve_dim(atoms, dim) if dim is not None else None
         self.dim = None  # resolved at the first step (the SPH calculator knows it after an evaluation)
         self._silent = logfile is None  # ASE computes E and |F| for a log that writes nothing
+        # the step's forces came from the calculator at the atoms' positions (not given to step()): its last evaluation
+        # was at the step's start (_wall_hint)
+        self._forces_current = False
         Optimizer.__init__(self, atoms, restart=None, logfile=logfile, trajectory=trajectory, **kwargs)
 
     def read(self):
         raise ValueError(f"restart: {type(self).__name__} keeps no restart file")
 
     # -- coordinates ---------------------------------------------------------------------------
-    def _forces(self, writable=True):
+    def _forces(self, writable=True, moved=False):
         """Forces (n, 3), constraints applied: a fresh writable array, or with ``writable=False`` the SPH
         calculator's own result, read only (:meth:`~ase_sphrelax.calculators.base.SPHCalculator.forces_view`: no
-        copy of N forces per step), when the only constraints are :class:`KeepInDomain` (which leave forces alone)."""
+        copy of N forces per step), when the only constraints are :class:`KeepInDomain` (which leave forces alone).
+        ``moved``: this optimiser's step has just set the positions (the calculator need not compare them)."""
         if self._fast:
             atoms = self.optimizable.atoms
             if not writable and hasattr(atoms.calc, "forces_view") \
                     and all(isinstance(c, KeepInDomain) for c in atoms.constraints):
-                return atoms.calc.forces_view(atoms)
+                return atoms.calc.forces_view(atoms, moved=moved)
             return atoms.get_forces()
         return -self.optimizable.get_gradient().reshape(-1, 3)
 
@@ -318,12 +340,16 @@ class _SPHOptimizer(Optimizer):
             return self.optimizable.atoms.positions
         return self.optimizable.get_x().reshape(-1, 3)
 
-    def _set_positions(self, new_pc):
-        """Set positions from ``new_pc`` (n, 3), which the constraints may change in place."""
+    def _set_positions(self, new_pc, longest=None):
+        """Set positions from ``new_pc`` (n, 3), which the constraints may change in place; ``longest``: the
+        longest move of a particle in this update (None: not known), for :class:`KeepInDomain`'s test."""
         if self._fast:
             atoms = self.optimizable.atoms
             for constraint in atoms.constraints:  # as Atoms.set_positions, without its copy
-                constraint.adjust_positions(atoms, new_pc)
+                if isinstance(constraint, KeepInDomain):
+                    constraint.adjust_moved(atoms.positions, new_pc, **self._wall_hint(constraint, longest))
+                else:
+                    constraint.adjust_positions(atoms, new_pc)
             positions = atoms.arrays["positions"]
             if positions.shape == new_pc.shape and positions.dtype == new_pc.dtype == np.float64:
                 copy_rows(positions, new_pc)  # ASE's set_positions copies in place too, on one thread
@@ -331,6 +357,37 @@ class _SPHOptimizer(Optimizer):
                 atoms.set_positions(new_pc, apply_constraint=False)
         else:
             self.optimizable.set_x(new_pc.reshape(-1))
+
+    def _moves_in_place(self, x_pc):
+        """Whether a step may write its new positions into ``x_pc`` = ``atoms.positions`` itself (the old ones aside,
+        :meth:`_constrain_moved`): an Atoms whose constraints are :class:`KeepInDomain` only (or none), its positions
+        float64, C-contiguous and writeable. The result is that of :meth:`_set_positions`, without its copy."""
+        if not self._fast:
+            return False
+        atoms = self.optimizable.atoms
+        positions = atoms.arrays["positions"]
+        return x_pc is positions and positions.dtype == np.float64 and positions.flags.c_contiguous \
+            and positions.flags.writeable and all(isinstance(c, KeepInDomain) for c in atoms.constraints)
+
+    def _constrain_moved(self, old_pc, longest):
+        """The constraints of a step that moved ``atoms.positions`` in place from ``old_pc`` (:meth:`_moves_in_place`;
+        each particle's move at most ``longest``)."""
+        atoms = self.optimizable.atoms
+        for constraint in atoms.constraints:
+            constraint.adjust_moved(old_pc, atoms.arrays["positions"], **self._wall_hint(constraint, longest))
+
+    def _wall_hint(self, constraint, longest):
+        """:meth:`KeepInDomain.adjust_moved`'s keywords: the longest move and, when the calculator knows them for the
+        positions of its last evaluation (the step's start: the step's forces came from it,
+        :attr:`_forces_current`), the particles that can be near the wall (``wall_candidates``)."""
+        hint = dict(longest=longest)
+        if longest is None or not self._forces_current:
+            return hint
+        known = getattr(self.optimizable.atoms.calc, "wall_candidates", None)
+        found = known(constraint.domain) if known is not None else None
+        if found is not None:
+            hint.update(candidates=found[0], margin=found[1])
+        return hint
 
     def _setup_dim(self):
         if self.dim is None:
@@ -368,10 +425,11 @@ class _SPHOptimizer(Optimizer):
         while not is_converged and self.nsteps < self.max_steps:
             # an observer or the caller may have moved the atoms: then the step asks anew (cached)
             step_f, f_pc = (f_pc if reuse and not self.observers else None), None
+            self._forces_current = True  # the forces above, at these positions, or asked anew by the step
             self._step(step_f)
             step_f = None
             self.nsteps += 1
-            f_pc = self._forces(writable=False)
+            f_pc = self._forces(writable=False, moved=True)
             self.log(-f_pc.reshape(-1) if not self._silent else None)
             self.call_observers()
             is_converged = self._converged(f_pc)
@@ -396,6 +454,7 @@ class _SPHOptimizer(Optimizer):
         """One step from ``forces`` ((N, 3); None: asked from the calculator)."""
         if forces is not None:
             forces = np.array(forces, dtype=float).reshape(-1, 3)
+        self._forces_current = forces is None
         self._step(forces)
 
     def _step(self, f_pc=None):  # pragma: no cover - defined by the subclasses
@@ -505,11 +564,17 @@ class SPHFIRE(_FIREBase):
         # the new velocity and the move in one pass: the move's norm from the sums above
         normdr = _fire_move_norm(mode, a_mix, sqrt_ff, sqrt_vv, vf, ff, vv, self.dt)
         scaled = normdr > self.maxstep
+        # the new positions into atoms.positions itself and the old ones aside (no copy), when the constraints allow
+        in_place = self._moves_in_place(x_pc)
         new_pc = self._scratch_like(f_pc)
         cap = 0.0 if self.max_particle_step is None else self.max_particle_step
-        run_chunks(_fire_velocity_move, n, (x_pc, self.vel, f_pc, new_pc, mode, a_mix, sqrt_ff, sqrt_vv, self.dt,
-                                            scaled, self.maxstep, normdr, cap, d))
-        self._set_positions(new_pc)
+        outs = reduce_chunks(_fire_velocity_move, n, (x_pc, self.vel, f_pc, new_pc, mode, a_mix, sqrt_ff, sqrt_vv,
+                                                      self.dt, scaled, self.maxstep, normdr, cap, d, in_place), 1)
+        longest = float(np.sqrt(_max(outs, 0)))
+        if in_place:
+            self._constrain_moved(new_pc, longest)
+        else:
+            self._set_positions(new_pc, longest)
 
 
 class SPHFIRE2(_FIREBase):
@@ -685,7 +750,7 @@ class SPHLBFGS(_SPHOptimizer):
         factor = self.maxstep / longest if scaled else 1.0
         run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d))
         self.iteration += 1
-        self._set_positions(f_pc)
+        self._set_positions(f_pc, longest * factor * self.damping)
 
     def todict(self):
         description = Optimizer.todict(self)
