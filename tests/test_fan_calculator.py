@@ -303,3 +303,32 @@ def test_forces_are_written_into_the_previous_array_when_no_one_holds_it():
         if kept is not None:
             np.testing.assert_array_equal(kept, kept_values)
     np.testing.assert_array_equal(held[0], held_values)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("name", list(__import__("ase_sphrelax.kernels", fromlist=["KERNEL_NAMES"]).KERNEL_NAMES))
+def test_wall_forces_are_kernel_w1s_bits(name, dim):
+    """Eq. 4.4's force in one numba loop (models.fan._add_wall_forces) equals ``-2 vt Kernel.w1(max(s, 0), h) n``
+    bit for bit: outside the wall (s < 0), on it, at the pieces' breaks, just below h, at h and beyond."""
+    from ase_sphrelax.models.fan import FanModel, _add_wall_forces
+
+    kernel = get_kernel(name, dim)
+    h, v0 = 0.037, 1.3e-4
+    breaks = [b * h for b in kernel.breaks[1:-1]]
+    s_o = np.concatenate([[-0.5 * h, -1e-300, 0.0, 1e-300, h * (1 - 1e-16), h, 1.5 * h], breaks,
+                          np.random.default_rng(0).uniform(-0.2 * h, 1.1 * h, 500)])
+    n_oc = np.random.default_rng(1).normal(size=(len(s_o), 3))
+    n_oc[:, dim:] = 0.0
+    pool = np.random.default_rng(2).permutation(len(s_o) + 7)[: len(s_o)]
+    model = FanModel.__new__(FanModel)
+    model.kernel, model.h = kernel, h
+    f_new = np.full((len(s_o) + 7, 3), 0.25)
+    _add_wall_forces(f_new, pool, s_o, n_oc, h, kernel.sigma_1d, -2.0 * v0, *model._w1_pieces())
+    f_old = np.full((len(s_o) + 7, 3), 0.25)
+    g_o = kernel.w1(np.maximum(s_o, 0.0), h)
+    g_o *= -2.0 * v0
+    within = s_o < h
+    for k in np.flatnonzero(within):
+        f_old[pool[k]] += g_o[k] * n_oc[k]
+    assert np.array_equal(f_new, f_old)
+    assert np.any(f_new != 0.25) and np.all(f_new[pool[~within]] == 0.25)

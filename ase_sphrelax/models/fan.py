@@ -308,11 +308,23 @@ class FanModel:
             s_o = -phi_o
             if e_p is not None:
                 _add_where_within(e_p, pool, 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h), s_o, self.h)
-            if want_forces:
-                g_o = self.kernel.w1(np.maximum(s_o, 0.0), self.h)
-                g_o *= -2.0 * v0
-                _add_rows_where_within(f_pc, pool, g_o, n_oc, s_o, self.h)
+            if want_forces:  # -2 vt W1(max(s, 0), h) n, W1 as Kernel.w1 computes it (the same bits), in one loop
+                breaks_s, pieces_su = self._w1_pieces()
+                _add_wall_forces(f_pc, pool, s_o, n_oc, self.h, self.kernel.sigma_1d, -2.0 * v0, breaks_s, pieces_su)
         return e_p, f_pc
+
+    def _w1_pieces(self):
+        """The kernel profile's pieces as :func:`_add_wall_forces` reads them: ``(breaks_s, pieces_su)``, the right
+        end of each piece (at most 1) and its polynomial in ``u = right - q`` (lowest power first, zero-padded)."""
+        kernel = self.kernel
+        if getattr(self, "_w1_key", None) != kernel.key:
+            pieces = kernel._pieces_u
+            self._w1_table = (np.array([kernel.breaks[s] for s in range(len(pieces))] + [min(kernel.breaks[len(pieces)],
+                                                                                            1.0)]),
+                              np.array([np.pad(np.asarray(p, dtype=float), (0, max(len(q) for q in pieces) - len(p)))
+                                        for p in pieces]))
+            self._w1_key = kernel.key
+        return self._w1_table
 
     def near_wall(self, r_pc, reach):
         """Indices of the particles within ``reach`` of the wall or outside (``phi > -reach``), ``"level_set"``
@@ -443,10 +455,28 @@ def _add_where_within(e_p, pool_o, value_o, s_o, h):
 
 
 @numba.njit(cache=True, nogil=True)
-def _add_rows_where_within(f_pc, pool_o, g_o, n_oc, s_o, h):
-    """``f_pc[pool_o[k]] += g_o[k] n_oc[k]`` for the k with ``s_o[k] < h``."""
+def _add_wall_forces(f_pc, pool_o, s_o, n_oc, h, sigma_1d, scale, breaks_s, pieces_su):
+    """``f_pc[pool_o[k]] += scale W1(max(s_o[k], 0), h) n_oc[k]`` for the k with ``s_o[k] < h`` (Eq. 4.4's force with
+    ``scale = -2 vt``): ``W1(r, h) = sigma_1d / h f(r / h)`` with the profile ``f`` evaluated as
+    :meth:`~ase_sphrelax.kernels.Kernel.profile` does (piece s holds ``breaks_s[s] <= q < breaks_s[s + 1]``, its
+    polynomial in ``u = breaks_s[s + 1] - q`` by Horner's rule as numpy's ``polyval``): the bits of
+    ``Kernel.w1``, without its temporary arrays."""
+    pieces = pieces_su.shape[0]
+    degree = pieces_su.shape[1]
+    factor = sigma_1d / h
     for k in range(pool_o.shape[0]):
-        if s_o[k] < h:
-            p = pool_o[k]
-            for c in range(n_oc.shape[1]):
-                f_pc[p, c] += g_o[k] * n_oc[k, c]
+        if not s_o[k] < h:
+            continue
+        q = max(s_o[k], 0.0) / h
+        f = 0.0
+        for s in range(pieces):
+            if breaks_s[s] <= q < breaks_s[s + 1]:
+                u = breaks_s[s + 1] - q
+                f = pieces_su[s, degree - 1]
+                for i in range(degree - 2, -1, -1):
+                    f = pieces_su[s, i] + f * u
+                break
+        g = factor * f * scale
+        p = pool_o[k]
+        for c in range(n_oc.shape[1]):
+            f_pc[p, c] += g * n_oc[k, c]
