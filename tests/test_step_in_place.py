@@ -135,3 +135,21 @@ def test_forces_view_after_a_step_evaluates_without_comparing_positions():
     atoms.numbers[0] = 2  # numbers are still compared
     assert calc._changes(atoms, moved=True) == ["positions", "numbers"]
     assert calc.check_state(atoms) == ["numbers"]
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "off_plane"])
+def test_the_snapshots_scan_still_refuses_bad_positions_at_a_later_evaluation(bad):
+    """The calculator's copy of the positions is scanned in the same pass (finite, the plane of 2D atoms): a bad
+    position that appears after the first evaluation (the copy into the kept array) is refused by the next one."""
+    domain = Circle((0.5, 0.5), 0.2)
+    atoms = fill(domain, 1 / 32, jitter=0.1, seed=0)
+    calc = atoms.calc = FanCalculator(h=2.6 / 32, dx=1 / 32, domain=domain)
+    calc.forces_view(atoms)
+    calc.forces_view(atoms, moved=True)  # the kept copy is in use from here on
+    atoms.positions[1, 0] += 1e-3
+    calc.forces_view(atoms, moved=True)
+    assert calc.dim == 2
+    atoms.positions[7, {"nan": 0, "inf": 1, "off_plane": 2}[bad]] = {"nan": np.nan, "inf": np.inf, "off_plane": 1e-3}[bad]
+    match = "finite" if bad != "off_plane" else "z"
+    with pytest.raises(ValueError, match=match):
+        calc.forces_view(atoms, moved=True)

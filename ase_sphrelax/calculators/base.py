@@ -55,24 +55,31 @@ def _same_values(a, b):
 
 
 @numba.njit(cache=True, nogil=True)
-def _scan_positions_chunk(r_pc, out, first, last):
+def _scan_positions_chunk(r_pc, copy_pc, copy, out, first, last):
     finite = True
     y_zero = True
     z_zero = True
     for p in range(first, last):
-        finite &= np.isfinite(r_pc[p, 0]) & np.isfinite(r_pc[p, 1]) & np.isfinite(r_pc[p, 2])
-        y_zero &= r_pc[p, 1] == 0.0
-        z_zero &= r_pc[p, 2] == 0.0
+        x, y, z = r_pc[p, 0], r_pc[p, 1], r_pc[p, 2]
+        if copy:
+            copy_pc[p, 0] = x
+            copy_pc[p, 1] = y
+            copy_pc[p, 2] = z
+        finite &= np.isfinite(x) & np.isfinite(y) & np.isfinite(z)
+        y_zero &= y == 0.0
+        z_zero &= z == 0.0
     out[0] = min(out[0], 1.0 if finite else 0.0)
     out[1] = min(out[1], 1.0 if y_zero else 0.0)
     out[2] = min(out[2], 1.0 if z_zero else 0.0)
 
 
-def _scan_positions(r_pc):
+def _scan_positions(r_pc, copy_pc=None):
     """One pass over positions (P, 3): ``(every coordinate finite, every y exactly 0, every z exactly 0)``
     (three numpy passes cost 3x as much at 1e6 particles: 2.5 ms each), in :func:`thread_count` chunks. An
-    and-reduction without an early exit, which the compiler vectorises."""
-    outs = reduce_chunks(_scan_positions_chunk, r_pc.shape[0], (r_pc,), 3, fill=1.0)
+    and-reduction without an early exit, which the compiler vectorises. ``copy_pc`` (P, 3) float64: the positions
+    are copied into it in the same pass (the calculator's snapshot)."""
+    copy = copy_pc is not None
+    outs = reduce_chunks(_scan_positions_chunk, r_pc.shape[0], (r_pc, copy_pc if copy else r_pc, copy), 3, fill=1.0)
     return tuple(all(out[k] == 1.0 for out in outs) for k in range(3))
 
 
@@ -305,7 +312,8 @@ class SPHCalculator(Calculator):
         if atoms is None or len(atoms) == 0:
             raise ValueError("atoms: need at least one particle, got an empty Atoms")
         r_pc = np.asarray(atoms.positions, dtype=float)
-        finite, y_zero, z_zero = _scan_positions(r_pc)
+        scanned = self.__dict__.pop("_scanned_positions", None)  # the snapshot's copy scanned them (_take_snapshot)
+        finite, y_zero, z_zero = scanned[1] if scanned is not None and scanned[0] is r_pc else _scan_positions(r_pc)
         if not finite:
             bad = np.where(~np.all(np.isfinite(r_pc), axis=1))[0]
             raise ValueError(f"atoms.positions must be finite; particles {bad[:10].tolist()} are NaN or inf")
@@ -435,7 +443,11 @@ class SPHCalculator(Calculator):
             # held by ``previous``, ``kept`` and getrefcount's argument only: no one else reads it
             if kept is not None and kept is not values and kept.shape == values.shape and kept.dtype == values.dtype \
                     and sys.getrefcount(kept) <= 3:
-                if kept.ndim == 2:
+                if name == "positions" and kept.dtype == np.float64 and kept.shape[1:] == (3,) \
+                        and kept.flags.c_contiguous and values.flags.c_contiguous:
+                    # copied and scanned in one pass: resolve_dim, next in calculate, takes the scan
+                    self._scanned_positions = (kept, _scan_positions(values, copy_pc=kept))
+                elif kept.ndim == 2:
                     copy_rows(kept, values)
                 else:
                     np.copyto(kept, values)
