@@ -73,7 +73,9 @@ class KeepInDomain:
 
     def adjust_moved(self, old_pc, new, longest=None, candidates=None, margin=None):
         """:meth:`adjust_positions` for a move from ``old_pc`` to ``new`` (``new`` may be the Atoms' positions array,
-        moved in place by an optimiser step; it is changed in place).
+        moved in place by an optimiser step; it is changed in place). ``old_pc``: an array (N, 3), or a function of
+        the indices of the particles that left giving their old positions (k, 3) (an optimiser that holds them in
+        another form, SPHLBFGS's ``-s``).
 
         ``candidates`` and ``margin`` (both or neither): every particle not in ``candidates`` lies at least ``margin``
         inside the domain at ``old_pc`` (an SPH calculator's ``wall_candidates`` for the positions of its last
@@ -91,7 +93,7 @@ class KeepInDomain:
         if len(out) == 0:
             self.n_left_outside = 0
             return
-        old = np.asarray(old_pc, dtype=float)[out]
+        old = np.asarray(old_pc(out), dtype=float) if callable(old_pc) else np.asarray(old_pc, dtype=float)[out]
         step = new[out] - old
         inside_before = self._phi(old) < 0.0
         if inside_before.any():  # bisection on t in [0, 1]: old + t step stays inside up to t_in

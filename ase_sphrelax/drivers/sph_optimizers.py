@@ -131,9 +131,11 @@ def _lbfgs_combine(f_pc, s_mpc, y_mpc, slot, cs, cy, cg, d, out, first, last):
 
 
 @numba.njit(**_NOGIL)
-def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, first, last):
+def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, new_pc, in_place, first, last):
     """The step dr = -z (z in s_pc, :func:`_lbfgs_combine`; times factor when scaled) times damping;
-    the next pending pair (s = -x_k over z, y = F_k) into its slot; the new positions x_k + dr into f_pc."""
+    the next pending pair (s = -x_k over z, y = F_k) into its slot; the new positions x_k + dr into new_pc
+    (which may be f_pc: each element of F is read before it is written), or with ``in_place`` into x_pc itself
+    (the old positions are then -s)."""
     for p in range(first, last):
         for c in range(d):
             t = -s_pc[p, c]
@@ -143,9 +145,13 @@ def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, first, las
             x = x_pc[p, c]
             s_pc[p, c] = -x
             y_pc[p, c] = f_pc[p, c]
-            f_pc[p, c] = x + t
-        for c in range(d, 3):
-            f_pc[p, c] = x_pc[p, c]
+            if in_place:
+                x_pc[p, c] = x + t
+            else:
+                new_pc[p, c] = x + t
+        if not in_place:
+            for c in range(d, 3):
+                new_pc[p, c] = x_pc[p, c]
 
 
 @numba.njit(**_NOGIL)
@@ -281,14 +287,14 @@ def _resolve_dim(atoms, dim):
 class _SPHOptimizer(Optimizer):
     """Shared run loop and coordinate access of :class:`SPHFIRE` and :class:`SPHLBFGS`.
 
-    With an :class:`ase.Atoms` the step reads ``atoms.positions`` in place; FIRE and FIRE2 read the forces
-    in place too (the SPH calculator's ``forces_view``, when the only constraints are
-    :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain`) and form the new positions in a buffer of
-    their own, LBFGS in ASE's fresh force array, which it no longer needs; the new positions go
-    through the constraints (``adjust_positions``, as ``Atoms.set_positions`` does) and are copied
-    into ``atoms.positions`` in place. SPHFIRE, when the constraints are KeepInDomain only, writes its new
-    positions into ``atoms.positions`` itself and keeps the old ones in its buffer for the constraint (the
-    same result, without the copy). KeepInDomain is told the step's longest move and, from the calculator
+    With an :class:`ase.Atoms` the step reads ``atoms.positions`` in place and the forces in place too (the SPH
+    calculator's ``forces_view``, when the only constraints are
+    :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain`). SPHFIRE and SPHLBFGS then write their new positions
+    into ``atoms.positions`` itself and keep the old ones for the constraint (SPHFIRE in a buffer of its own,
+    SPHLBFGS as ``-s`` of the pending pair): the result of ``Atoms.set_positions`` (the constraints' adjustment, a
+    copy in place), without the copy. Otherwise (FIRE2, other constraints) the new positions are formed in a buffer
+    (or the step's own force array), go through the constraints (``adjust_positions``) and are copied into
+    ``atoms.positions``. KeepInDomain is told the step's longest move and, from the calculator
     (``wall_candidates``), which particles can be near the wall: it tests those alone when the moves are short
     (:meth:`~ase_sphrelax.drivers.keep_inside.KeepInDomain.adjust_moved`). After a step the force request does
     not compare the positions the step has just set (``forces_view(moved=True)``). Any other optimizable (a
@@ -371,7 +377,8 @@ class _SPHOptimizer(Optimizer):
 
     def _constrain_moved(self, old_pc, longest):
         """The constraints of a step that moved ``atoms.positions`` in place from ``old_pc`` (:meth:`_moves_in_place`;
-        each particle's move at most ``longest``)."""
+        each particle's move at most ``longest``; ``old_pc`` an array or a function of indices, as
+        :meth:`KeepInDomain.adjust_moved` takes it)."""
         atoms = self.optimizable.atoms
         for constraint in atoms.constraints:
             constraint.adjust_moved(old_pc, atoms.arrays["positions"], **self._wall_hint(constraint, longest))
@@ -705,7 +712,7 @@ class SPHLBFGS(_SPHOptimizer):
             raise ValueError(f"atoms: the number of particles changed from {self._s.shape[1]} to {n}")
 
     def _step(self, f_pc=None):
-        f_pc = self._forces() if f_pc is None or not f_pc.flags.writeable else f_pc  # written over below
+        f_pc = self._forces(writable=False) if f_pc is None else f_pc  # read only (the calculator's, no copy)
         x_pc = self._positions()
         d = self._setup_dim()
         n, m, k = len(f_pc), self.memory, self.iteration
@@ -748,9 +755,23 @@ class SPHLBFGS(_SPHOptimizer):
         longest = float(np.sqrt(_max(outs, 0)))  # ASE: the largest per-particle norm of the step
         scaled = longest >= self.maxstep
         factor = self.maxstep / longest if scaled else 1.0
-        run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d))
+        # the new positions into atoms.positions itself when the constraints allow (the old ones are -s[slot])
+        in_place = self._moves_in_place(x_pc)
+        new_pc = x_pc if in_place else self._scratch_like(f_pc)
+        run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d, new_pc, in_place))
         self.iteration += 1
-        self._set_positions(f_pc, longest * factor * self.damping)
+        moved = longest * factor * self.damping
+        if not in_place:
+            self._set_positions(new_pc, moved)
+            return
+        positions, s_slot = x_pc, s[slot]
+
+        def old_rows(out):  # the old positions of the particles ``out``: -s, z (2D) as it is
+            rows = np.array(positions[out])
+            rows[:, :d] = -s_slot[out]
+            return rows
+
+        self._constrain_moved(old_rows, moved)
 
     def todict(self):
         description = Optimizer.todict(self)
