@@ -1192,9 +1192,10 @@ class NeighborList:
     @property
     def plain(self):
         """True when the current bins hold originals only (no periodic images), all of one cut-off: a pair is then
-        listed by its distance alone, and two points of one bin scan their rows together (the fused build's
-        ``"build_plain"`` loop, 0.59x the general one's time on Fan's sphere at 1e6 on one thread:
-        ``reproductions/speed-fan-1e6/build_loops.py``)."""
+        listed by its distance alone, and the points of one bin share their stencil rows' candidates (the fused
+        build's ``"build_plain"`` loop; with two points of a bin scanning the rows together it took 0.59x the general
+        one's time on Fan's sphere at 1e6 on one thread, ``reproductions/speed-fan-1e6/build_loops.py``; the rows'
+        candidates gathered once per bin, 0.85x that)."""
         pts = self.points
         return (pts is not None and self._cut_build_uniform is not None and pts.n_extended == pts.n_particles
                 and pts.n_normal == pts.n_extended)
