@@ -60,11 +60,12 @@ def test_in_place_steps_and_the_wall_hint_leave_the_trajectory_as_it_was(name, d
 
 @settings(max_examples=60, **SETTINGS)
 @given(seed=st.integers(0, 2**16), n=st.integers(1, 400), margin=st.floats(0.01, 0.2),
-       fraction=st.sampled_from([0.0, 0.25, 0.4999, 0.5, 0.7, 1.5]), on_edges=st.booleans())
-def test_adjust_moved_finds_what_testing_every_particle_finds(seed, n, margin, fraction, on_edges):
+       fraction=st.sampled_from([0.0, 0.25, 0.4999, 0.5, 0.7, 1.5]), on_edges=st.booleans(), with_phi=st.booleans())
+def test_adjust_moved_finds_what_testing_every_particle_finds(seed, n, margin, fraction, on_edges, with_phi):
     """Old positions inside a circle, some on the candidates' edge (phi = -margin) or at the wall; moves up to
     ``fraction * margin`` (some exactly that long). The candidates are the particles with phi > -margin (the
-    calculator's promise); above half the margin the hint must be ignored (here then: no candidates at all)."""
+    calculator's promise), with their level set or without; above half the margin the hint must be ignored (here
+    then: no candidates at all)."""
     rng = np.random.default_rng(seed)
     domain = Circle((0.0, 0.0), 1.0)
     radius = rng.uniform(0.0, 1.0, n) ** 0.5
@@ -86,7 +87,8 @@ def test_adjust_moved_finds_what_testing_every_particle_finds(seed, n, margin, f
     everyone, hinted = KeepInDomain(domain), KeepInDomain(domain)
     expected, got = new.copy(), new.copy()
     everyone.adjust_moved(old, expected)
-    hinted.adjust_moved(old, got, longest=longest, candidates=candidates, margin=margin)
+    hinted.adjust_moved(old, got, longest=longest, candidates=candidates, margin=margin,
+                        candidates_phi=phi[candidates] if with_phi else None)
     assert np.array_equal(got, expected)
     assert (hinted.n_returned, hinted.n_left_outside) == (everyone.n_returned, everyone.n_left_outside)
     assert np.all(domain.phi(got[:, :2]) < 0.0)
@@ -108,10 +110,12 @@ def test_fans_wall_candidates_hold_every_particle_within_the_margin(dim):
         found = calc.wall_candidates(domain)
         if found is None:  # the first evaluation scans bins, no list
             return
-        candidates, margin = found
+        candidates, margin, phi_k = found
         assert margin == pytest.approx(calc.model.h + 0.5 * calc.nlist.skin)
         rest = np.setdiff1d(np.arange(len(atoms)), candidates)
         assert np.all(domain.phi(atoms.positions[rest, :dim]) <= -margin)
+        np.testing.assert_allclose(phi_k, domain.phi(atoms.positions[candidates, :dim]).reshape(-1), rtol=0,
+                                   atol=1e-15)  # the candidates' level set there
         assert len(rest) > 0
         checked.append(calc.nlist.builds)
 

@@ -21,6 +21,8 @@ exact strain derivative of ``E`` divided by the cell volume, including the
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..domains import Domain
 from ..kernel_sums import pair_potential_sums
 from ..models.fan import FanModel, verlet_skin
@@ -130,13 +132,17 @@ class FanCalculator(SPHCalculator):
             return None
         key = (id(nlist), nlist.builds, id(self.model))
         if getattr(self, "_near_key", None) != key:
+            self._near = None  # the old set goes first
             self._near = self.model.near_wall(nlist.positions_at_build, self.model.h + nlist.skin)
+            self._near_phi = np.empty(len(self._near))  # their level set at each evaluation (wall_candidates)
+            self._near_phi_at = None
             self._near_key = key
         return self._near
 
     def wall_candidates(self, domain):
-        """``(indices, margin)``: at the positions of this calculator's last evaluation every particle not in
-        ``indices`` lies at least ``margin`` inside ``domain`` (``phi <= -margin``), or None when not known.
+        """``(indices, margin, phi_k)``: at the positions of this calculator's last evaluation every particle not in
+        ``indices`` lies at least ``margin`` inside ``domain`` (``phi <= -margin``), and candidate k has the level set
+        ``phi_k[k]`` (computed there by the wall term); or None when not known.
 
         Known for the level-set term on a :class:`~ase_sphrelax.domains.base.Domain` (a signed distance) that is this
         calculator's domain, with a stored Verlet list: the particles within ``h + skin`` of the wall at the list's
@@ -146,9 +152,10 @@ class FanCalculator(SPHCalculator):
         the margin can take only these particles out of the domain."""
         nlist = self.nlist
         if domain is None or domain is not getattr(self.model, "domain", None) or nlist is None or not nlist.stored \
-                or nlist.build_pending or getattr(self, "_near_key", None) != (id(nlist), nlist.builds, id(self.model)):
+                or nlist.build_pending or getattr(self, "_near_key", None) != (id(nlist), nlist.builds, id(self.model)) \
+                or self._near_phi_at != self._evaluations:
             return None
-        return self._near, self.model.h + 0.5 * nlist.skin
+        return self._near, self.model.h + 0.5 * nlist.skin, self._near_phi
 
     def evaluate(self, state, properties):
         model, r_pc = self.model, state.r_pc
@@ -176,8 +183,11 @@ class FanCalculator(SPHCalculator):
         if model.domain is not None:
             # the boundary elements are found on the bins of the neighbour list (not periodic images)
             nlist = None if any(state.atoms.pbc) else state.nlist
+            near = self._near_wall(state)
             model.boundary(r_pc, vols.v0, nlist=nlist, out=(energies_p, f_pc),  # added in place
-                           candidates=self._near_wall(state))
+                           candidates=near, phi_out=None if near is None else self._near_phi)
+            if near is not None:
+                self._near_phi_at = self._evaluations  # the candidates' level set at these positions
             if state.first:  # the first evaluation of these atoms: say so if some are far outside
                 model.warn_far_outside(r_pc, type(self).__name__)
         if not want_energy:

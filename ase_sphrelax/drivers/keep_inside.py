@@ -71,7 +71,7 @@ class KeepInDomain:
         """Cut the steps that leave the domain; move particles that are outside back in (in place)."""
         self.adjust_moved(np.asarray(atoms.positions, dtype=float), new)
 
-    def adjust_moved(self, old_pc, new, longest=None, candidates=None, margin=None):
+    def adjust_moved(self, old_pc, new, longest=None, candidates=None, margin=None, candidates_phi=None):
         """:meth:`adjust_positions` for a move from ``old_pc`` to ``new`` (``new`` may be the Atoms' positions array,
         moved in place by an optimiser step; it is changed in place). ``old_pc``: an array (N, 3), or a function of
         the indices of the particles that left giving their old positions (k, 3) (an optimiser that holds them in
@@ -83,11 +83,15 @@ class KeepInDomain:
         the candidates can have left (the level set of a :class:`~ase_sphrelax.domains.base.Domain` is a signed
         distance: it changes by at most the move; half: an interpolated table's slope may exceed 1 a little), and only
         they are tested: the same particles are found as by testing all (at 1e6 particles in 3D the level set of all of
-        them cost 5 ms a step)."""
+        them cost 5 ms a step). ``candidates_phi``: the level set of each candidate at ``old_pc``; then only the
+        candidates with ``phi > -2 longest`` (or NaN) are tested, by the same rule."""
         if candidates is not None and margin is not None and longest is not None and self._takes_positions \
                 and longest < 0.5 * margin:
+            candidates = np.asarray(candidates)
+            if candidates_phi is not None:
+                candidates = candidates[~(np.asarray(candidates_phi) <= -2.0 * longest)]
             found = self._outside(np.take(new, candidates, axis=0))
-            out = np.asarray(candidates)[found]
+            out = candidates[found]
         else:
             out = self._outside(new)
         if len(out) == 0:

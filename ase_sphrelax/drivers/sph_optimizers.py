@@ -393,7 +393,7 @@ class _SPHOptimizer(Optimizer):
         known = getattr(self.optimizable.atoms.calc, "wall_candidates", None)
         found = known(constraint.domain) if known is not None else None
         if found is not None:
-            hint.update(candidates=found[0], margin=found[1])
+            hint.update(candidates=found[0], margin=found[1], candidates_phi=found[2])
         return hint
 
     def _setup_dim(self):

@@ -253,7 +253,7 @@ class FanModel:
         """``N v0 vt W(0, h) - V``: the ``i = j`` terms of Eq. 3.8 and its ``-V``."""
         return float(n * v0 * v0 * self.kernel.w0(self.h) - volume)
 
-    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None, candidates=None):
+    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None, candidates=None, phi_out=None):
         """Boundary term of Eq. 3.8 per particle and its force (:attr:`boundary_term`).
 
         Parameters
@@ -274,6 +274,8 @@ class FanModel:
         candidates : ndarray of int or None
             ``"level_set"``: the only particles that can lie within ``h`` of the wall (e.g. those within
             ``h + skin`` at the neighbour list's build, :meth:`near_wall`); None: all.
+        phi_out : ndarray (len(candidates),) or None
+            ``"level_set"`` with ``candidates``: receives the level set of each candidate at ``r_pc``.
 
         Returns
         -------
@@ -305,6 +307,8 @@ class FanModel:
         for first in range(0, len(candidates), _BOUNDARY_CHUNK):
             pool = candidates[first:first + _BOUNDARY_CHUNK]
             phi_o, n_oc = self._phi_and_normal(np.take(r_pc, pool, axis=0))
+            if phi_out is not None:
+                phi_out[first:first + len(pool)] = phi_o
             s_o = -phi_o
             if e_p is not None:
                 _add_where_within(e_p, pool, 2.0 * v0 * self.kernel.w1_tail_integral(s_o, self.h), s_o, self.h)
