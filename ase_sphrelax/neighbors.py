@@ -1156,6 +1156,7 @@ class NeighborList:
         self._pair_count = 0
         self._key = None
         self._r0_pc = None
+        self._drift = None  # a bound on every displacement since the build (update's moved_at_most), or None
         self._cut_build = None
         self._cut_build_uniform = None
         self._ends = None
@@ -1205,7 +1206,7 @@ class NeighborList:
         """The largest current cut-off."""
         return float(self.cutoff.max())
 
-    def update(self, positions, cell, pbc, cutoff=None, store=True) -> bool:
+    def update(self, positions, cell, pbc, cutoff=None, store=True, moved_at_most=None) -> bool:
         """Make the neighbours valid for ``positions``; return True if anything was (re)built.
 
         Parameters
@@ -1218,6 +1219,11 @@ class NeighborList:
         store : bool
             False asks for a one-shot evaluation: if no valid stored list exists, the points
             are binned (skin 0) and the pair sums scan the bins; no list is built.
+        moved_at_most : float or None
+            No position moved further than this since the last call (the caller's promise, e.g. an
+            optimiser's longest move of a step): while the sum of these bounds since the build
+            stays under half the skin, the list is kept without measuring the displacements (a
+            pass over 2 N positions). None: measured.
         """
         r_pc = _check_positions(positions, finite=False)  # NaN/inf: see _still_valid and _build
         pbc = np.array(pbc, dtype=bool).reshape(3) if np.ndim(pbc) else np.array([bool(pbc)] * 3)
@@ -1227,7 +1233,7 @@ class NeighborList:
         if self.cutoff.ndim == 1 and self.cutoff.shape[0] != r_pc.shape[0]:
             raise ValueError(f"cutoff has {self.cutoff.shape[0]} entries but there are {r_pc.shape[0]} particles")
         key = (r_pc.shape[0], cell.tobytes(), pbc.tobytes())
-        if key == self._key and (self.stored or not store) and self._still_valid(r_pc):
+        if key == self._key and (self.stored or not store) and self._still_valid(r_pc, moved_at_most):
             self._reuses += 1
             return False
         _check_positions(r_pc)
@@ -1236,6 +1242,7 @@ class NeighborList:
         self._build(r_pc, cell, pbc, store)
         self._reuses = 0
         self._key = key
+        self._drift = 0.0 if store else None
         if self._r0_pc is not None and self._r0_pc.shape == r_pc.shape and self._r0_pc is not r_pc:
             np.copyto(self._r0_pc, r_pc)  # in place: not a second copy of the positions at a rebuild's peak
         else:
@@ -1253,11 +1260,12 @@ class NeighborList:
         elif lasted > SKIN_SHRINK_ABOVE:
             self.skin = max(0.5 * self.skin, self.min_skin)
 
-    def _still_valid(self, r_pc):
+    def _still_valid(self, r_pc, moved_at_most=None):
         if self.cutoff.ndim == 0 and self._cut_build_uniform is not None:
             growth = float(self.cutoff) - self._cut_build_uniform
         else:
             growth = float(np.max(self.cutoff - self._cut_build))
+        drift, self._drift = self._drift, None  # a bound on the displacements since the build, while it holds
         if not self.stored:  # one-shot bins: only for the positions and cut-offs they were made for
             return growth <= 0.0 and np.array_equal(r_pc, self._r0_pc)
         margin = self.skin - max(growth, 0.0)
@@ -1265,7 +1273,17 @@ class NeighborList:
             return False
         if margin == 0.0:
             return np.array_equal(r_pc, self._r0_pc)
-        return _max_displacement2(r_pc, self._r0_pc) <= (0.5 * margin) ** 2
+        if drift is not None and moved_at_most is not None:
+            # the bounds add up (with a little to spare for the round-off of the moves themselves)
+            bound = drift + float(moved_at_most) * (1.0 + 1e-9) + 1e-12 * margin
+            if bound <= 0.5 * margin:
+                self._drift = bound
+                return True
+        d2 = _max_displacement2(r_pc, self._r0_pc)
+        if d2 <= (0.5 * margin) ** 2:
+            self._drift = float(np.sqrt(d2))
+            return True
+        return False
 
     def extend(self, positions):
         """Positions of the sorted extended points for the current ``positions``."""

@@ -3,7 +3,9 @@
 SPHFIRE writes its new positions into ``atoms.positions`` itself (the old ones aside) when the only constraints are
 :class:`KeepInDomain`; SPHFIRE and SPHLBFGS tell the constraint the longest move of the step and, from the calculator
 (``wall_candidates``), which particles can be near the wall; after its step the optimiser's force request skips the
-comparison of the positions (``forces_view(moved=True)``). None of it may change a trajectory by a bit.
+comparison of the positions (``forces_view(moved=True)``) and tells the neighbour list the step's longest move
+(``moved_at_most``: it measures the displacements only once the bounds pass half its skin). None of it may change a
+trajectory by a bit.
 """
 import numpy as np
 import pytest
@@ -11,7 +13,7 @@ from ase.constraints import FixAtoms
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ase_sphrelax import FanCalculator
+from ase_sphrelax import FanCalculator, neighbors
 from ase_sphrelax.build import fill
 from ase_sphrelax.domains import Circle, Sphere
 from ase_sphrelax.drivers import KeepInDomain, make_optimizer
@@ -157,3 +159,75 @@ def test_the_snapshots_scan_still_refuses_bad_positions_at_a_later_evaluation(ba
     match = "finite" if bad != "off_plane" else "z"
     with pytest.raises(ValueError, match=match):
         calc.forces_view(atoms, moved=True)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+def test_the_step_bounds_every_move_it_reports_to_the_neighbour_list(name, dim):
+    """The longest move a step passes on (``forces_view(moved_at_most=)``, KeepInDomain's corrections included) is
+    at least every particle's move since the calculator's previous evaluation; with the bound the run keeps the
+    same lists and the same trajectory as one where every displacement is measured."""
+    runs = []
+    for use_bound in (True, False):
+        atoms, domain = ball_case(dim)
+        calc = atoms.calc
+        own = {"lbfgs": {"memory": 5}, "fire": {"max_particle_step": None}}[name]
+        opt = make_optimizer(name, atoms, c=0.5, **own)
+        seen = {"last": atoms.positions.copy(), "bounded": 0, "measured": 0}
+        original = neighbors.NeighborList.update
+
+        def update(self, positions, *args, moved_at_most=None, _seen=seen, _use=use_bound, **kwargs):
+            moved = float(np.sqrt(((positions - _seen["last"]) ** 2).sum(axis=1).max()))
+            if moved_at_most is not None:
+                assert moved <= moved_at_most * (1 + 1e-12)
+                _seen["bounded"] += 1
+            _seen["last"] = np.array(positions)
+            return original(self, positions, *args, moved_at_most=moved_at_most if _use else None, **kwargs)
+
+        neighbors.NeighborList.update = update
+        measure = neighbors._max_displacement2
+        neighbors._max_displacement2 = lambda *a: seen.__setitem__("measured", seen["measured"] + 1) or measure(*a)
+        try:
+            opt.run(fmax=0.0, steps=30)
+        finally:
+            neighbors.NeighborList.update = original
+            neighbors._max_displacement2 = measure
+        keep = next(c for c in atoms.constraints if isinstance(c, KeepInDomain))
+        runs.append((atoms.positions.copy(), calc.nlist.builds, seen["bounded"], seen["measured"], keep.n_returned))
+    (r, builds, bounded, measured, returned), (r_all, builds_all, _, measured_all, returned_all) = runs
+    assert bounded >= 25 and returned > 0
+    assert np.array_equal(r, r_all) and builds == builds_all and returned == returned_all
+    assert measured < measured_all  # some displacements were not measured
+
+
+def test_neighbour_list_measures_once_the_bounds_pass_half_the_skin():
+    from ase_sphrelax.neighbors import NeighborList
+
+    rng = np.random.default_rng(0)
+    r_pc = rng.uniform(0, 1, (500, 3))
+    nl = NeighborList(0.1, skin=0.02)
+    cell, pbc = np.eye(3), [False] * 3
+    nl.update(r_pc, cell, pbc)
+    calls = []
+    measure = neighbors._max_displacement2
+    neighbors._max_displacement2 = lambda *a: calls.append(1) or measure(*a)
+    try:
+        for k in range(4):  # 4 moves of 0.002: the bound 0.008 < 0.01 = skin / 2, nothing measured
+            r_pc = r_pc + 0.002 / np.sqrt(3)
+            assert not nl.update(r_pc, cell, pbc, moved_at_most=0.002)
+        assert calls == []
+        r_pc = r_pc + 0.0019 / np.sqrt(3)  # the bound would pass 0.01: measured (0.0099), kept
+        assert not nl.update(r_pc, cell, pbc, moved_at_most=0.003)
+        assert calls == [1]
+        r_pc = r_pc + 0.00005 / np.sqrt(3)  # from the measured 0.0099 on: 0.00995, kept unmeasured
+        assert not nl.update(r_pc, cell, pbc, moved_at_most=0.00005)
+        assert calls == [1]
+        assert not nl.update(r_pc, cell, pbc)  # no bound: measured
+        assert calls == [1, 1]
+        r_pc = r_pc + 0.001 / np.sqrt(3)  # 0.01095 > 0.01: rebuilt
+        assert nl.update(r_pc, cell, pbc, moved_at_most=0.001)
+        builds = nl.builds
+        r_pc = r_pc + 0.009 / np.sqrt(3)  # a new build: the bounds start from 0 again
+        assert not nl.update(r_pc, cell, pbc, moved_at_most=0.009) and nl.builds == builds
+    finally:
+        neighbors._max_displacement2 = measure

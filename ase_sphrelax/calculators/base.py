@@ -365,7 +365,8 @@ class SPHCalculator(Calculator):
             if self.nlist is None or (self.nlist.min_skin, self.nlist.max_skin) != (skin, max_skin or skin):
                 self.nlist = NeighborList(cutoff, skin=skin, max_skin=max_skin)
             self.nlist.update(r_pc, atoms.cell.array, pbc, cutoff=cutoff,
-                              store=self._evaluations > 0 and self.stores_list())
+                              store=self._evaluations > 0 and self.stores_list(),
+                              moved_at_most=self.__dict__.pop("_moved_at_most", None))
         self._evaluations += 1
         return r_pc, pbc
 
@@ -487,7 +488,7 @@ class SPHCalculator(Calculator):
         # ``forces`` and getrefcount's argument only (a view of it, as forces_view's, holds it as its base)
         return forces if sys.getrefcount(forces) <= 2 else None
 
-    def forces_view(self, atoms, moved=False):
+    def forces_view(self, atoms, moved=False, moved_at_most=None):
         """The forces on ``atoms`` as ``get_forces`` (ASE's cache, an evaluation when needed), without the copy:
         a read-only view of this calculator's result, valid until its next evaluation.
 
@@ -495,13 +496,20 @@ class SPHCalculator(Calculator):
         (:class:`~ase_sphrelax.drivers.sph_optimizers.SPHFIRE`): at 1e6 particles the copy cost 6 ms a step.
         Constraints are not applied (``Atoms.get_forces`` would): the driver decides whether that matters.
         ``moved``: the caller has just set the positions (a step): they count as changed without the comparison
-        (a pass over 2 N positions); numbers, cell and pbc are compared as always.
+        (a pass over 2 N positions); numbers, cell and pbc are compared as always. ``moved_at_most`` (with
+        ``moved``): no particle moved further than this since this calculator's last evaluation (the step's longest
+        move, constraints included), passed to the neighbour list (:meth:`~ase_sphrelax.neighbors.NeighborList.update`),
+        which then need not measure the displacements while their bound stays under half its skin.
         """
         system_changes = self._changes(atoms, moved)
         if system_changes:
             self.reset()
         if "forces" not in self.results:
-            self.calculate(atoms, ["forces"], system_changes)
+            self._moved_at_most = moved_at_most if moved else None  # for prepare, in this evaluation only
+            try:
+                self.calculate(atoms, ["forces"], system_changes)
+            finally:
+                self._moved_at_most = None
         view = self.results["forces"].view()
         view.flags.writeable = False
         return view

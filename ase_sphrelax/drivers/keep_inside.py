@@ -84,7 +84,10 @@ class KeepInDomain:
         distance: it changes by at most the move; half: an interpolated table's slope may exceed 1 a little), and only
         they are tested: the same particles are found as by testing all (at 1e6 particles in 3D the level set of all of
         them cost 5 ms a step). ``candidates_phi``: the level set of each candidate at ``old_pc``; then only the
-        candidates with ``phi > -2 longest`` (or NaN) are tested, by the same rule."""
+        candidates with ``phi > -2 longest`` (or NaN) are tested, by the same rule.
+
+        Returns the longest move from ``old_pc`` of the particles it changed (0.0 when none; a step cut at the
+        boundary is shorter than the step, a particle moved back from outside can move further)."""
         if candidates is not None and margin is not None and longest is not None and self._takes_positions \
                 and longest < 0.5 * margin:
             candidates = np.asarray(candidates)
@@ -96,7 +99,7 @@ class KeepInDomain:
             out = self._outside(new)
         if len(out) == 0:
             self.n_left_outside = 0
-            return
+            return 0.0
         old = np.asarray(old_pc(out), dtype=float) if callable(old_pc) else np.asarray(old_pc, dtype=float)[out]
         step = new[out] - old
         inside_before = self._phi(old) < 0.0
@@ -121,6 +124,7 @@ class KeepInDomain:
             stuck = stuck[~(self._phi(new[stuck]) < 0.0)]
         self.n_returned += len(out) - len(stuck)
         self.n_left_outside = len(stuck)
+        return float(np.sqrt(((new[out] - old) ** 2).sum(axis=1).max()))
 
     def _outside(self, r_pc):
         """Indices of the points of ``r_pc`` not inside (``phi >= 0`` or NaN), :data:`_CHUNK` at a time

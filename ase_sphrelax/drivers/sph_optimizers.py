@@ -273,6 +273,11 @@ def _max(outs, k):
     return float(max(o[k] for o in outs))
 
 
+def _longer(a, b):
+    """The larger of two move lengths, None when either is unknown."""
+    return None if a is None or b is None else max(a, b)
+
+
 def _resolve_dim(atoms, dim):
     """2 for an SPH calculator in 2D (or ``dim=2``), else 3."""
     if dim is None:
@@ -311,6 +316,7 @@ class _SPHOptimizer(Optimizer):
         # the step's forces came from the calculator at the atoms' positions (not given to step()): its last evaluation
         # was at the step's start (_wall_hint)
         self._forces_current = False
+        self._last_move = None  # the longest move of a particle in the last step, when known (_forces)
         Optimizer.__init__(self, atoms, restart=None, logfile=logfile, trajectory=trajectory, **kwargs)
 
     def read(self):
@@ -321,12 +327,16 @@ class _SPHOptimizer(Optimizer):
         """Forces (n, 3), constraints applied: a fresh writable array, or with ``writable=False`` the SPH
         calculator's own result, read only (:meth:`~ase_sphrelax.calculators.base.SPHCalculator.forces_view`: no
         copy of N forces per step), when the only constraints are :class:`KeepInDomain` (which leave forces alone).
-        ``moved``: this optimiser's step has just set the positions (the calculator need not compare them)."""
+        ``moved``: this optimiser's step has just set the positions (the calculator need not compare them), each
+        particle's move at most :attr:`_last_move` when known (the calculator's neighbour list need not measure
+        them while their sum since its build stays under half its skin)."""
         if self._fast:
             atoms = self.optimizable.atoms
             if not writable and hasattr(atoms.calc, "forces_view") \
                     and all(isinstance(c, KeepInDomain) for c in atoms.constraints):
-                return atoms.calc.forces_view(atoms, moved=moved)
+                bound = self._last_move if moved else None
+                self._last_move = None
+                return atoms.calc.forces_view(atoms, moved=moved, moved_at_most=bound)
             return atoms.get_forces()
         return -self.optimizable.get_gradient().reshape(-1, 3)
 
@@ -353,9 +363,12 @@ class _SPHOptimizer(Optimizer):
             atoms = self.optimizable.atoms
             for constraint in atoms.constraints:  # as Atoms.set_positions, without its copy
                 if isinstance(constraint, KeepInDomain):
-                    constraint.adjust_moved(atoms.positions, new_pc, **self._wall_hint(constraint, longest))
+                    longest = _longer(longest, constraint.adjust_moved(atoms.positions, new_pc,
+                                                                       **self._wall_hint(constraint, longest)))
                 else:
                     constraint.adjust_positions(atoms, new_pc)
+                    longest = None  # another constraint's moves are not known
+            self._last_move = longest
             positions = atoms.arrays["positions"]
             if positions.shape == new_pc.shape and positions.dtype == new_pc.dtype == np.float64:
                 copy_rows(positions, new_pc)  # ASE's set_positions copies in place too, on one thread
@@ -381,7 +394,9 @@ class _SPHOptimizer(Optimizer):
         :meth:`KeepInDomain.adjust_moved` takes it)."""
         atoms = self.optimizable.atoms
         for constraint in atoms.constraints:
-            constraint.adjust_moved(old_pc, atoms.arrays["positions"], **self._wall_hint(constraint, longest))
+            longest = _longer(longest, constraint.adjust_moved(old_pc, atoms.arrays["positions"],
+                                                               **self._wall_hint(constraint, longest)))
+        self._last_move = longest
 
     def _wall_hint(self, constraint, longest):
         """:meth:`KeepInDomain.adjust_moved`'s keywords: the longest move and, when the calculator knows them for the
@@ -433,6 +448,7 @@ class _SPHOptimizer(Optimizer):
             # an observer or the caller may have moved the atoms: then the step asks anew (cached)
             step_f, f_pc = (f_pc if reuse and not self.observers else None), None
             self._forces_current = True  # the forces above, at these positions, or asked anew by the step
+            self._last_move = None  # set by a step that knows its moves (SPHFIRE, SPHLBFGS)
             self._step(step_f)
             step_f = None
             self.nsteps += 1
