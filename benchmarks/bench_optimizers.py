@@ -74,24 +74,27 @@ def case(n, dim):
 def calculator(domain, dx, dim):
     return FanCalculator(h=2.6 * dx, dx=dx, domain=domain, dim=dim)
 
-def warm(dim, options):
+def options(name, backend, memory=None):
+    # make_optimizer's keywords of a case: ours with ASE's FIRE step (no cut: the same trajectory as ASE's FIRE),
+    # SPHLBFGS with ``memory`` pairs when given
+    if name == "fire" and backend == "sph":
+        return {"max_particle_step": None}
+    return {"memory": memory} if (name == "lbfgs" and backend == "sph" and memory) else {}
+
+def warm(dim, memory):
     domain, dx, small = case(3000, dim)
     for name in ("fire", "lbfgs"):
         for backend in ("sph", "ase"):
             atoms = small.copy()
             atoms.calc = calculator(domain, dx, dim)
-            make_optimizer(name, atoms, backend=backend, **options(name, backend)).run(fmax=0.0, steps=3)
+            make_optimizer(name, atoms, backend=backend, **options(name, backend, memory)).run(fmax=0.0, steps=3)
 """
 
 TIMING = SETUP + r"""
 n, dim, threads, name, rounds, steps, memory = (float(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4],
                                                 int(sys.argv[5]), int(sys.argv[6]), json.loads(sys.argv[7]))
 numba.set_num_threads(threads)
-def options(name, backend):
-    if name == "fire" and backend == "sph":
-        return {"max_particle_step": None}  # ASE's step: the same trajectory as ASE's FIRE
-    return {"memory": memory} if (name == "lbfgs" and backend == "sph" and memory) else {}
-warm(dim, options)
+warm(dim, memory)
 domain, dx, atoms0 = case(n, dim)
 runs = {}
 for backend in ("sph", "ase"):
@@ -105,7 +108,7 @@ for backend in ("sph", "ase"):
         finally:
             _spent[0] += time.perf_counter() - t0
     calc.calculate = timed  # the time of each force evaluation inside the run
-    opt = make_optimizer(name, atoms, backend=backend, **options(name, backend))
+    opt = make_optimizer(name, atoms, backend=backend, **options(name, backend, memory))
     opt.run(fmax=0.0, steps=2)  # first evaluation, list build
     runs[backend] = (atoms, opt, spent)
 probe = atoms0.copy()
@@ -147,11 +150,7 @@ MEMORY = SETUP + r"""
 n, dim, threads, what, steps, memory = (float(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4],
                                         int(sys.argv[5]), json.loads(sys.argv[6]))
 numba.set_num_threads(threads)
-def options(name, backend):
-    if name == "fire" and backend == "sph":
-        return {"max_particle_step": None}  # ASE's step: the same trajectory as ASE's FIRE
-    return {"memory": memory} if (name == "lbfgs" and backend == "sph" and memory) else {}
-warm(dim, options)
+warm(dim, memory)
 domain, dx, atoms = case(n, dim)
 with open("/proc/self/clear_refs", "w") as f:
     f.write("5")
@@ -168,7 +167,7 @@ if what == "evaluation":
         record()
 else:
     backend, name = what.split()
-    opt = make_optimizer(name, atoms, backend=backend, **options(name, backend))
+    opt = make_optimizer(name, atoms, backend=backend, **options(name, backend, memory))
     opt.attach(record, interval=1)
     opt.run(fmax=0.0, steps=steps)
     cls = type(opt).__name__
