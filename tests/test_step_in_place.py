@@ -33,12 +33,14 @@ def ball_case(dim):
 
 def run(name, dim, plain, steps=25):
     """Positions after ``steps`` steps and KeepInDomain's count; ``plain``: the copy into atoms.positions and the
-    level set of every particle (a constraint besides KeepInDomain, no calculator hint)."""
+    level set of every particle (a constraint besides KeepInDomain, no calculator hint). ``name`` "fire cut": FIRE
+    with make_optimizer's cut of each particle's move (then only the old positions of the particles that can leave
+    are kept)."""
     atoms, domain = ball_case(dim)
     if plain:
         atoms.calc.wall_candidates = lambda domain: None
-    own = {"lbfgs": {"memory": 5}, "fire": {"max_particle_step": None}}[name]
-    opt = make_optimizer(name, atoms, c=0.5, **own)
+    own = {"lbfgs": {"memory": 5}, "fire": {"max_particle_step": None}, "fire cut": {}}[name]
+    opt = make_optimizer(name.split()[0], atoms, c=0.5, **own)
     if plain:
         atoms.set_constraint(list(atoms.constraints) + [FixAtoms(indices=[])])
     tested = []
@@ -50,7 +52,7 @@ def run(name, dim, plain, steps=25):
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-@pytest.mark.parametrize("name", ["fire", "lbfgs"])
+@pytest.mark.parametrize("name", ["fire", "fire cut", "lbfgs"])
 def test_in_place_steps_and_the_wall_hint_leave_the_trajectory_as_it_was(name, dim):
     r_fast, returned, tested, n = run(name, dim, plain=False)
     r_plain, returned_plain, tested_plain, _ = run(name, dim, plain=True)

@@ -186,14 +186,16 @@ def _fire_move(x_pc, v_pc, f_pc, dt, scaled, maxstep, normdr, d, first, last):
 
 @numba.njit(**_NOGIL)
 def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt, scaled, maxstep, normdr, cap, d,
-                        in_place, out, first, last):
+                        in_place, keep_old, out, first, last):
     """FIRE's new velocity (mode 0: v = 0, the first step; 1: FIRE's mixing; 2: v *= 0, uphill; then v += dt F) and
     the move x + dt v (scaled to norm maxstep when scaled, then each particle's move cut to length ``cap`` when
     ``cap > 0``) into ``new_pc``, in one pass: the norm of the whole move ``normdr`` is known before the pass
     (:func:`_fire_move_norm`). ``new_pc`` may be ``f_pc`` (each element of F is read before it is written).
-    ``in_place``: the new positions go into ``x_pc`` itself and the old ones into ``new_pc``. ``out[0]``: the
-    largest squared length of a particle's move so far (NaN wins)."""
+    ``in_place``: the new positions go into ``x_pc`` itself, and with ``keep_old`` the old ones into ``new_pc``
+    (without, ``new_pc`` is not written). ``out[0]``: the largest squared length of a particle's move so far (NaN
+    wins)."""
     longest2 = out[0]
+    dr_c = np.empty(3)
     for p in range(first, last):
         length2 = 0.0
         for c in range(d):
@@ -209,19 +211,21 @@ def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt,
             dr = dt * v
             if scaled:
                 dr = maxstep * dr / normdr
-            new_pc[p, c] = dr
+            dr_c[c] = dr
             length2 += dr * dr
         shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
         for c in range(d):
             x = x_pc[p, c]
-            moved = x + new_pc[p, c] * shrink  # times 1.0 (no cut): the move bit for bit
+            moved = x + dr_c[c] * shrink  # times 1.0 (no cut): the move bit for bit
             if in_place:
-                new_pc[p, c] = x
+                if keep_old:
+                    new_pc[p, c] = x
                 x_pc[p, c] = moved
             else:
                 new_pc[p, c] = moved
-        for c in range(d, 3):
-            new_pc[p, c] = x_pc[p, c]
+        if keep_old or not in_place:
+            for c in range(d, 3):
+                new_pc[p, c] = x_pc[p, c]
         move2 = length2 * shrink * shrink
         if not move2 <= longest2:
             longest2 = move2
@@ -587,17 +591,47 @@ class SPHFIRE(_FIREBase):
         # the new velocity and the move in one pass: the move's norm from the sums above
         normdr = _fire_move_norm(mode, a_mix, sqrt_ff, sqrt_vv, vf, ff, vv, self.dt)
         scaled = normdr > self.maxstep
-        # the new positions into atoms.positions itself and the old ones aside (no copy), when the constraints allow
+        # the new positions into atoms.positions itself and the old ones aside (no copy), when the constraints allow;
+        # with the cut of each move, only the old positions of the particles that can leave the domain
         in_place = self._moves_in_place(x_pc)
-        new_pc = self._scratch_like(f_pc)
         cap = 0.0 if self.max_particle_step is None else self.max_particle_step
+        may_leave = self._may_leave(cap) if in_place else None
+        new_pc = x_pc if may_leave is not None else self._scratch_like(f_pc)
+        old_kept = None if may_leave is None else np.take(x_pc, may_leave, axis=0)
         outs = reduce_chunks(_fire_velocity_move, n, (x_pc, self.vel, f_pc, new_pc, mode, a_mix, sqrt_ff, sqrt_vv,
-                                                      self.dt, scaled, self.maxstep, normdr, cap, d, in_place), 1)
+                                                      self.dt, scaled, self.maxstep, normdr, cap, d, in_place,
+                                                      may_leave is None), 1)
         longest = float(np.sqrt(_max(outs, 0)))
-        if in_place:
+        if not in_place:
+            self._set_positions(new_pc, longest)
+        elif may_leave is None:
             self._constrain_moved(new_pc, longest)
         else:
-            self._set_positions(new_pc, longest)
+            def old_rows(out):  # the old positions of the particles ``out``, all among ``may_leave``
+                rows = np.searchsorted(may_leave, out)
+                if np.any(rows >= len(may_leave)) or np.any(may_leave[np.minimum(rows, len(may_leave) - 1)] != out):
+                    raise RuntimeError("SPHFIRE: a particle left the domain that the step's cut should have kept in")
+                return old_kept[rows]
+
+            self._constrain_moved(old_rows, longest)
+
+    def _may_leave(self, cap):
+        """The sorted indices of the only particles that a step whose moves are cut at ``cap`` can take out of the
+        domains of the constraints (KeepInDomain's), from the calculator's ``wall_candidates`` at the step's start:
+        those within twice the cut of the wall (:meth:`KeepInDomain.adjust_moved`'s rule); None when not known."""
+        if not cap > 0.0 or not self._forces_current:
+            return None
+        atoms = self.optimizable.atoms
+        known = getattr(atoms.calc, "wall_candidates", None)
+        if known is None:
+            return None
+        parts = []
+        for constraint in atoms.constraints:
+            found = known(constraint.domain)
+            if found is None or not cap * (1.0 + 1e-9) < 0.5 * found[1]:
+                return None
+            parts.append(np.asarray(found[0])[~(np.asarray(found[2]) <= -2.0 * cap * (1.0 + 1e-9))])
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.intp)
 
 
 class SPHFIRE2(_FIREBase):
