@@ -97,11 +97,15 @@ def _copy_rows_chunk(dst, src, first, last):
 
 
 def copy_rows(dst, src):
-    """``dst[:] = src`` for two float arrays of one shape (P, C), the rows in :func:`thread_count` chunks (at 1e6
-    particles numpy's single-threaded copy of positions costs 3.5 ms; in place, no new pages)."""
-    if dst.shape != src.shape or dst.ndim != 2:
-        raise ValueError(f"copy_rows: shapes must be equal (P, C), got {dst.shape} and {src.shape}")
-    if thread_count(dst.shape[0]) == 1 or dst.dtype != np.float64 or src.dtype != np.float64:
+    """``dst[:] = src`` for two arrays of one shape (P, C) or (P,) and one dtype (float64 or int64 in chunks), the
+    rows in :func:`thread_count` chunks (at 1e6 particles numpy's single-threaded copy of positions costs 3.5 ms; in
+    place, no new pages)."""
+    if dst.shape != src.shape or dst.ndim not in (1, 2):
+        raise ValueError(f"copy_rows: shapes must be equal (P, C) or (P,), got {dst.shape} and {src.shape}")
+    if thread_count(dst.shape[0]) == 1 or dst.dtype != src.dtype or dst.dtype not in (np.float64, np.int64) \
+            or not (dst.flags.c_contiguous and src.flags.c_contiguous):
         dst[...] = src
         return
+    if dst.ndim == 1:
+        dst, src = dst.reshape(-1, 1), src.reshape(-1, 1)
     run_chunks(_copy_rows_chunk, dst.shape[0], (dst, src))

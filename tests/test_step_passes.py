@@ -35,6 +35,26 @@ def test_copy_rows_is_numpys_copy_in_place():
         assert np.array_equal(dst, src) and dst.ctypes.data == before
     with pytest.raises(ValueError, match="shapes must be equal"):
         copy_rows(np.zeros((4, 3)), np.zeros((5, 3)))
+    for n in (5, BIG):  # one-dimensional, integers (the atoms' numbers of the calculator's copy)
+        src, dst = rng.integers(1, 100, n), np.zeros(n, dtype=np.int64)
+        before = dst.ctypes.data
+        copy_rows(dst, src)
+        assert np.array_equal(dst, src) and dst.ctypes.data == before
+
+
+@pytest.mark.parametrize("where", [0, PARALLEL_MIN + 3, BIG - 1])
+def test_chunked_comparison_finds_a_difference_anywhere(where):
+    from ase_sphrelax.calculators.base import _equal
+
+    for a in (np.arange(BIG, dtype=np.int64), np.linspace(0.0, 1.0, 3 * BIG).reshape(BIG, 3)):
+        b = a.copy()
+        assert _equal(a, b)
+        b.reshape(len(b), -1)[where, -1] += 1
+        assert not _equal(a, b)
+    x = np.zeros((BIG, 3))
+    y = x.copy()
+    x[where, 1] = y[where, 1] = np.nan  # NaN is not equal to itself, as in np.array_equal
+    assert not _equal(x, y) and not np.array_equal(x, y)
 
 
 @pytest.mark.parametrize("where", [0, PARALLEL_MIN + 3, BIG - 1])

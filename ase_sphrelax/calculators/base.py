@@ -43,15 +43,13 @@ def periodic_measure(cell, pbc, dim):
     return float(np.sqrt(abs(np.linalg.det(vectors @ vectors.T))))
 
 
-@numba.njit(cache=True)
-def _same_values(a, b):
-    """Exact equality of two arrays of one shape, without the temporary of ``a == b``."""
-    a = a.ravel()
-    b = b.ravel()
-    for i in range(a.shape[0]):
+@numba.njit(cache=True, nogil=True)
+def _same_values_chunk(a, b, out, first, last):
+    """out[0] = 0 when ``a[first:last]`` and ``b[first:last]`` (flat) differ somewhere (a chunk of :func:`_equal`)."""
+    for i in range(first, last):
         if a[i] != b[i]:
-            return False
-    return True
+            out[0] = 0.0
+            return
 
 
 @numba.njit(cache=True, nogil=True)
@@ -104,7 +102,8 @@ def _equal(a, b):
     optimiser step, where numpy's allocation and dispatch cost more than the compare."""
     if a.shape != b.shape or a.dtype != b.dtype or not (a.flags.c_contiguous and b.flags.c_contiguous):
         return np.array_equal(a, b)
-    return _same_values(a, b)
+    a, b = a.reshape(-1), b.reshape(-1)  # views (contiguous)
+    return all(out[0] == 1.0 for out in reduce_chunks(_same_values_chunk, a.shape[0], (a, b), 1, fill=1.0))
 
 
 @dataclass
@@ -448,7 +447,7 @@ class SPHCalculator(Calculator):
                         and kept.flags.c_contiguous and values.flags.c_contiguous:
                     # copied and scanned in one pass: resolve_dim, next in calculate, takes the scan
                     self._scanned_positions = (kept, _scan_positions(values, copy_pc=kept))
-                elif kept.ndim == 2:
+                elif kept.ndim <= 2:
                     copy_rows(kept, values)
                 else:
                     np.copyto(kept, values)
