@@ -691,10 +691,14 @@ def _one_pass_list(scan, n_ext, buffer, nthreads):
     # the scan's pages are released as they are copied (the scan's buffer is dropped on return): one list at the
     # peak, not two
     buffer = np.empty(int(1.05 * total) + 1024, dtype=buffer.dtype)
-    dst = 0
-    for region, pos, _, _ in results:
-        _copy_releasing(buffer[dst:dst + pos], region[:pos])
-        dst += pos
+    starts = np.cumsum([0] + [r[1] for r in results])
+    copies = [(buffer[starts[t]:starts[t + 1]], results[t][0][:results[t][1]]) for t in range(len(results))]
+    # each region copied on its own thread (numpy's copy and madvise run without the GIL)
+    jobs = [pool.submit(_copy_releasing, *copy) for copy in copies[:-1]] if pool is not None else []
+    for copy in copies[len(jobs):]:
+        _copy_releasing(*copy)
+    for job in jobs:
+        job.result()
     np.cumsum(count_s, out=count_s)
     return count_s, buffer[:total], buffer, [r[3] for r in results]
 
