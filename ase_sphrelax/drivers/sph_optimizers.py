@@ -334,12 +334,12 @@ class _SPHOptimizer(Optimizer):
         ``moved``: this optimiser's step has just set the positions (the calculator need not compare them), each
         particle's move at most :attr:`_last_move` when known (the calculator's neighbour list need not measure
         them while their sum since its build stays under half its skin)."""
+        bound = self._last_move if moved else None
+        self._last_move = None  # a bound for this request only
         if self._fast:
             atoms = self.optimizable.atoms
             if not writable and hasattr(atoms.calc, "forces_view") \
                     and all(isinstance(c, KeepInDomain) for c in atoms.constraints):
-                bound = self._last_move if moved else None
-                self._last_move = None
                 return atoms.calc.forces_view(atoms, moved=moved, moved_at_most=bound)
             return atoms.get_forces()
         return -self.optimizable.get_gradient().reshape(-1, 3)
