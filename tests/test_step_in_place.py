@@ -233,3 +233,36 @@ def test_neighbour_list_measures_once_the_bounds_pass_half_the_skin():
         assert not nl.update(r_pc, cell, pbc, moved_at_most=0.009) and nl.builds == builds
     finally:
         neighbors._max_displacement2 = measure
+
+
+@pytest.mark.parametrize("how", ["irun", "observer"])
+def test_numbers_changed_between_steps_are_seen(how):
+    """``run`` without observers lets the calculator skip comparing the numbers after a step (no other code ran);
+    numbers changed by the caller of ``irun`` between steps, or by an observer, are compared and seen."""
+    atoms, domain = ball_case(2)
+    calc = atoms.calc
+    opt = make_optimizer("fire", atoms)
+    calls = []
+    changes = calc._changes
+
+    def spy(atoms, moved=False, numbers_kept=False):
+        found = changes(atoms, moved, numbers_kept)
+        calls.append((numbers_kept, found))
+        return found
+
+    calc._changes = spy
+    opt.run(fmax=0.0, steps=3)
+    assert any(kept for kept, _ in calls)  # run without observers: the numbers not compared after the steps
+    calls.clear()
+    if how == "irun":
+        for k, _ in enumerate(opt.irun(fmax=0.0, steps=3)):
+            if k == 1:
+                atoms.numbers[5] = 7
+    else:
+        def change():
+            if opt.nsteps == 4:
+                atoms.numbers[5] = 7
+        opt.attach(change)
+        opt.run(fmax=0.0, steps=3)
+    assert not any(kept for kept, _ in calls)  # irun or an observer: everything compared
+    assert sum("numbers" in found for _, found in calls) == 1  # and the change seen once

@@ -399,14 +399,15 @@ class SPHCalculator(Calculator):
         """
         return self._changes(atoms)
 
-    def _changes(self, atoms, moved=False):
-        """:meth:`check_state`'s list; ``moved``: "positions" without comparing them."""
+    def _changes(self, atoms, moved=False, numbers_kept=False):
+        """:meth:`check_state`'s list; ``moved``: "positions" without comparing them; ``numbers_kept``: the caller
+        vouches that the numbers are those of the last evaluation (not compared)."""
         if self.atoms is None or len(atoms) != len(self.atoms):
             return list(all_changes) + (["momenta"] if self.velocity_dependent else [])
         changes = []
         if moved or not _equal(atoms.positions, self.atoms.positions):
             changes.append("positions")
-        if not _equal(atoms.numbers, self.atoms.numbers):
+        if not numbers_kept and not _equal(atoms.numbers, self.atoms.numbers):
             changes.append("numbers")
         if not np.array_equal(atoms.cell.array, self.atoms.cell.array):
             changes.append("cell")
@@ -487,7 +488,7 @@ class SPHCalculator(Calculator):
         # ``forces`` and getrefcount's argument only (a view of it, as forces_view's, holds it as its base)
         return forces if sys.getrefcount(forces) <= 2 else None
 
-    def forces_view(self, atoms, moved=False, moved_at_most=None):
+    def forces_view(self, atoms, moved=False, moved_at_most=None, only_positions=False):
         """The forces on ``atoms`` as ``get_forces`` (ASE's cache, an evaluation when needed), without the copy:
         a read-only view of this calculator's result, valid until its next evaluation.
 
@@ -499,8 +500,11 @@ class SPHCalculator(Calculator):
         ``moved``): no particle moved further than this since this calculator's last evaluation (the step's longest
         move, constraints included), passed to the neighbour list (:meth:`~ase_sphrelax.neighbors.NeighborList.update`),
         which then need not measure the displacements while their bound stays under half its skin.
+        ``only_positions`` (with ``moved``): nothing but the positions can have changed since this calculator's last
+        evaluation of these atoms (an optimiser's ``run`` without observers: no other code ran between): the atoms'
+        numbers are not compared either (cell and pbc are, they are small).
         """
-        system_changes = self._changes(atoms, moved)
+        system_changes = self._changes(atoms, moved, only_positions and moved)
         if system_changes:
             self.reset()
         if "forces" not in self.results:

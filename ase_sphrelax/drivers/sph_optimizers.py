@@ -327,20 +327,21 @@ class _SPHOptimizer(Optimizer):
         raise ValueError(f"restart: {type(self).__name__} keeps no restart file")
 
     # -- coordinates ---------------------------------------------------------------------------
-    def _forces(self, writable=True, moved=False):
+    def _forces(self, writable=True, moved=False, only_positions=False):
         """Forces (n, 3), constraints applied: a fresh writable array, or with ``writable=False`` the SPH
         calculator's own result, read only (:meth:`~ase_sphrelax.calculators.base.SPHCalculator.forces_view`: no
         copy of N forces per step), when the only constraints are :class:`KeepInDomain` (which leave forces alone).
         ``moved``: this optimiser's step has just set the positions (the calculator need not compare them), each
         particle's move at most :attr:`_last_move` when known (the calculator's neighbour list need not measure
-        them while their sum since its build stays under half its skin)."""
+        them while their sum since its build stays under half its skin). ``only_positions``: no other code ran since
+        the calculator's last evaluation (``run`` without observers): only the positions can have changed."""
         bound = self._last_move if moved else None
         self._last_move = None  # a bound for this request only
         if self._fast:
             atoms = self.optimizable.atoms
             if not writable and hasattr(atoms.calc, "forces_view") \
                     and all(isinstance(c, KeepInDomain) for c in atoms.constraints):
-                return atoms.calc.forces_view(atoms, moved=moved, moved_at_most=bound)
+                return atoms.calc.forces_view(atoms, moved=moved, moved_at_most=bound, only_positions=only_positions)
             return atoms.get_forces()
         return -self.optimizable.get_gradient().reshape(-1, 3)
 
@@ -456,7 +457,8 @@ class _SPHOptimizer(Optimizer):
             self._step(step_f)
             step_f = None
             self.nsteps += 1
-            f_pc = self._forces(writable=False, moved=True)
+            # run without observers: nothing but this step touched the atoms since the last evaluation
+            f_pc = self._forces(writable=False, moved=True, only_positions=reuse and not self.observers)
             self.log(-f_pc.reshape(-1) if not self._silent else None)
             self.call_observers()
             is_converged = self._converged(f_pc)
