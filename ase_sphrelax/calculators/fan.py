@@ -130,7 +130,7 @@ class FanCalculator(SPHCalculator):
         if nlist is None or not nlist.stored or self.model.boundary_term != "level_set" \
                 or not isinstance(self.model.domain, Domain):  # a Domain's phi is a signed distance (1-Lipschitz)
             return None
-        key = (id(nlist), nlist.builds, id(self.model))
+        key = self._near_key_of(nlist)
         if getattr(self, "_near_key", None) != key:
             self._near = None  # the old set goes first
             self._near = self.model.near_wall(nlist.positions_at_build, self.model.h + nlist.skin)
@@ -138,6 +138,10 @@ class FanCalculator(SPHCalculator):
             self._near_phi_at = None
             self._near_key = key
         return self._near
+
+    def _near_key_of(self, nlist):
+        """What the particles near the wall (:meth:`_near_wall`) were found for: the list, its build, the model."""
+        return id(nlist), nlist.builds, id(self.model)
 
     def wall_candidates(self, domain):
         """``(indices, margin, phi_k)``: at the positions of this calculator's last evaluation every particle not in
@@ -152,7 +156,7 @@ class FanCalculator(SPHCalculator):
         the margin can take only these particles out of the domain."""
         nlist = self.nlist
         if domain is None or domain is not getattr(self.model, "domain", None) or nlist is None or not nlist.stored \
-                or nlist.build_pending or getattr(self, "_near_key", None) != (id(nlist), nlist.builds, id(self.model)) \
+                or nlist.build_pending or getattr(self, "_near_key", None) != self._near_key_of(nlist) \
                 or self._near_phi_at != self._evaluations:
             return None
         return self._near, self.model.h + 0.5 * nlist.skin, self._near_phi

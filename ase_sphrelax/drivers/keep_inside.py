@@ -88,15 +88,8 @@ class KeepInDomain:
 
         Returns the longest move from ``old_pc`` of the particles it changed (0.0 when none; a step cut at the
         boundary is shorter than the step, a particle moved back from outside can move further)."""
-        if candidates is not None and margin is not None and longest is not None and self._takes_positions \
-                and longest < 0.5 * margin:
-            candidates = np.asarray(candidates)
-            if candidates_phi is not None:
-                candidates = candidates[~(np.asarray(candidates_phi) <= -2.0 * longest)]
-            found = self._outside(np.take(new, candidates, axis=0))
-            out = candidates[found]
-        else:
-            out = self._outside(new)
+        tested = self.may_leave(longest, candidates, margin, candidates_phi)
+        out = self._outside(new) if tested is None else tested[self._outside(np.take(new, tested, axis=0))]
         if len(out) == 0:
             self.n_left_outside = 0
             return 0.0
@@ -125,6 +118,17 @@ class KeepInDomain:
         self.n_returned += len(out) - len(stuck)
         self.n_left_outside = len(stuck)
         return float(np.sqrt(((new[out] - old) ** 2).sum(axis=1).max()))
+
+    def may_leave(self, longest, candidates=None, margin=None, candidates_phi=None):
+        """The indices of the only particles that moves of at most ``longest`` can take out of the domain, by
+        :meth:`adjust_moved`'s rule (``candidates``, ``margin``, ``candidates_phi`` as there), or None: any."""
+        if candidates is None or margin is None or longest is None or not self._takes_positions \
+                or not longest < 0.5 * margin:
+            return None
+        candidates = np.asarray(candidates)
+        if candidates_phi is not None:
+            candidates = candidates[~(np.asarray(candidates_phi) <= -2.0 * longest)]
+        return candidates
 
     def _outside(self, r_pc):
         """Indices of the points of ``r_pc`` not inside (``phi >= 0`` or NaN), :data:`_CHUNK` at a time

@@ -619,20 +619,17 @@ class SPHFIRE(_FIREBase):
 
     def _may_leave(self, cap):
         """The sorted indices of the only particles that a step whose moves are cut at ``cap`` can take out of the
-        domains of the constraints (KeepInDomain's), from the calculator's ``wall_candidates`` at the step's start:
-        those within twice the cut of the wall (:meth:`KeepInDomain.adjust_moved`'s rule); None when not known."""
-        if not cap > 0.0 or not self._forces_current:
+        domains of the constraints (KeepInDomain's, :meth:`KeepInDomain.may_leave` with the calculator's
+        ``wall_candidates`` at the step's start); None when not known."""
+        if not cap > 0.0:
             return None
-        atoms = self.optimizable.atoms
-        known = getattr(atoms.calc, "wall_candidates", None)
-        if known is None:
-            return None
+        bound = cap * (1.0 + 1e-9)  # the round-off of a move cut at cap
         parts = []
-        for constraint in atoms.constraints:
-            found = known(constraint.domain)
-            if found is None or not cap * (1.0 + 1e-9) < 0.5 * found[1]:
+        for constraint in self.optimizable.atoms.constraints:
+            part = constraint.may_leave(**self._wall_hint(constraint, bound))
+            if part is None:
                 return None
-            parts.append(np.asarray(found[0])[~(np.asarray(found[2]) <= -2.0 * cap * (1.0 + 1e-9))])
+            parts.append(part)
         return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.intp)
 
 
