@@ -593,6 +593,8 @@ def _scan_chunk_growing(scan, t, count_s, region, first, last):
 
 
 _COPY_CHUNK = 1 << 20  # bytes copied between two releases
+# partners a thread of a one-shot plain scan lists before it writes over them (int32: 1 MiB, in cache)
+ONE_SHOT_REGION = 1 << 18
 _MADV_DONTNEED = 4  # Linux
 
 
@@ -1361,10 +1363,42 @@ class NeighborList:
         """Arrays of the list scan, after the positions: (src_s, img_sc, is_ghost_s, cut_s,
         skin, bin_s, nbin_c, bin_start, stencil, room), ``room`` the most candidates a
         normal point can have (:attr:`BinnedPoints.max_candidates`; a wide point's own is in
-        ``stencil``, see :func:`point_room`)."""
+        ``stencil``, see :func:`point_room`). In the one-shot state ``skin`` is 0 (the bins' own)."""
         pts = self.points
-        return (pts.src_s, pts.img_sc, pts.is_ghost_s, pts.cut_s, self.skin, pts.bin_s, pts.nbin_c,
-                pts.bin_start, pts.stencil, pts.max_candidates)
+        return (pts.src_s, pts.img_sc, pts.is_ghost_s, pts.cut_s, self.skin if self.stored or self._pending else 0.0,
+                pts.bin_s, pts.nbin_c, pts.bin_start, pts.stencil, pts.max_candidates)
+
+    def one_shot_scan(self, scan, nthreads):
+        """A one-shot pair sum on :attr:`plain` bins by the plain build's loop, with no list kept.
+
+        ``scan`` as :meth:`fused_build`'s, on the bins of :meth:`build_arrays` (skin 0). Each of the ``nthreads``
+        chunks lists its points' partners into a small region of its own, which every call fills anew: a point's
+        terms are summed from its partners as soon as they are listed (the loop's order), and the region is
+        overwritten by the next bins'. The same pairs as the general one-shot scan (``"scan"``), each point's in the
+        list's order (the general scan branches on each candidate's test)."""
+        if self.stored or self._pending or not self.plain:
+            raise ValueError("one_shot_scan: needs one-shot plain bins (update(..., store=False), no images)")
+        pts = self.points
+        room = int(pts.max_candidates)
+        fullest = int(np.diff(pts.bin_start).max()) if pts.bin_start.shape[0] > 1 else 1
+        cap = max(ONE_SHOT_REGION, 1 + fullest * room)  # at least the fullest bin's points and all their candidates
+        count_s = np.empty(pts.n_extended + 1, dtype=np.int64)
+        bounds = chunk_bounds(pts.n_extended, nthreads)
+
+        def run(t):
+            region = np.empty(cap, dtype=np.int32)
+            first, last = bounds[t]
+            a, _ = scan(t, count_s, region, 0, first, last)
+            while a < last:  # the region is full: on from ``a``, written over (pos 1: the thread's sums are kept)
+                before, (a, _) = a, scan(t, count_s, region, 1, a, last)
+                if a <= before:  # cannot happen: the region holds any bin's points and their candidates
+                    raise RuntimeError("one_shot_scan: a call listed no point")
+
+        pool = thread_pool(nthreads) if nthreads > 1 else None
+        jobs = [pool.submit(run, t) for t in range(nthreads - 1)] if pool is not None else []
+        run(nthreads - 1)  # on the calling thread
+        for job in jobs:
+            job.result()
 
     @property
     def n_particles(self):

@@ -771,8 +771,16 @@ class PairInteraction:
                 *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            loop = self.loop(kind, kernel, planar, reach_test=reach_test)
-            run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
+            if kind == "scan" and getattr(neighbors, "plain", False) and hasattr(neighbors, "one_shot_scan"):
+                # one-shot plain bins: the plain build's loop, its partners listed into a region it writes over
+                loop = self.loop("build_plain", kernel, planar, reach_test=reach_test)
+                pre = (x_sc, *neighbors.build_arrays())
+                post = (reach * reach, tuple(params), inp)
+                neighbors.one_shot_scan(lambda t, count_s, pair_j, pos, first, last: loop(
+                    *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
+            else:
+                loop = self.loop(kind, kernel, planar, reach_test=reach_test)
+                run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward, out)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:

@@ -269,3 +269,55 @@ def test_plain_build_on_grid_points_with_coincident_pairs_and_pairs_at_the_reach
     one_shot.update(r_pc, cell, pbc, store=False)
     _, f_ref, _ = pair_potential_sums(one_shot, r_pc, h, 1.0, KERNEL)
     np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * max(np.abs(f_ref).max(), 1.0))
+
+
+@pytest.fixture(params=[False, True], ids=["one call", "region written over"])
+def small_region(request, monkeypatch):
+    """Optionally let a one-shot plain scan's region hold a few bins only, so that every chunk is scanned in many
+    calls, each writing over the partners of the last."""
+    if request.param:
+        monkeypatch.setattr(neighbors, "ONE_SHOT_REGION", 1)
+    return request.param
+
+
+@pytest.mark.parametrize("flat", [False, True], ids=["3D", "2D"])
+def test_one_shot_plain_scan_gives_the_sums_of_the_general_scan_and_of_a_fused_build(chunks, small_region, flat,
+                                                                                      monkeypatch):
+    """One-shot bins of a set without images and of one cut-off are summed by the plain build's loop with no list
+    kept: the energies and forces of the general one-shot scan (to round-off: another order of the terms) and, bit
+    for bit, those of a fused build that lists the same pairs (skin 1e-9: no pair lies between h and h + skin)."""
+    r_pc, cell, pbc = _bounded_scene(8, n=400, flat=flat)
+    r_pc = np.concatenate([r_pc, r_pc[:20]])  # coincident pairs
+    h = 0.9
+    calls = []
+    one_shot = NeighborList(h)
+    one_shot.update(r_pc, cell, pbc, store=False)
+    assert one_shot.plain
+    scan = one_shot.one_shot_scan
+    monkeypatch.setattr(one_shot, "one_shot_scan", lambda *a: calls.append(1) or scan(*a))
+    e, f, _ = pair_potential_sums(one_shot, r_pc, h, 1.0, KERNEL)
+    assert calls and not one_shot.stored  # the plain path ran, and kept no list
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(NeighborList, "plain", property(lambda self: False))
+        general = NeighborList(h)
+        general.update(r_pc, cell, pbc, store=False)
+        e_general, f_general, _ = pair_potential_sums(general, r_pc, h, 1.0, KERNEL)
+    np.testing.assert_allclose(e, e_general, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(f, f_general, rtol=1e-12, atol=1e-12 * np.abs(f_general).max())
+    fused = NeighborList(h, skin=1e-9)
+    fused.update(r_pc, cell, pbc)
+    e_fused, f_fused, _ = pair_potential_sums(fused, r_pc, h, 1.0, KERNEL)
+    assert fused.stored
+    np.testing.assert_array_equal(e, e_fused)
+    np.testing.assert_array_equal(f, f_fused)
+
+
+def test_one_shot_scan_refuses_a_stored_list_and_bins_with_images():
+    r_pc, cell, pbc = scene(9)
+    stored = NeighborList(0.9, skin=0.1)
+    stored.update(r_pc, cell, np.zeros(3, dtype=bool))
+    periodic = NeighborList(0.9)
+    periodic.update(r_pc, cell, pbc, store=False)
+    for nlist in (stored, periodic):
+        with pytest.raises(ValueError, match="one_shot_scan"):
+            nlist.one_shot_scan(lambda *a: None, 1)
