@@ -129,7 +129,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
     from ase.optimize import BFGS, FIRE, LBFGS
 
     from .fan_relaxation import FanRelaxation  # numba: loaded only for Eq. 2.4
-    from .sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS, _resolve_dim
+    from .sph_optimizers import SPHFIRE, SPHFIRE2, SPHLBFGS, moving_dim
 
     if name not in OPTIMIZERS:
         raise ValueError(f"optimizer must be one of {OPTIMIZERS}, got {name!r}")
@@ -166,7 +166,7 @@ def make_optimizer(name, atoms, c=None, h=None, logfile=None, keep_inside=True, 
             params.update(dtmax=dynamics.pop("dtmax_over_dt") * dt, **dynamics)
             # fewer rebuilds of a Verlet list (FIRE_PARTICLE_STEP): for the particles of an Atoms (a Filter's rows
             # may be a cell's too) whose calculator keeps one
-            cut = FIRE_PARTICLE_STEP[_resolve_dim(atoms, kwargs.get("dim"))]
+            cut = FIRE_PARTICLE_STEP[moving_dim(atoms, kwargs.get("dim"))]
             if sph and cut is not None and isinstance(atoms, Atoms) and getattr(atoms.calc, "skin", None) is not None:
                 params["max_particle_step"] = cut * h
         else:  # FIRE2's floor on dt, in ASE's ratio to its dt (2e-3 / 0.1)

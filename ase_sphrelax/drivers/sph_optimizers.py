@@ -34,7 +34,7 @@ from ..parallel import copy_rows, reduce_chunks, run_chunks
 from .keep_inside import KeepInDomain
 from .step_scale import warn_if_nothing_relaxed
 
-__all__ = ["SPHFIRE", "SPHFIRE2", "SPHLBFGS"]
+__all__ = ["SPHFIRE", "SPHFIRE2", "SPHLBFGS", "moving_dim"]
 
 _NOGIL = dict(nogil=True, cache=True)
 
@@ -282,8 +282,9 @@ def _longer(a, b):
     return None if a is None or b is None else max(a, b)
 
 
-def _resolve_dim(atoms, dim):
-    """2 for an SPH calculator in 2D (or ``dim=2``), else 3."""
+def moving_dim(atoms, dim):
+    """The coordinates an optimiser moves: 2 for an SPH calculator in 2D (or ``dim=2``), else 3; ``dim`` other
+    than None, 2 or 3 is refused."""
     if dim is None:
         calc = getattr(atoms, "calc", None)
         dim = getattr(calc, "dim", None) or (getattr(calc, "parameters", None) or {}).get("dim")
@@ -314,7 +315,7 @@ class _SPHOptimizer(Optimizer):
         if restart is not None:
             raise ValueError(f"restart: {type(self).__name__} keeps no restart file, got {restart!r}")
         self._fast = isinstance(atoms, Atoms)
-        self._dim_arg = _resolve_dim(atoms, dim) if dim is not None else None
+        self._dim_arg = moving_dim(atoms, dim) if dim is not None else None
         self.dim = None  # resolved at the first step (the SPH calculator knows it after an evaluation)
         self._silent = logfile is None  # ASE computes E and |F| for a log that writes nothing
         # the step's forces came from the calculator at the atoms' positions (not given to step()): its last evaluation
@@ -418,7 +419,7 @@ class _SPHOptimizer(Optimizer):
 
     def _setup_dim(self):
         if self.dim is None:
-            self.dim = self._dim_arg or (_resolve_dim(self.optimizable.atoms, None) if self._fast else 3)
+            self.dim = self._dim_arg or (moving_dim(self.optimizable.atoms, None) if self._fast else 3)
         return self.dim
 
     # -- the run loop: one force request per step -----------------------------------------------
