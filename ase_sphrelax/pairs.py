@@ -761,26 +761,25 @@ class PairInteraction:
                              for buf, o in zip(buffers[t], self.outputs.values())) for t in range(nthreads)]
         per_thread = [(buffers[t], bases[t]) for t in range(nthreads)]
         reach_test = not self._reach_covers_support(params, reach)
-        if getattr(neighbors, "build_pending", False):
-            # a rebuild: one bin scan writes the Verlet list and evaluates the pairs
-            plain = bool(getattr(neighbors, "plain", False))
+        pending = bool(getattr(neighbors, "build_pending", False))
+        plain = bool(getattr(neighbors, "plain", False))
+        one_shot = not pending and plain and hasattr(neighbors, "one_shot_scan") \
+            and neighbors.loop_arrays()[0] == "scan"
+        if pending or one_shot:
+            # a rebuild: one bin scan writes the Verlet list and evaluates the pairs; one-shot plain bins: the plain
+            # build's loop, its partners listed into a region it writes over (no list kept)
             loop = self.loop("build_plain" if plain else "build", kernel, planar, reach_test=reach_test)
             pre = (x_sc, *neighbors.build_arrays())
             post = (reach * reach, tuple(params), inp)
-            neighbors.fused_build(lambda t, count_s, pair_j, pos, first, last: loop(
-                *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
+
+            def scan(t, count_s, pair_j, pos, first, last):
+                return loop(*pre, count_s, pair_j, pos, *post, *per_thread[t], first, last)
+
+            (neighbors.fused_build if pending else neighbors.one_shot_scan)(scan, nthreads)
         else:
             kind, arrays = neighbors.loop_arrays()
-            if kind == "scan" and getattr(neighbors, "plain", False) and hasattr(neighbors, "one_shot_scan"):
-                # one-shot plain bins: the plain build's loop, its partners listed into a region it writes over
-                loop = self.loop("build_plain", kernel, planar, reach_test=reach_test)
-                pre = (x_sc, *neighbors.build_arrays())
-                post = (reach * reach, tuple(params), inp)
-                neighbors.one_shot_scan(lambda t, count_s, pair_j, pos, first, last: loop(
-                    *pre, count_s, pair_j, pos, *post, *per_thread[t], first, last), nthreads)
-            else:
-                loop = self.loop(kind, kernel, planar, reach_test=reach_test)
-                run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
+            loop = self.loop(kind, kernel, planar, reach_test=reach_test)
+            run_chunks(loop, n_ext, (x_sc, *arrays, reach * reach, tuple(params), inp), per_thread=per_thread)
         result = self._fold(neighbors, buffers, bases, forward, out)
         self._stacked = buffers = per_thread = None  # views of the shared scratch: not kept past the call
         if release or n_ext >= RELEASE_MIN_POINTS:
