@@ -66,7 +66,8 @@ def test_the_bound_covers_every_particles_step(seed, n, m, dim, zero, scale):
     opt._y_max = np.sqrt((y**2).sum(axis=2).max(axis=1))
     g_max = float(np.sqrt((f**2).sum(axis=1).max()))
     slot = int(rng.integers(m))
-    longest = float(np.sqrt(so._max(reduce_chunks(so._lbfgs_combine, n, (f, s.copy(), y, slot, cs, cy, cg, dim), 1), 0)))
+    outs = reduce_chunks(so._lbfgs_combine, n, (f, s.copy(), y, slot, cs, cy, cg, dim), 1)
+    longest = float(np.sqrt(so._max(outs, 0)))
     opt.maxstep = longest * (1.0 + 1e-12)  # just above the longest step: the bound may or may not be below it
     if opt._unscaled(cg, cs, cy, g_max):
         assert longest < opt.maxstep

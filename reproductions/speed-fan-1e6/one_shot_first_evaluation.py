@@ -64,7 +64,8 @@ def main(argv=None):
                                           median={k: float(np.median(v)) for k, v in times.items()},
                                           max_force_difference_relative=float(
                                               np.abs(forces["plain"] - forces["general"]).max() / scale))
-        print(f"{dim}D n={len(atoms)}: plain {np.round(times['plain'], 3)} s, general {np.round(times['general'], 3)} s")
+        print(f"{dim}D n={len(atoms)}: plain {np.round(times['plain'], 3)} s, "
+              f"general {np.round(times['general'], 3)} s")
     result["load_average_end"] = os.getloadavg()
     write_json(args.out, result)
 
