@@ -15,8 +15,7 @@ loop asks for the forces three times per step. At 1e6 particles that made an LBF
 * LBFGS: ``memory`` pairs ``(s, y)`` in float64, the pair of the next step kept in the slot of
   the pair that leaves the history, so ``memory`` pairs are all it holds (the step is formed in
   that slot too, which it leaves);
-  two passes over them per step (the two-loop recursion on their dot products), three when the step may need
-  ``maxstep``'s scaling;
+  three passes over them per step (the two-loop recursion on their dot products);
   ``s = x_{k+1} - x_k`` is taken from the positions the atoms have (constraints such as
   :class:`~ase_sphrelax.drivers.keep_inside.KeepInDomain` and observers included), as in ASE.
 
@@ -60,32 +59,20 @@ _BLOCK = 256  # particles per block: the block's s, y, g stay in cache while eve
 def _lbfgs_pair_dots(s_mpc, y_mpc, slot, x_pc, f_pc, d, out, first, last):
     """Complete the pending pair in ``slot`` (s = -x_k + x_{k+1}, y = F_k - F_{k+1}); then the dot
     products of s_slot, y_slot and g = -F with every stored s_j and y_j:
-    out[6j..6j+5] += (s.s_j, s.y_j, y.s_j, y.y_j, g.s_j, g.y_j); and the largest squared length of a
-    particle's s_slot, y_slot and g into out[6m..6m+2] (NaN wins)."""
+    out[6j..6j+5] += (s.s_j, s.y_j, y.s_j, y.y_j, g.s_j, g.y_j)."""
     m = s_mpc.shape[0]
     sf = s_mpc.reshape((m, -1))
     yf = y_mpc.reshape((m, -1))
     g = np.empty(_BLOCK * d)
-    s_max, y_max, g_max = out[6 * m], out[6 * m + 1], out[6 * m + 2]
     for b0 in range(first, last, _BLOCK):
         b1 = min(b0 + _BLOCK, last)
         e0 = b0 * d
         for p in range(b0, b1):
-            s2 = y2 = g2 = 0.0
             for c in range(d):
                 e = p * d + c
                 sf[slot, e] = sf[slot, e] + x_pc[p, c]
                 yf[slot, e] = yf[slot, e] - f_pc[p, c]
                 g[e - e0] = -f_pc[p, c]
-                s2 += sf[slot, e] * sf[slot, e]
-                y2 += yf[slot, e] * yf[slot, e]
-                g2 += f_pc[p, c] * f_pc[p, c]
-            if not s2 <= s_max:
-                s_max = s2
-            if not y2 <= y_max:
-                y_max = y2
-            if not g2 <= g_max:
-                g_max = g2
         e1 = b1 * d
         for j in range(m):
             a0 = a1 = a2 = a3 = a4 = a5 = 0.0
@@ -107,9 +94,6 @@ def _lbfgs_pair_dots(s_mpc, y_mpc, slot, x_pc, f_pc, d, out, first, last):
             out[6 * j + 3] += a3
             out[6 * j + 4] += a4
             out[6 * j + 5] += a5
-    out[6 * m] = s_max
-    out[6 * m + 1] = y_max
-    out[6 * m + 2] = g_max
 
 
 @numba.njit(**_NOGIL)
@@ -168,53 +152,6 @@ def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, new_pc, in
         if not in_place:
             for c in range(d, 3):
                 new_pc[p, c] = x_pc[p, c]
-
-
-@numba.njit(**_NOGIL)
-def _lbfgs_combine_finish(x_pc, f_pc, s_mpc, y_mpc, slot, cs, cy, cg, damping, d, new_pc, in_place, out, first,
-                          last):
-    """:func:`_lbfgs_combine` and :func:`_lbfgs_finish` (not scaled) in one pass, for a step known beforehand to
-    need no scaling: each block's z formed aside (reading the oldest pair in ``slot`` for the last time), then the
-    move dr = -z times damping, the next pending pair (s = -x_k, y = F_k) into ``slot`` and the new positions, as
-    the two passes write them bit for bit; out[0] = max |z_p|^2."""
-    m = s_mpc.shape[0]
-    sf = s_mpc.reshape((m, -1))
-    yf = y_mpc.reshape((m, -1))
-    z = np.empty(_BLOCK * d)
-    best = out[0]
-    for b0 in range(first, last, _BLOCK):
-        b1 = min(b0 + _BLOCK, last)
-        e0 = b0 * d
-        for p in range(b0, b1):
-            for c in range(d):
-                z[p * d + c - e0] = cg * -f_pc[p, c]
-        for j in range(m):
-            a = cs[j]
-            b = cy[j]
-            if a == 0.0 and b == 0.0:
-                continue
-            for e in range(e0, b1 * d):
-                z[e - e0] += a * sf[j, e] + b * yf[j, e]
-        for p in range(b0, b1):
-            z2 = 0.0
-            for c in range(d):
-                zc = z[p * d + c - e0]
-                z2 += zc * zc
-                t = -zc
-                t = t * damping
-                x = x_pc[p, c]
-                sf[slot, p * d + c] = -x
-                yf[slot, p * d + c] = f_pc[p, c]
-                if in_place:
-                    x_pc[p, c] = x + t
-                else:
-                    new_pc[p, c] = x + t
-            if not in_place:
-                for c in range(d, 3):
-                    new_pc[p, c] = x_pc[p, c]
-            if not z2 <= best:
-                best = z2
-    out[0] = best
 
 
 @numba.njit(**_NOGIL)
@@ -779,11 +716,8 @@ class SPHLBFGS(_SPHOptimizer):
     multiplied by ``damping``. The recursion runs on the coefficients of the step in the basis
     ``(s_j, y_j, g)`` from the matrix of their dot products, as in the vector-free L-BFGS of
     Chen et al. (NeurIPS 2014): one pass completes the newest pair and takes its dot products
-    (and g's) with every stored pair, one pass forms the step and moves the particles, where
-    ASE's recursion makes ``2 memory + 1`` passes. The same arithmetic up to round-off. The move waits for a pass
-    of its own only when the step may need ``maxstep``'s scaling (known only once the step is formed): a bound of
-    every particle's step from the largest lengths of g and of each stored s_j and y_j (kept as each pair is
-    completed) tells beforehand when it cannot (on Fan's circle and sphere: every step after the first).
+    (and g's) with every stored pair, one pass forms the step, one moves the particles, where
+    ASE's recursion makes ``2 memory + 1`` passes. The same arithmetic up to round-off.
     Memory: ``2 memory`` vectors of ``dim * N`` floats (the step is formed in the slot of the
     pair that leaves the history).
 
@@ -824,8 +758,6 @@ class SPHLBFGS(_SPHOptimizer):
             self._s = np.zeros((self.memory, n, d))
             self._y = np.zeros((self.memory, n, d))
             self._ss, self._sy, self._yy = (np.zeros((self.memory, self.memory)) for _ in range(3))
-            # the largest length of a particle's s_j and y_j of each stored pair (the bound of a step's moves)
-            self._s_max, self._y_max = np.zeros(self.memory), np.zeros(self.memory)
         elif self._s.shape[1] != n:
             raise ValueError(f"atoms: the number of particles changed from {self._s.shape[1]} to {n}")
 
@@ -839,17 +771,13 @@ class SPHLBFGS(_SPHOptimizer):
         h0 = 1.0 / self.alpha
         count = min(m, k)
         cs, cy = np.zeros(m), np.zeros(m)
-        g_max = None
         if count == 0:
             cg = h0  # ASE: z = H0 @ g
         else:
             # the pair of the last step, from the positions and forces the atoms have now, and every
             # dot product the two-loop recursion needs, in one pass (g = -F changes every step)
             p = (k - 1) % m
-            outs = np.array(reduce_chunks(_lbfgs_pair_dots, n, (s, y, p, x_pc, f_pc, d), 6 * m + 3))
-            dots = np.sum(outs[:, :6 * m], axis=0).reshape(m, 6)
-            longest_s, longest_y, longest_g = np.sqrt(np.max(outs[:, 6 * m:], axis=0))  # NaN wins
-            self._s_max[p], self._y_max[p], g_max = longest_s, longest_y, float(longest_g)
+            dots = np.sum(reduce_chunks(_lbfgs_pair_dots, n, (s, y, p, x_pc, f_pc, d), 6 * m), axis=0).reshape(m, 6)
             ss, sy, yy = self._ss, self._sy, self._yy
             ss[p, :] = ss[:, p] = dots[:, 0]
             sy[p, :] = dots[:, 1]  # s_p . y_j
@@ -873,23 +801,14 @@ class SPHLBFGS(_SPHOptimizer):
                 b = rho[j] * (cs @ sy[:, j] + cy @ yy[j] + cg * gy[j])  # rho_i y_i . z
                 cs[j] += a[i] - b
         slot = k % m  # the oldest pair (its last use is in z) holds z, then the pending pair of this step
+        outs = reduce_chunks(_lbfgs_combine, n, (f_pc, s, y, slot, cs, cy, cg, d), 1)
+        longest = float(np.sqrt(_max(outs, 0)))  # ASE: the largest per-particle norm of the step
+        scaled = longest >= self.maxstep
+        factor = self.maxstep / longest if scaled else 1.0
         # the new positions into atoms.positions itself when the constraints allow (the old ones are -s[slot])
         in_place = self._moves_in_place(x_pc)
         new_pc = x_pc if in_place else self._scratch_like(f_pc)
-        if g_max is not None and self._unscaled(cg, cs, cy, g_max):
-            # no particle's |z| can reach maxstep: z, the move and the next pending pair in one pass
-            outs = reduce_chunks(_lbfgs_combine_finish, n, (x_pc, f_pc, s, y, slot, cs, cy, cg, self.damping, d,
-                                                            new_pc, in_place), 1)
-            longest, factor = float(np.sqrt(_max(outs, 0))), 1.0
-            if not longest < self.maxstep:
-                raise RuntimeError("SPHLBFGS: a step bounded below maxstep reached it")
-        else:
-            outs = reduce_chunks(_lbfgs_combine, n, (f_pc, s, y, slot, cs, cy, cg, d), 1)
-            longest = float(np.sqrt(_max(outs, 0)))  # ASE: the largest per-particle norm of the step
-            scaled = longest >= self.maxstep
-            factor = self.maxstep / longest if scaled else 1.0
-            run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d, new_pc,
-                                          in_place))
+        run_chunks(_lbfgs_finish, n, (x_pc, f_pc, s[slot], y[slot], factor, scaled, self.damping, d, new_pc, in_place))
         self.iteration += 1
         moved = longest * factor * self.damping
         if not in_place:
@@ -903,13 +822,6 @@ class SPHLBFGS(_SPHOptimizer):
             return rows
 
         self._constrain_moved(old_rows, moved)
-
-    def _unscaled(self, cg, cs, cy, g_max):
-        """Whether no particle's step |z_p| (z = cg g + sum_j cs_j s_j + cy_j y_j) can reach ``maxstep``, so that ASE's
-        scaling cannot apply: |z_p| <= |cg| max|g| + sum_j |cs_j| max|s_j| + |cy_j| max|y_j| (the largest lengths
-        of a particle's vectors, kept as each pair was completed), widened by a relative 1e-9 for the round-off."""
-        bound = abs(cg) * g_max + float(np.abs(cs) @ self._s_max + np.abs(cy) @ self._y_max)
-        return bound * (1.0 + 1e-9) < self.maxstep
 
     def todict(self):
         description = Optimizer.todict(self)
