@@ -1005,7 +1005,8 @@ class BinnedPoints:
         # most candidates of one point: for a normal one, the fullest bin times the bins of the own bin and the
         # stencil; a wide one can have them all
         span_k = self.stencil_kc[:, 3:] - self.stencil_kc[:, :3] + 1
-        self.max_candidates = int(np.diff(bin_start[:nbins + 1]).max()) * int(1 + np.prod(span_k, axis=1).sum())
+        self.fullest_bin = int(np.diff(bin_start[:nbins + 1]).max())  # the most points of one bin
+        self.max_candidates = self.fullest_bin * int(1 + np.prod(span_k, axis=1).sum())
         self.stencil = self.stencil_kc if self.n_normal == n_ext else (
             self.stencil_kc, self.n_normal, spread_c[-1] if spread_c else 2, float(binsize), reach_w, n_ext)
         # the lowest point a wide point's stencil can reach: the start of its lowest bin (the corner of its frame)
@@ -1380,8 +1381,7 @@ class NeighborList:
             raise ValueError("one_shot_scan: needs one-shot plain bins (update(..., store=False), no images)")
         pts = self.points
         room = int(pts.max_candidates)
-        fullest = int(np.diff(pts.bin_start).max()) if pts.bin_start.shape[0] > 1 else 1
-        cap = max(ONE_SHOT_REGION, 1 + fullest * room)  # at least the fullest bin's points and all their candidates
+        cap = max(ONE_SHOT_REGION, 1 + pts.fullest_bin * room)  # at least the fullest bin's points and their candidates
         count_s = np.empty(pts.n_extended + 1, dtype=np.int64)
         bounds = chunk_bounds(pts.n_extended, nthreads)
 
