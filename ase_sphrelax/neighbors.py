@@ -1383,22 +1383,16 @@ class NeighborList:
         room = int(pts.max_candidates)
         cap = max(ONE_SHOT_REGION, 1 + pts.fullest_bin * room)  # at least the fullest bin's points and their candidates
         count_s = np.empty(pts.n_extended + 1, dtype=np.int64)
-        bounds = chunk_bounds(pts.n_extended, nthreads)
 
-        def run(t):
+        def run(t, first, last):
             region = np.empty(cap, dtype=np.int32)
-            first, last = bounds[t]
             a, _ = scan(t, count_s, region, 0, first, last)
             while a < last:  # the region is full: on from ``a``, written over (pos 1: the thread's sums are kept)
                 before, (a, _) = a, scan(t, count_s, region, 1, a, last)
                 if a <= before:  # cannot happen: the region holds any bin's points and their candidates
                     raise RuntimeError("one_shot_scan: a call listed no point")
 
-        pool = thread_pool(nthreads) if nthreads > 1 else None
-        jobs = [pool.submit(run, t) for t in range(nthreads - 1)] if pool is not None else []
-        run(nthreads - 1)  # on the calling thread
-        for job in jobs:
-            job.result()
+        run_chunks(run, pts.n_extended, (), per_thread=[(t,) for t in range(nthreads)])
 
     @property
     def n_particles(self):
