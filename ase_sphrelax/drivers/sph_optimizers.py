@@ -156,19 +156,33 @@ def _lbfgs_finish(x_pc, f_pc, s_pc, y_pc, factor, scaled, damping, d, new_pc, in
 
 @numba.njit(**_NOGIL)
 def _fire_dots(v_pc, f_pc, d, out, first, last):
-    vf = 0.0
-    ff = 0.0
-    vv = 0.0
-    for p in range(first, last):
+    """``F . v``, ``F . F`` and ``v . v`` over ``[first, last)`` added to ``out[0:3]``: two partial sums each (even
+    and odd particles), so that the adds of consecutive particles do not wait on each other."""
+    vf0 = vf1 = ff0 = ff1 = vv0 = vv1 = 0.0
+    p = first
+    while p + 1 < last:
         for c in range(d):
             v = v_pc[p, c]
             f = f_pc[p, c]
-            vf += v * f
-            ff += f * f
-            vv += v * v
-    out[0] += vf
-    out[1] += ff
-    out[2] += vv
+            w = v_pc[p + 1, c]
+            g = f_pc[p + 1, c]
+            vf0 += v * f
+            ff0 += f * f
+            vv0 += v * v
+            vf1 += w * g
+            ff1 += g * g
+            vv1 += w * w
+        p += 2
+    if p < last:
+        for c in range(d):
+            v = v_pc[p, c]
+            f = f_pc[p, c]
+            vf0 += v * f
+            ff0 += f * f
+            vv0 += v * v
+    out[0] += vf0 + vf1
+    out[1] += ff0 + ff1
+    out[2] += vv0 + vv1
 
 
 @numba.njit(**_NOGIL)
@@ -195,37 +209,59 @@ def _fire_velocity_move(x_pc, v_pc, f_pc, new_pc, mode, a, sqrt_ff, sqrt_vv, dt,
     (without, ``new_pc`` is not written). ``out[0]``: the largest squared length of a particle's move so far (NaN
     wins)."""
     longest2 = out[0]
-    dr_c = np.empty(3)
     for p in range(first, last):
-        length2 = 0.0
-        for c in range(d):
-            f = f_pc[p, c]
-            if mode == 0:
-                v = 0.0
-            elif mode == 1:
-                v = (1.0 - a) * v_pc[p, c] + a * f / sqrt_ff * sqrt_vv
-            else:
-                v = v_pc[p, c] * 0.0
-            v = v + dt * f
-            v_pc[p, c] = v
-            dr = dt * v
-            if scaled:
-                dr = maxstep * dr / normdr
-            dr_c[c] = dr
-            length2 += dr * dr
+        # the d <= 3 components in scalars (not a small array): the pass then runs at memory speed
+        f0 = f_pc[p, 0]
+        f1 = f_pc[p, 1]
+        f2 = f_pc[p, 2] if d == 3 else 0.0
+        if mode == 0:
+            v0 = v1 = v2 = 0.0
+        elif mode == 1:
+            v0 = (1.0 - a) * v_pc[p, 0] + a * f0 / sqrt_ff * sqrt_vv
+            v1 = (1.0 - a) * v_pc[p, 1] + a * f1 / sqrt_ff * sqrt_vv
+            v2 = (1.0 - a) * v_pc[p, 2] + a * f2 / sqrt_ff * sqrt_vv if d == 3 else 0.0
+        else:
+            v0 = v_pc[p, 0] * 0.0
+            v1 = v_pc[p, 1] * 0.0
+            v2 = v_pc[p, 2] * 0.0 if d == 3 else 0.0
+        v0 = v0 + dt * f0
+        v1 = v1 + dt * f1
+        v_pc[p, 0] = v0
+        v_pc[p, 1] = v1
+        dr0 = dt * v0
+        dr1 = dt * v1
+        dr2 = 0.0
+        if d == 3:
+            v2 = v2 + dt * f2
+            v_pc[p, 2] = v2
+            dr2 = dt * v2
+        if scaled:
+            dr0 = maxstep * dr0 / normdr
+            dr1 = maxstep * dr1 / normdr
+            dr2 = maxstep * dr2 / normdr
+        length2 = dr0 * dr0 + dr1 * dr1
+        if d == 3:
+            length2 += dr2 * dr2
         shrink = cap / np.sqrt(length2) if cap > 0.0 and length2 > cap * cap else 1.0
-        for c in range(d):
-            x = x_pc[p, c]
-            moved = x + dr_c[c] * shrink  # times 1.0 (no cut): the move bit for bit
-            if in_place:
-                if keep_old:
-                    new_pc[p, c] = x
-                x_pc[p, c] = moved
-            else:
-                new_pc[p, c] = moved
-        if keep_old or not in_place:
-            for c in range(d, 3):
-                new_pc[p, c] = x_pc[p, c]
+        x0 = x_pc[p, 0]
+        x1 = x_pc[p, 1]
+        x2 = x_pc[p, 2]
+        m0 = x0 + dr0 * shrink  # times 1.0 (no cut): the move bit for bit
+        m1 = x1 + dr1 * shrink
+        m2 = x2 + dr2 * shrink if d == 3 else x2
+        if in_place:
+            if keep_old:
+                new_pc[p, 0] = x0
+                new_pc[p, 1] = x1
+                new_pc[p, 2] = x2
+            x_pc[p, 0] = m0
+            x_pc[p, 1] = m1
+            if d == 3:
+                x_pc[p, 2] = m2
+        else:
+            new_pc[p, 0] = m0
+            new_pc[p, 1] = m1
+            new_pc[p, 2] = m2
         move2 = length2 * shrink * shrink
         if not move2 <= longest2:
             longest2 = move2
