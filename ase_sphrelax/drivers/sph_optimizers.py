@@ -109,6 +109,7 @@ def _lbfgs_combine(f_pc, s_mpc, y_mpc, slot, cs, cy, cg, d, out, first, last):
     for b0 in range(first, last, _BLOCK):
         b1 = min(b0 + _BLOCK, last)
         e0 = b0 * d
+        ne = (b1 - b0) * d
         for p in range(b0, b1):
             for c in range(d):
                 z[p * d + c - e0] = cg * -f_pc[p, c]
@@ -117,14 +118,17 @@ def _lbfgs_combine(f_pc, s_mpc, y_mpc, slot, cs, cy, cg, d, out, first, last):
             b = cy[j]
             if a == 0.0 and b == 0.0:
                 continue
-            for e in range(e0, b1 * d):
-                z[e - e0] += a * sf[j, e] + b * yf[j, e]
-        for e in range(e0, b1 * d):
-            sf[slot, e] = z[e - e0]
-        for p in range(b0, b1):
+            s_j = sf[j, e0:e0 + ne]  # the block's slices, indexed from 0: the loop then vectorises
+            y_j = yf[j, e0:e0 + ne]
+            for k in range(ne):
+                z[k] += a * s_j[k] + b * y_j[k]
+        s_slot = sf[slot, e0:e0 + ne]
+        for k in range(ne):
+            s_slot[k] = z[k]
+        for k in range(0, ne, d):
             z2 = 0.0
             for c in range(d):
-                z2 += z[p * d + c - e0] * z[p * d + c - e0]
+                z2 += z[k + c] * z[k + c]
             if not z2 <= best:
                 best = z2
     out[0] = best
