@@ -52,7 +52,9 @@ def _max_norm2(f_pc, d, out, first, last):
     out[0] = best
 
 
-_BLOCK = 256  # particles per block: the block's s, y, g stay in cache while every stored pair streams by
+# particles per block: the block's s, y, g (3 x 96 KB in 3D) stay in cache while every stored pair streams by in runs
+# long enough for the prefetcher (the pair pass at 1e6 in 3D: 24-25 ms against 29 ms with blocks of 256)
+_BLOCK = 4096
 
 
 @numba.njit(**_NOGIL)
