@@ -10,8 +10,7 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
 
     Markers below :data:`PIXEL_MARKER` pixels across (about 3e5 particles and more in 2D) give way to an image of
     the mean value of the particles in each pixel. 2D: all particles, with the domain boundary (``phi = 0``
-    contour). 3D: the
-    slab ``|z - z_mid| < slice_width / 2`` (default ``dx``). The colour range spans
+    contour). 3D: the slab ``|z - z_mid| < slice_width / 2`` (default ``dx``). The colour range spans
     the 1st to 99th percentile of ``value_p[range_mask]`` (e.g. interior particles,
     so that the boundary layer does not hide the interior variation).
     """
@@ -76,8 +75,7 @@ def _pixel_means(ax, r_pc, value_p, lo, hi, pixels, vmin, vmax):
     flat = cell_pc[:, 1] * pixels + cell_pc[:, 0]
     count = np.bincount(flat, minlength=pixels * pixels)
     total = np.bincount(flat, weights=value_p, minlength=pixels * pixels)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(pixels, pixels)
+    mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(pixels, pixels)  # no 0 / 0
     return ax.imshow(np.ma.masked_invalid(mean), origin="lower", extent=(lo[0], hi[0], lo[1], hi[1]),
                      cmap="viridis", vmin=vmin, vmax=vmax, interpolation="nearest")
 
