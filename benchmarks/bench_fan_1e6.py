@@ -54,9 +54,9 @@ from pathlib import Path
 import numpy as np
 
 try:
-    from _provenance import git_version, write_json
+    from _provenance import git_version, machine, same_machine, write_json
 except ImportError:
-    from benchmarks._provenance import git_version, write_json
+    from benchmarks._provenance import git_version, machine, same_machine, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "results" / "bench_fan_1e6.json"
@@ -146,7 +146,8 @@ def run_ours(dim, n, target, check_every, max_steps, **optimizer_kwargs):
             break
     wall = time.perf_counter() - t0
     final = score(atoms, domain, dx)
-    return dict(n=len(atoms), dx=dx, wall_time=wall, fill_time=t_fill, steps=int(opt.nsteps), reached=reached,
+    return dict(n=len(atoms), dx=dx, machine=machine(), wall_time=wall, fill_time=t_fill, steps=int(opt.nsteps),
+                reached=reached,
                 final_measure=final, final_below_target=bool(final <= target), trace=trace,
                 list_builds=int(atoms.calc.nlist.builds))
 
@@ -180,8 +181,21 @@ def run_lammps(dim, n, steps, threads):
     t0 = time.perf_counter()
     relaxed = lammps_io.run(atoms, RATIO * dx, dx, domain=domain, steps=steps, style="table", nthreads=threads)
     wall = time.perf_counter() - t0
-    return dict(steps=steps, wall_time=wall, iterations=int(relaxed.info["lammps"]["iterations"]),
+    return dict(steps=steps, machine=machine(), wall_time=wall, iterations=int(relaxed.info["lammps"]["iterations"]),
                 final_measure=score(relaxed, domain, dx))
+
+
+def stored_lammps(rec, here):
+    """Which LAMMPS time stored in a scene's record ``rec`` a timed run on the machine ``here``
+    (:func:`_provenance.machine`) may divide by: ``"estimate"`` (3D: the rate run's), ``"run"`` (the timed run of
+    S* steps) or None, when the one stored was taken on another machine or on one not recorded (a ratio across
+    machines would compare the machines). LAMMPS's step counts hold on any machine; only its times are checked."""
+    estimate, run = rec.get("lammps_estimate") or {}, rec.get("lammps") or {}
+    if estimate.get("wall_time") and same_machine(estimate.get("rate_run", {}).get("machine"), here):
+        return "estimate"
+    if run.get("wall_time") and same_machine(run.get("machine"), here):
+        return "run"
+    return None
 
 
 def load(path):
@@ -246,7 +260,8 @@ def main(argv=None):
                              "its time per step from a timed run of --lammps-rate-steps here (an estimate)")
     parser.add_argument("--lammps-rate-steps", type=int, default=50, help="the estimate's timed steps (default 50)")
     parser.add_argument("--reuse-lammps", action="store_true",
-                        help="timed phase: keep LAMMPS's timed run or estimate stored in --out (time ours only)")
+                        help="timed phase: keep LAMMPS's step count stored in --out, and its time when it was "
+                             "taken on this machine (else LAMMPS is timed again here)")
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--figure", action="store_true", help="draw the figure from --out and stop")
     args = parser.parse_args(argv)
@@ -279,14 +294,23 @@ def main(argv=None):
                   flush=True)
             traj = rec.get("lammps_trajectory")
             rec["goals"] = {"ours <= 30 s": bool(ours["reached"] and ours["wall_time"] <= 30.0)}
-            if args.lammps_estimate_from is not None:
+            kept = stored_lammps(rec, ours["machine"]) if args.reuse_lammps else None
+            stored_estimate = rec.get("lammps_estimate") or {}
+            steps_from = args.lammps_estimate_from
+            if steps_from is None and args.reuse_lammps and kept is None and stored_estimate.get("steps_from"):
+                # LAMMPS's step count does not depend on the machine, its time per step does: timed again here
+                steps_from = Path(stored_estimate["steps_from"])
+                print(f"{key}: the stored LAMMPS rate was timed on another machine (or one not recorded): "
+                      f"timing it here", flush=True)
+            if steps_from is not None:
                 # LAMMPS's steps to the target from a smaller system's trajectory, its time per step
                 # measured here over --lammps-rate-steps: an estimate, stored as such
-                small = load(args.lammps_estimate_from)["scenes"][key]["lammps_trajectory"]
+                steps_path = steps_from if steps_from.is_absolute() else ROOT / steps_from
+                small = load(steps_path)["scenes"][key]["lammps_trajectory"]
                 rate = run_lammps(dim, args.n, args.lammps_rate_steps, args.threads)
                 rate["per_step"] = rate["wall_time"] / args.lammps_rate_steps
                 star = small["first_step_at_target"]
-                estimate = dict(rate_run=rate, steps_from=str(args.lammps_estimate_from), steps_from_n=small["n"],
+                estimate = dict(rate_run=rate, steps_from=str(steps_from), steps_from_n=small["n"],
                                 first_step_at_target=star,
                                 wall_time=None if star is None else rate["per_step"] * star)
                 rec["lammps_estimate"] = estimate
@@ -295,32 +319,40 @@ def main(argv=None):
                     print(f"{key}: LAMMPS {rate['per_step']:.2f} s per step at N = {ours['n']}, {star} steps at "
                           f"N = {small['n']}: about {estimate['wall_time']:.0f} s; ours / LAMMPS about "
                           f"{rec['ratio_ours_over_lammps_estimate']:.2f}")
-            elif args.reuse_lammps and rec.get("lammps_estimate", {}).get("wall_time"):
-                # our code changed, LAMMPS did not: keep its stored estimate (rate run and step count)
-                rec["ratio_ours_over_lammps_estimate"] = ours["wall_time"] / rec["lammps_estimate"]["wall_time"]
-                print(f"{key}: LAMMPS's stored estimate {rec['lammps_estimate']['wall_time']:.0f} s; ours / LAMMPS "
+            elif kept == "estimate":
+                # our code changed, LAMMPS did not, the machine is the same: keep its stored estimate
+                rec["ratio_ours_over_lammps_estimate"] = ours["wall_time"] / stored_estimate["wall_time"]
+                print(f"{key}: LAMMPS's stored estimate {stored_estimate['wall_time']:.0f} s; ours / LAMMPS "
                       f"about {rec['ratio_ours_over_lammps_estimate']:.2f}")
-            elif args.reuse_lammps and "lammps" in rec:
-                # our code changed, LAMMPS did not: keep its timed run (its own version and load are in runs)
-                ratio = ours["wall_time"] / rec["lammps"]["wall_time"]
-                rec["ratio_ours_over_lammps" if rec["lammps"]["reached"] else "ratio_ours_over_lammps_at_most"] = ratio
+            elif kept == "run":
+                # our code changed, LAMMPS did not, the machine is the same: keep its timed run
+                stored_run = rec["lammps"]
+                ratio = ours["wall_time"] / stored_run["wall_time"]
+                rec["ratio_ours_over_lammps" if stored_run["reached"] else "ratio_ours_over_lammps_at_most"] = ratio
                 rec["goals"]["ours / LAMMPS <= 0.5"] = bool(ours["reached"] and ratio <= 0.5)
-                print(f"{key}: LAMMPS's stored run {rec['lammps']['wall_time']:.1f} s; ours / LAMMPS {ratio:.2f}")
+                print(f"{key}: LAMMPS's stored run {stored_run['wall_time']:.1f} s; ours / LAMMPS {ratio:.2f}")
             elif traj is not None:
                 # LAMMPS at the target: the timed run stops at S*; never there: its whole trajectory's
-                # length, and the ratio is an upper bound (LAMMPS would need longer)
+                # length, and the ratio is an upper bound (LAMMPS would need longer). With --reuse-lammps
+                # this is the stored run timed again here: it was timed on another machine (or one not recorded)
                 star = traj["first_step_at_target"]
                 rec["lammps"] = run_lammps(dim, args.n, traj["steps"] if star is None else star, args.threads)
                 rec["lammps"]["reached"] = star is not None
                 ratio = ours["wall_time"] / rec["lammps"]["wall_time"]
+                rec.pop("ratio_ours_over_lammps_at_most" if star is not None else "ratio_ours_over_lammps", None)
                 rec["ratio_ours_over_lammps" if star is not None else "ratio_ours_over_lammps_at_most"] = ratio
                 print(f"{key}: LAMMPS {rec['lammps']['wall_time']:.1f} s for {rec['lammps']['steps']} steps, final "
                       f"{rec['lammps']['final_measure']:.3e}; ours / LAMMPS {'' if star else '< '}{ratio:.2f}")
                 rec["goals"]["ours / LAMMPS <= 0.5"] = bool(ours["reached"] and ratio <= 0.5)
+            else:
+                # no LAMMPS number of this machine to divide by: no ratio (an older one would compare machines)
+                for stale in ("ratio_ours_over_lammps", "ratio_ours_over_lammps_at_most",
+                              "ratio_ours_over_lammps_estimate"):
+                    rec.pop(stale, None)
         load_end = os.getloadavg()
         print(f"{key}: load average {load_end[0]:.2f} at the end", flush=True)
         result["runs"].append(dict(phase=args.phase, scene=key, version=git_version(),
-                                   started=started,
+                                   started=started, machine=machine(),
                                    load_average_start=load_start, load_average_end=load_end,
                                    command="python benchmarks/bench_fan_1e6.py " + " ".join(argv or [])))
         write_json(args.out, result)

@@ -46,9 +46,9 @@ import time
 from pathlib import Path
 
 try:
-    from _provenance import git_version, write_json
+    from _provenance import git_version, machine, write_json
 except ImportError:
-    from benchmarks._provenance import git_version, write_json
+    from benchmarks._provenance import git_version, machine, write_json
 
 SETUP = r"""
 import json, os, resource, sys, time, warnings
@@ -247,7 +247,7 @@ def main(argv=None):
     parts = args.parts.split(",")
     run = dict(version=git_version(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                command="python benchmarks/bench_optimizers.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-               threads=args.threads, cpus=os.cpu_count(), load_average_start=os.getloadavg())
+               threads=args.threads, cpus=os.cpu_count(), load_average_start=os.getloadavg(), machine=machine())
     result = dict(timing=[], memory=[], convergence=[], runs={part: run for part in parts})
     sizes = [float(s) for s in args.sizes.split(",")]
     memory_sizes = [float(s) for s in args.memory_sizes.split(",")]

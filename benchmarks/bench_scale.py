@@ -53,9 +53,9 @@ from pathlib import Path
 import numpy as np
 
 try:
-    from _provenance import git_version, write_json
+    from _provenance import git_version, machine, write_json
 except ImportError:
-    from benchmarks._provenance import git_version, write_json
+    from benchmarks._provenance import git_version, machine, write_json
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -417,7 +417,7 @@ def main(argv=None):
             raise SystemExit(f"--methods: unknown method {m!r}; choose from {','.join(METHODS)}")
     load_start = os.getloadavg()
     print(f"load average {load_start}", flush=True)
-    result = dict(version=git_version(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    result = dict(version=git_version(), machine=machine(), started=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                   load_average_start=load_start, threads=1, steps_per_size=args.steps,
                   time="median over the steps after the first, one numba thread, fresh process per size",
                   memory="peak RSS (VmHWM) - RSS after the start was built, per particle, fresh process per size",

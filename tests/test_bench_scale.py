@@ -17,7 +17,7 @@ def test_quick_fan2d_writes_the_json(tmp_path):
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_scale.py"), "--quick", "--methods", "fan2d",
                     "--out", str(out)], env=env, check=True, capture_output=True, text=True, timeout=600)
     result = json.loads(out.read_text())
-    for key in ("load_average_start", "load_average_end", "goals", "sizes", "methods", "version"):
+    for key in ("load_average_start", "load_average_end", "goals", "sizes", "methods", "version", "machine"):
         assert key in result, key
     assert result["sizes"] == [1e3, 3e3, 1e4]
     assert list(result["methods"]) == ["fan2d"]
