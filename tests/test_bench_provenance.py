@@ -43,3 +43,13 @@ def test_a_stored_lammps_time_of_another_machine_is_not_divided_by():
     assert bench.stored_lammps({"lammps_estimate": rated_here}, here) == "estimate"
     rated_elsewhere = dict(estimate, rate_run=dict(estimate["rate_run"], machine=other))
     assert bench.stored_lammps({"lammps_estimate": rated_elsewhere, "lammps": dict(run, machine=here)}, here) == "run"
+
+
+def test_repeated_keeps_the_run_of_median_time_and_every_time():
+    times = iter([5.0, 3.0, 9.0, 4.0])
+    record = bench.repeated(lambda: dict(wall_time=next(times), steps=1), 3)
+    assert record["wall_time"] == 5.0 and record["wall_times"] == [5.0, 3.0, 9.0]
+    times = iter([5.0, 3.0])
+    assert bench.repeated(lambda: dict(wall_time=next(times)), 2)["wall_time"] == 3.0  # the lower median
+    with pytest.raises(ValueError, match="repeat"):
+        bench.repeated(dict, 0)
