@@ -253,6 +253,10 @@ def figure(result, path=FIGURE):
         ax.set_ylabel(r"interior mean $h\,|\sum_j V_j \nabla W_{ij}|$")
         ax.set_title(f"{key}: N = {(ours or traj or {}).get('n', 0):,}")
         ax.legend(fontsize=8)
+    machines = {f"{m['cpu']} ({m['compile_target']}, {m['vector']})" for m in
+                (result["scenes"][key].get("ours", {}).get("machine") for key in dims) if m}
+    if machines:  # the times hold on this machine only
+        fig.suptitle(f"timed on {', '.join(sorted(machines))}, {result.get('threads', 2)} threads", fontsize=9)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     save_figure(fig, path, dpi=90, colors=64)
