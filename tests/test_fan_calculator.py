@@ -10,14 +10,15 @@ from ase_sphrelax.boundary import gamma_and_gradient
 from ase_sphrelax.build import periodic_box
 from ase_sphrelax.domains import Box, Circle, Polygon, Sphere
 from ase_sphrelax.kernels import get_kernel
-from ase_sphrelax.models.fan import CORE_DISTANCE, CORE_STIFFNESS, WALL_WEIGHT
+from ase_sphrelax.models.fan import CORE_DISTANCE, CORE_STIFFNESS, WALL_OPENING, WALL_WEIGHT
 
 from conftest import random_periodic
 
 
 def brute_force_energy(atoms, h, v0, volume, dim, domain=None, boundary_term="level_set"):
     """Eq. 3.8 by an O(N^2) minimum-image double sum (cells larger than 2h); ``"gamma"``: the boundary
-    part ``2 v0 kappa (1 - gamma + W1(0) max(phi, 0) + core)`` with gamma from the unmerged segments/triangles."""
+    part ``2 v0 kappa (1 - gamma + W1(0) max(phi, 0) + core)`` with gamma from the unmerged segments/triangles of
+    the wall: a Polygon's opening at ``WALL_OPENING dp`` (FanModel.wall), another domain itself."""
     kernel = get_kernel("wendland_c2", dim)
     r_pc = atoms.positions[:, :dim]
     d_ppc = r_pc[None] - r_pc[:, None]
@@ -27,8 +28,9 @@ def brute_force_energy(atoms, h, v0, volume, dim, domain=None, boundary_term="le
         d_ppc = d_ppc - np.where(pbc, lengths * np.round(d_ppc / np.where(pbc, lengths, 1.0)), 0.0)
     energy = v0 * v0 * kernel.w(np.linalg.norm(d_ppc, axis=2), h).sum() - volume
     if domain is not None and boundary_term == "gamma":
-        gamma_p = gamma_and_gradient(atoms.positions, domain, h)[0]
-        phi_p = domain.phi(atoms.positions)
+        wall = domain.opening(WALL_OPENING * v0 ** (1 / dim)) if isinstance(domain, Polygon) else domain
+        gamma_p = gamma_and_gradient(atoms.positions, wall, h)[0]
+        phi_p = wall.phi(atoms.positions)
         d0 = CORE_DISTANCE * v0 ** (1 / dim)
         core_p = CORE_STIFFNESS / (2 * d0 * h) * np.maximum(d0 + phi_p, 0.0) ** 2
         energy += 2 * v0 * WALL_WEIGHT * (1.0 - gamma_p + np.maximum(phi_p, 0.0) * kernel.w1(0.0, h) + core_p).sum()

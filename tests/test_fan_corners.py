@@ -12,7 +12,7 @@ from ase_sphrelax.boundary import gamma_and_gradient
 from ase_sphrelax.build import fill
 from ase_sphrelax.domains import Box, Circle, Polygon, Sphere
 from ase_sphrelax.drivers.fan_relaxation import FanRelaxation
-from ase_sphrelax.models.fan import CORE_DISTANCE, CORE_STIFFNESS, WALL_WEIGHT, FanModel
+from ase_sphrelax.models.fan import CORE_DISTANCE, CORE_STIFFNESS, WALL_OPENING, WALL_WEIGHT, FanModel
 
 CHEVRON_LOOP = [(0.0, 0.0), (1.0, 0.5), (0.0, 1.0), (0.35, 0.5)]
 CHEVRON = Polygon([CHEVRON_LOOP])  # 28 and 53 degree tips, a concave corner
@@ -28,12 +28,12 @@ def _vertices(domain):
 
 
 def _wall_gap(domain, r):
-    """Difference of the two smallest distances to the walls (segments, or the cube's faces)."""
+    """Difference of the two smallest distances to the walls (segments of the domain's loops, or the cube's faces)."""
     if domain.dim == 3:
         d = np.sort(np.concatenate([r, 1.0 - r]))
     else:
-        a = np.asarray(CHEVRON_LOOP)
-        b = np.roll(a, -1, axis=0)
+        a = np.concatenate(domain.loops)
+        b = np.concatenate([np.roll(loop, -1, axis=0) for loop in domain.loops])
         t = np.clip(np.einsum("wc,wc->w", r[:2] - a, b - a) / np.einsum("wc,wc->w", b - a, b - a), 0.0, 1.0)
         d = np.sort(np.linalg.norm(r[:2] - (a + t[:, None] * (b - a)), axis=1))
     return d[1] - d[0]
@@ -52,8 +52,8 @@ def _numeric_forces(model, r_pc, v0, eps):
 @given(domain=st.sampled_from([CHEVRON, CUBE]), vertex=st.integers(0, 7),
        log_distance=st.floats(-6.0, 0.1), direction=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3))
 def test_gamma_force_is_minus_the_gradient_near_vertices(domain, vertex, log_distance, direction):
-    """The default term's force is -grad of its energy at points inside, down to 1e-6 h from a vertex
-    (tips, the concave corner, cube vertices and edges)."""
+    """The term's force is -grad of its energy at points inside, down to 1e-6 h from a vertex (tips, the concave
+    corner, cube vertices and edges), on the polygon itself (``wall_opening`` 0: its sharp vertices are the wall's)."""
     dim = domain.dim
     corners = _vertices(domain)
     u = np.zeros(3)
@@ -66,6 +66,7 @@ def test_gamma_force_is_minus_the_gradient_near_vertices(domain, vertex, log_dis
     if not distance > 1e-7 * H:
         return  # outside: the outside slope's kinks (phi = 0, exterior medial axes) are tested elsewhere
     model = FanModel(H, 0.05, domain, dim)
+    model.wall_opening = 0.0
     assert model.boundary_term == "gamma"
     r_pc = r[None]
     e_p, f_pc = model.boundary(r_pc, 0.05**dim)
@@ -80,6 +81,44 @@ def test_gamma_force_is_minus_the_gradient_near_vertices(domain, vertex, log_dis
     core = CORE_STIFFNESS / (2 * d0 * H) * max(d0 - distance, 0.0) ** 2
     expected = 2 * 0.05**dim * WALL_WEIGHT * (1 - gamma_and_gradient(r_pc, domain, H)[0][0] + core)
     assert e_p[0] == pytest.approx(expected, abs=1e-13)
+
+
+@FAST
+@given(vertex=st.integers(0, 3), log_distance=st.floats(-6.0, 0.1),
+       direction=st.lists(st.floats(-1.0, 1.0), min_size=2, max_size=2), along=st.floats(0.0, 1.0))
+def test_default_wall_force_is_minus_the_gradient_near_the_opening(vertex, log_distance, direction, along):
+    """With the default wall (the chevron's opening at WALL_OPENING dp, FanModel.wall) the force is -grad of the
+    energy near the chevron's tips and concave corner and near the vertices of the opening's arcs, and the energy
+    is the continuum's of that wall (gamma from the unmerged segments of Polygon.opening) plus the core."""
+    dp = 0.05
+    model = FanModel(H, dp, CHEVRON, 2)
+    wall = model.wall(dp**2)[1]
+    radius = WALL_OPENING * dp
+    assert wall.volume < CHEVRON.volume and len(np.concatenate(wall.loops)) > len(CHEVRON_LOOP)
+    arcs = np.concatenate(wall.loops)
+    centres = np.concatenate([np.asarray(CHEVRON_LOOP, float), arcs])
+    u = np.asarray(direction, float)
+    if np.linalg.norm(u) < 1e-3:
+        u = np.array([1.0, 0.0])
+    base = centres[int(along * (len(centres) - 1))] if vertex == 3 else centres[vertex]
+    r = np.zeros(3)
+    r[:2] = base + H * 10.0**log_distance * u / np.linalg.norm(u)
+    distance = -float(wall.phi(r[None])[0])
+    if not distance > 1e-7 * H:
+        return  # outside the wall: the outside slope's kinks are tested elsewhere
+    r_pc = r[None]
+    e_p, f_pc = model.boundary(r_pc, dp**2)
+    eps = min(1e-7 * H, 0.1 * distance)
+    d0 = CORE_DISTANCE * dp
+    if distance < d0 and _wall_gap(wall, r) < 10 * eps:
+        return  # the contact core's kink on a convex vertex's bisector within d0
+    numeric = _numeric_forces(model, r_pc, dp**2, eps)
+    scale = 2 * dp**2 * WALL_WEIGHT / H
+    np.testing.assert_allclose(f_pc, numeric, atol=2e-6 * scale)
+    core = CORE_STIFFNESS / (2 * d0 * H) * max(d0 - distance, 0.0) ** 2
+    expected = 2 * dp**2 * WALL_WEIGHT * (1 - gamma_and_gradient(r_pc, wall, H)[0][0] + core)
+    assert e_p[0] == pytest.approx(expected, abs=1e-13)
+    assert radius > 0
 
 
 @FAST

@@ -344,6 +344,48 @@ class Polygon(SearchedDomain):
             geom = geom.union(p) if signed_area(v) > 0 else geom.difference(p)
         return geom
 
+    def opening(self, radius, quad_segs=8):
+        """The domain's morphological opening at ``radius``: the union of the discs of that radius that lie inside it.
+
+        Every point at least ``radius`` from the wall is inside the opening, with the disc around it. Convex corners
+        become arcs of that radius, and concave corners and straight walls stay as they are. Parts narrower than
+        ``2 radius`` (the last stretch of a sharp tip, a thin sliver) are left out: no point there is ``radius``
+        from both walls. Computed by shapely (``buffer(-radius).buffer(radius)``), each quarter turn of an arc as
+        ``quad_segs`` segments, whose vertices lie on the arc (with 8, the chords cut it by at most 0.5 % of ``radius``).
+
+        Parameters
+        ----------
+        radius : float
+            > 0, in the domain's length unit.
+        quad_segs : int
+            Segments per quarter circle of the arcs (shapely's ``quad_segs``), at least 1.
+
+        Returns
+        -------
+        Polygon
+            The opening, its loops ordered as shapely gives them (parts that a narrow neck separates stay apart).
+
+        Raises
+        ------
+        ValueError
+            When nothing is left: the domain is nowhere ``2 radius`` wide.
+        """
+        import shapely
+
+        radius = check_positive("radius", radius)
+        if int(quad_segs) != quad_segs or quad_segs < 1:
+            raise ValueError(f"quad_segs must be an integer >= 1, got {quad_segs!r}")
+        opened = self.to_shapely().buffer(-radius, quad_segs=int(quad_segs)).buffer(radius, quad_segs=int(quad_segs))
+        parts = [g for g in getattr(opened, "geoms", [opened]) if not g.is_empty and g.area > 0.0]
+        if not parts:
+            raise ValueError(f"radius: the domain is nowhere 2 * {radius:g} wide, its opening at that radius is "
+                             f"empty")
+        loops = []
+        for part in parts:
+            loops.append(np.asarray(part.exterior.coords)[:-1])
+            loops += [np.asarray(ring.coords)[:-1] for ring in part.interiors]
+        return Polygon(loops)
+
     def __repr__(self):
         return (f"Polygon({len(self.loops)} loops, {self.n_segments} segments, "
                 f"area={self._area:.6g}"
