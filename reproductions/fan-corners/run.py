@@ -6,8 +6,10 @@ Issue 33 item 3. Routes (all with exact forces -dE/dx, Eq. 2.4 steps, c = 0.01, 
 * ``gamma_continuum``: route (a), the wall as a continuum, ``2 vt (1 - gamma)`` with BIPI's exact
   ``gamma`` of the boundary elements, without the contact core (``FanModel.core_stiffness = 0``).
 * ``gamma_k11``: the same continuum 10 % stiffer (``wall_weight = 1.1``), no core.
-* ``gamma``: route (a) as the package's new default: the continuum plus the contact core
-  ``B max(d0 + phi, 0)^2 / (2 d0 h)``, ``d0 = 0.4 dx``, ``B = 2`` (``ase_sphrelax.models.fan``).
+* ``gamma``: route (a) as the package's default: the continuum plus the contact core
+  ``B max(d0 + phi, 0)^2 / (2 d0 h)``, ``d0 = 0.4 dx``, ``B = 2`` (``ase_sphrelax.models.fan``); on the chevron (a
+  Polygon) the wall is its opening at 0.35 dx (``FanModel.wall``; the ``gamma_*`` routes too), the box and cube
+  keep their own (``reproductions/fan-thin-features``).
 * ``per_wall``: route (b), a corner-aware level-set term: Fan's ``I`` summed over the walls,
   each with the distance to its own segment (2D) or face (3D), so no gradient jumps at corners.
 * ``smoothed``: route (c), Fan's ``I`` of a smoothed distance, the soft minimum
@@ -90,7 +92,12 @@ class WallModel(FanModel):
     route = "per_wall"
     eps = None
 
-    def boundary(self, r_pc, v0, want_forces=True, nlist=None):
+    def boundary(self, r_pc, v0, want_forces=True, nlist=None, out=None, candidates=None, phi_out=None):
+        """The route's term and force on every particle; with ``out`` (the calculator's arrays, the energies None
+        for forces alone) added to them in place, and ``phi_out`` given the level set of the ``candidates``, as
+        :meth:`FanModel.boundary`."""
+        if phi_out is not None:
+            phi_out[:] = self._phi(np.asarray(r_pc, float)[candidates])
         d_pw, g_pwc = wall_distances(self.domain, np.asarray(r_pc, float))
         k = self.kernel
         if self.route == "per_wall":
@@ -103,6 +110,13 @@ class WallModel(FanModel):
             grad_pc = np.einsum("pw,pwc->pc", w_pw / w_pw.sum(axis=1)[:, None], g_pwc)
             e_p = 2.0 * v0 * k.w1_tail_integral(s_p, self.h)
             f_pc = 2.0 * v0 * k.w1(np.clip(s_p, 0.0, self.h), self.h)[:, None] * grad_pc
+        if out is not None:
+            e_out, f_out = out
+            if e_out is not None:
+                e_out += e_p
+            if want_forces:
+                f_out += f_pc
+            return e_out, (f_out if want_forces else None)
         return e_p, (f_pc if want_forces else None)
 
 
