@@ -100,3 +100,18 @@ def test_fan_wall_is_the_opening_on_a_polygon_only():
     assert model.wall(dx**2)[1] is chevron
     box = FanModel(2.6 * dx, dx, Box((0.0, 0.0), (0.4, 0.3)), 2)
     assert box.boundary_term == "gamma" and box.wall(dx**2)[1] is box.domain
+
+
+def test_fan_on_a_polygon_thinner_than_its_opening_says_what_to_change():
+    from ase import Atoms
+
+    from ase_sphrelax import FanCalculator
+
+    dx = 0.02
+    strip = Polygon([[(0, 0), (1, 0), (1, 0.5 * dx), (0, 0.5 * dx)]])  # 0.5 dx wide: nowhere 0.7 dx
+    atoms = Atoms(numbers=[0, 0], positions=[(0.3, 0.2 * dx, 0), (0.31, 0.2 * dx, 0)], pbc=False)
+    atoms.calc = FanCalculator(h=2.6 * dx, dx=dx, domain=strip)
+    with pytest.raises(ValueError, match="domain: the polygon is nowhere .*wall_opening = 0"):
+        atoms.get_forces()
+    atoms.calc.model.wall_opening = 0.0
+    assert np.all(np.isfinite(atoms.get_forces()))

@@ -39,7 +39,10 @@ where the double sum includes ``i = j``. The model splits ``E`` into
       on the bisector of a convex corner, within ``d0 / sin(alpha / 2)`` of its vertex (a set of
       measure zero; there E is continuous and its one-sided gradients are the two walls').
 
-    :attr:`FanModel.wall_weight` (``kappa``, 1) scales the whole ``"gamma"`` term.
+    :attr:`FanModel.wall_weight` (``kappa``, 1) scales the whole ``"gamma"`` term. On a
+    :class:`~ase_sphrelax.domains.Polygon` the wall of the continuum and of the core is the polygon's opening at
+    ``WALL_OPENING dp`` (0.35; :meth:`FanModel.wall`): the parts narrower than ``0.7 dp``, where no particle can sit
+    0.35 dx from both walls, are left out, and convex corners become arcs of that radius.
 
   ``"auto"`` (the default) takes ``"gamma"`` when the domain has boundary elements (Polygon, Box,
   polygonal CSG, Mesh) and ``"level_set"`` for curved analytic domains (Circle, Sphere), whose
@@ -390,7 +393,12 @@ class FanModel:
         if self._wall_key != key:
             from ..boundary import BoundaryIntegrals, as_boundary
 
-            opened = opening(radius)
+            try:
+                opened = opening(radius)
+            except ValueError:
+                raise ValueError(f"domain: the polygon is nowhere {2 * radius:g} wide (2 * wall_opening * dp), so "
+                                 f"Fan's wall, its opening at {radius:g}, is empty; refine dx or set "
+                                 f"model.wall_opening = 0 for the polygon itself") from None
             self._wall_value = (BoundaryIntegrals(as_boundary(opened).merged(), self.h, self.kernel.name), opened)
             self._wall_key = key
         return self._wall_value
