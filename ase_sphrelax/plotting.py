@@ -30,9 +30,15 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
         r_pc, value_p = r_pc[keep], value_p[keep]
         title = f"{title} (slice z = {z_mid:.3g})"
     dpi = 150
-    fig, ax = plt.subplots(figsize=(6.4, 6.0), dpi=dpi)
     lo, hi = r_pc[:, :2].min(axis=0), r_pc[:, :2].max(axis=0)
     extent = float(max(hi - lo)) or 1.0
+    # the longer side of the particles' box spans 5 inches, the figure follows their aspect (an airfoil 8 times
+    # longer than thick had a 6-inch-tall figure, mostly white); a box less than half as tall as wide takes its
+    # colour bar below it
+    span_x, span_y = (max(float(s), 0.02 * extent) / extent * 5.0 for s in hi - lo)
+    wide = span_y < 0.5 * span_x
+    figsize = (max(span_x, 3.0) + 0.6, span_y + 1.9) if wide else (span_x + 1.6, max(span_y, 3.0) + 1.0)
+    fig, ax = plt.subplots(figsize=figsize, dpi=dpi)
     spacing = dx or extent / np.sqrt(len(r_pc))
     # marker diameter ~ 0.8 of the particle spacing, in points
     diameter = 0.8 * spacing / extent * 5.0 * 72
@@ -56,7 +62,8 @@ def plot_particles(atoms, value_p, path, domain=None, dx=None, title="", label="
         ax.contour(xx, yy, phi, levels=[0.0], colors="k", linewidths=0.6)
     ax.set_aspect("equal")
     ax.set_title(title, fontsize=9)
-    fig.colorbar(points, ax=ax, label=label, shrink=0.85, extend="both")
+    fig.colorbar(points, ax=ax, label=label, shrink=0.85, extend="both",
+                 **({"orientation": "horizontal", "fraction": 0.25, "aspect": 40} if wide else {}))
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -55,3 +55,22 @@ def test_a_dense_3d_slice_is_drawn_as_pixel_means(tmp_path, monkeypatch):
     monkeypatch.setattr(plotting, "_pixel_means", lambda *a: drawn.append(a) or means(*a))
     path = plotting.plot_particles(atoms, np.ones(len(atoms)), tmp_path / "s.png", domain=domain, dx=dx)
     assert path.exists() and len(drawn) == 1 and len(drawn[0][1]) == inside.sum()  # the slab's particles only
+
+
+def test_an_elongated_domain_gets_a_wide_figure_with_its_colour_bar_below(tmp_path):
+    """The figure follows the particles' aspect: a strip 8 times longer than tall is not drawn on a square page
+    (the airfoil's figure was mostly white), and a square domain keeps a square-ish page with its bar beside it."""
+    from ase_sphrelax.domains import Polygon
+
+    strip = Polygon([[(0.0, 0.0), (2.0, 0.0), (2.0, 0.25), (0.0, 0.25)]])
+    atoms = fill(strip, 0.02, jitter=0.1, seed=0)
+    path = plotting.plot_particles(atoms, atoms.positions[:, 0], tmp_path / "strip.png", domain=strip, dx=0.02)
+    with Image.open(path) as png:
+        width, height = png.size
+    assert height < 0.6 * width
+    circle = Circle((0.5, 0.5), 0.2)
+    atoms = fill(circle, 1 / 64, jitter=0.1, seed=0)
+    path = plotting.plot_particles(atoms, atoms.positions[:, 0], tmp_path / "circle.png", domain=circle, dx=1 / 64)
+    with Image.open(path) as png:
+        width, height = png.size
+    assert 0.8 * width < height < 1.2 * width
