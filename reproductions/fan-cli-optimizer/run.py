@@ -34,7 +34,9 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-CHEVRON = [(0.0, 0.0), (0.5, 0.25), (0.0, 0.5), (0.175, 0.25)]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from lib.fan_edge_scenes import edge_files  # noqa: E402
+
 OPTIMIZERS = ("fan", "fire")
 MEASURES = ("n_outside", "boundary_distance_min", "near_wall_kernel_sum_error_max", "gradient_error_mean",
             "gradient_error_max", "n_particles")
@@ -42,16 +44,9 @@ MEASURES = ("n_outside", "boundary_distance_min", "near_wall_kernel_sum_error_ma
 
 def scenes(work):
     """Name -> the ``sphrelax relax`` arguments of the scene."""
-    chevron = work / "chevron.edges"
-    chevron.write_text("".join(f"{a[0]} {a[1]} {b[0]} {b[1]}\n" for a, b in zip(CHEVRON, CHEVRON[1:] + CHEVRON[:1])))
     out = {"circle": ["--domain", "circle"], "box": ["--domain", "box"], "sphere": ["--domain", "sphere"],
-           "cube": ["--domain", "box", "--dim", "3"], "periodic": ["--domain", "periodic"],
-           "chevron": ["--domain", str(chevron)]}
-    for name in ("tank", "bunny", "airfoil"):
-        path = work / f"{name}.edges"
-        subprocess.run([sys.executable, "-m", "ase_sphrelax.cli", "data", f"{name}.edges", "--out", str(path)],
-                       check=True, capture_output=True)
-        out[name] = ["--domain", str(path)]
+           "cube": ["--domain", "box", "--dim", "3"], "periodic": ["--domain", "periodic"]}
+    out.update({name: ["--domain", str(path)] for name, path in edge_files(work).items()})
     return out
 
 

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
 import time
@@ -38,7 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-CHEVRON = [(0.0, 0.0), (0.5, 0.25), (0.0, 0.5), (0.175, 0.25)]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from lib.fan_edge_scenes import edge_files  # noqa: E402
+
 SCENES = ("airfoil", "chevron", "tank", "bunny")
 SEEDS = (0, 1, 2)
 RADII = (0.3, 0.35, 0.4, 0.5)
@@ -47,15 +48,8 @@ MEASURES = ("boundary_distance_min", "near_wall_kernel_sum_error_max", "n_outsid
 
 
 def scene_files(work):
-    """Name -> the edge file of the scene (the shipped files as ``sphrelax data`` writes them)."""
-    chevron = work / "chevron.edges"
-    chevron.write_text("".join(f"{a[0]} {a[1]} {b[0]} {b[1]}\n" for a, b in zip(CHEVRON, CHEVRON[1:] + CHEVRON[:1])))
-    out = {"chevron": chevron}
-    for name in ("airfoil", "tank", "bunny"):
-        path = work / f"{name}.edges"
-        subprocess.run([sys.executable, "-m", "ase_sphrelax.cli", "data", f"{name}.edges", "--out", str(path)],
-                       check=True, capture_output=True)
-        out[name] = path
+    """Name -> the edge file of the scene, in the order of ``SCENES``."""
+    out = edge_files(work)
     return {name: out[name] for name in SCENES}
 
 
