@@ -100,6 +100,7 @@ def warm_up(dim):
     atoms.calc = FanCalculator(h=RATIO * dx, dx=dx, domain=domain)
     make_optimizer("fire", atoms).run(steps=3, fmax=0)
     score(atoms, domain, dx)
+    interior_mean_norm(atoms.calc.results["forces"], domain.phi(atoms.positions), -RATIO * dx)  # the run's check
 
 
 def _norm_sum_chunk(f_pc, phi_p, below, out, first, last):
