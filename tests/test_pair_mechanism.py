@@ -348,7 +348,10 @@ def test_kernel_placeholders_need_a_kernel_and_constants_give_variants():
     results = [interaction.compute(nlist, atoms.positions, params=dict(inv_h=1.0, scale=1.0),
                                    kernel=get_kernel(name, 3))
                for interaction in (PAIR_POTENTIAL, PAIR_POTENTIAL_VIRIAL) for name in ("wendland_c2", "cubic_spline")]
-    np.testing.assert_array_equal(results[0].forces, results[2].forces)  # the virial flag changes nothing else
+    # the virial flag changes nothing else: the same forces to round-off (the two compiled loops may order the
+    # vectorised sums differently: on AVX-512 5 of 120 components differed in the last bit)
+    scale = np.abs(results[0].forces).max()
+    np.testing.assert_allclose(results[2].forces, results[0].forces, rtol=0, atol=1e-14 * scale)
     assert np.abs(results[0].forces - results[1].forces).max() > 1e-3  # each kernel its own loop
     assert "virial" in results[2] and "virial" not in results[0]
 
