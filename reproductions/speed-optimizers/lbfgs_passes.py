@@ -3,8 +3,7 @@ coordinates, alone, at several history lengths.
 
 The question, declared before the runs: with the force evaluation of Fan's 2D circle at 1e6 taking what the
 timing scan measured inside its runs (``results/lbfgs_memory_2d_1e6_m*.json``, ``times.sph_in_calculator``, the
-median over all their rounds), how
-much of a step do SPHLBFGS's own passes take, at each history length?
+median over all their rounds), how much of a step do SPHLBFGS's own passes take, at each history length?
 
 * the passes of :class:`ase_sphrelax.drivers.sph_optimizers.SPHLBFGS` (``_lbfgs_pair_dots``, ``_lbfgs_combine``,
   ``_lbfgs_finish``, on the package's threads) on random arrays of the scene's size (``dim * N`` coordinates,
@@ -96,8 +95,9 @@ def main(argv=None):
                          passes_gb_per_s={k: b / ms / 1e6 for k, (ms, b) in passes.items()},
                          passes_total_ms=total,
                          floor_ratio=1.0 + total / evaluation))
-        print(f"memory {memory} {dtype}: passes {total:.1f} ms ({', '.join(f'{k} {ms:.1f}' for k, (ms, _) in passes.items())}),"
-              f" evaluation {evaluation:.1f} ms: floor {1 + total / evaluation:.2f}")
+        parts = ", ".join(f"{k} {ms:.1f}" for k, (ms, _) in passes.items())
+        print(f"memory {memory} {dtype}: passes {total:.1f} ms ({parts}), evaluation {evaluation:.1f} ms: "
+              f"floor {1 + total / evaluation:.2f}")
     write_json(args.out, dict(rows=rows, threads=numba.get_num_threads(), machine=machine(),
                               version=git_version(), command="NUMBA_NUM_THREADS=2 python "
                               "reproductions/speed-optimizers/lbfgs_passes.py --out " + str(args.out)))
