@@ -14,6 +14,15 @@ the start (20 power iterations on central-difference Hessian-vector products) gi
     NUMBA_NUM_THREADS=2 python reproductions/speed-fan-1e6/momentum_scan_3d.py --sizes 1e4,1e5 --timed 1e6 \
         --out reproductions/speed-fan-1e6/results/momentum_scan_3d.json
 
+A second question, declared before its runs (``--cut 0.005``): with FIRE's cut of each particle's move in one step
+(``max_particle_step``, 0.005 h in 3D, which took FIRE from 46 list builds to 16 at 1e6), does heavy ball keep its
+fewer steps, and does it then build the list as seldom as FIRE? Each particle's move is cut to ``cut * h`` after the
+momentum is added; the momentum of the next step is the move made. FIRE's rows are ``make_optimizer("fire")``'s,
+which cuts at 0.005 h in 3D by default.
+
+    NUMBA_NUM_THREADS=2 python reproductions/speed-fan-1e6/momentum_scan_3d.py --sizes 1e5 --grid 20:0.85,22:0.85 \
+        --cut 0.005 --timed 1e6 --out reproductions/speed-fan-1e6/results/momentum_cut_3d.json
+
 The timed 1e6 run does its vector work in numpy (``update_time``, stored apart) and checks the measure every step
 from the step's forces, as the bench does; the FIRE run it is read against is the bench's own
 (``benchmarks/results/bench_fan_1e6.json``, 3D). Step and build counts do not depend on the load; the time does.
@@ -59,8 +68,9 @@ def dt0_squared(atoms, h):
     return 0.01 * h / float(np.sqrt((f_pc**2).sum(axis=1)).max())
 
 
-def heavy_ball(n, alpha_dt0, beta, max_steps=400):
-    """Steps and list builds to the target (steps None if not reached), and the time of the vector work."""
+def heavy_ball(n, alpha_dt0, beta, max_steps=400, cut_over_h=None):
+    """Steps and list builds to the target (steps None if not reached), and the time of the vector work;
+    ``cut_over_h``: each particle's move cut to this many h."""
     domain, dx, h, atoms = start(n)
     t0 = time.perf_counter()
     alpha = alpha_dt0 * dt0_squared(atoms, h)
@@ -77,6 +87,10 @@ def heavy_ball(n, alpha_dt0, beta, max_steps=400):
         d_pc += alpha * f_pc
         if np.vdot(f_pc, d_pc) < 0:  # the move points against the forces: drop the momentum
             np.multiply(f_pc, alpha, out=d_pc)
+        if cut_over_h is not None:
+            length_p = np.sqrt((d_pc * d_pc).sum(axis=1))
+            far = length_p > cut_over_h * h
+            d_pc[far] *= (cut_over_h * h / length_p[far])[:, None]
         prev_pc, x_pc = x_pc, prev_pc
         np.add(prev_pc, d_pc, out=x_pc)
         atoms.positions[:] = x_pc
@@ -127,30 +141,34 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", default="1e4,1e5")
     parser.add_argument("--timed", type=float, default=None, help="one heavy-ball run at this size, timed")
+    parser.add_argument("--grid", default=None, help="alpha:beta pairs, comma separated (default: the scan's grid)")
+    parser.add_argument("--cut", type=float, default=None, help="each particle's move cut to this many h")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
     import numba
 
     import bench_fan_1e6 as bf
 
+    grid = GRID if args.grid is None else [tuple(float(v) for v in pair.split(":")) for pair in args.grid.split(",")]
     rows = []
     for n in [float(s) for s in args.sizes.split(",")]:
         lam = largest_eigenvalue(n)
         row = dict(n=n, lambda_dt0=lam, fire=fire(n), heavy_ball=[])
-        for alpha, beta in GRID:
-            run = heavy_ball(n, alpha, beta)
-            run.update(alpha_dt0=alpha, beta=beta, edge_dt0=2.0 * (1.0 + beta) / lam)
+        for alpha, beta in grid:
+            run = heavy_ball(n, alpha, beta, cut_over_h=args.cut)
+            run.update(alpha_dt0=alpha, beta=beta, edge_dt0=2.0 * (1.0 + beta) / lam, cut_over_h=args.cut)
             run.pop("wall_time", None), run.pop("update_time", None)  # not timed at these sizes
             row["heavy_ball"].append(run)
             print(json.dumps(dict(n=n, **run)), flush=True)
         print(json.dumps(dict(n=n, fire=row["fire"], lambda_dt0=lam)), flush=True)
         rows.append(row)
-    record = dict(target=TARGET, threads=numba.get_num_threads(), rows=rows)
+    record = dict(target=TARGET, threads=numba.get_num_threads(), rows=rows, cut_over_h=args.cut)
     if args.timed:
         bf.warm_up(3)
         record["load_average_before_timed"] = list(os.getloadavg())
-        timed = heavy_ball(args.timed, 20.0, 0.85)
-        timed.update(n=args.timed, alpha_dt0=20.0, beta=0.85)
+        alpha, beta = grid[0] if args.grid else (20.0, 0.85)
+        timed = heavy_ball(args.timed, alpha, beta, cut_over_h=args.cut)
+        timed.update(n=args.timed, alpha_dt0=alpha, beta=beta, cut_over_h=args.cut)
         record["timed"] = timed
         print(json.dumps(dict(timed=timed)), flush=True)
     record["version"] = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True,
