@@ -370,8 +370,6 @@ class Polygon(SearchedDomain):
         ValueError
             When nothing is left: the domain is nowhere ``2 radius`` wide.
         """
-        import shapely
-
         radius = check_positive("radius", radius)
         if int(quad_segs) != quad_segs or quad_segs < 1:
             raise ValueError(f"quad_segs must be an integer >= 1, got {quad_segs!r}")
